@@ -1,0 +1,49 @@
+// threshing_sim core: linear complementarity solvers for planar frictional contact.
+#pragma once
+
+#include <vector>
+
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+
+// Scratch memory for the solvers; reused across calls so that no heap allocation happens once
+// it has grown to the largest problem size seen.
+struct LcpWorkspace {
+  MatX tableau;
+  VecX v1, v2, v3;
+  std::vector<int> basis, ivec;
+  MatX M;
+  VecX q, z, w;
+};
+
+// Lemke's complementary pivoting: finds z with w = M z + q, w >= 0, z >= 0, w.z = 0.
+// Returns false on ray termination or when max_pivots is exceeded (z is then unspecified).
+// Pivots in the number of pivots performed (may be null).
+bool solveLcpLemke(const MatX& M, const VecX& q, VecX* z, LcpWorkspace* ws, int max_pivots = 0,
+                   int* pivots = nullptr);
+
+// One contact of a planar frictional contact problem.
+struct ContactRow {
+  bool normal_unknown = true;  // true: 0 <= lambda_N  _|_  y_N >= 0;  false: lambda_N is fixed
+  double lambda_n_fixed = 0;   // the fixed normal value when !normal_unknown (>= 0)
+  double mu = 0;               // Coulomb coefficient (0 = frictionless)
+  int slip_sign = 0;           // 0: friction complementary (stick or slip chosen by the solution);
+                               // +1/-1: the contact slides with y_T of that sign and
+                               // lambda_T = -slip_sign mu lambda_N is imposed
+};
+
+// Solves for lambda (size 2k, ordered [N_0, T_0, N_1, T_1, ...]) such that y = G lambda + b
+// satisfies, for each contact i:
+//   normal:   if normal_unknown: 0 <= lambda_N _|_ y_N >= 0; else lambda_N = lambda_n_fixed
+//   friction: if slip_sign == 0: |lambda_T| <= mu lambda_N, and lambda_T y_T <= 0 with
+//             y_T = 0 whenever |lambda_T| < mu lambda_N (stick), |lambda_T| = mu lambda_N
+//             otherwise (slip against y_T); if slip_sign != 0: lambda_T = -slip_sign mu lambda_N.
+// G is the 2k x 2k Delassus matrix W^T M^-1 W (symmetric positive semi-definite), b the free
+// values (velocities or accelerations, with any restitution target added to the normal rows).
+// Solved exactly as one LCP (Anitescu-Potra split of the friction cone) by Lemke's method.
+// Returns false if Lemke fails (ray termination, e.g. the Painleve case at acceleration level).
+bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<ContactRow>& rows,
+                         VecX* lambda, VecX* y, LcpWorkspace* ws);
+
+}  // namespace threshing_sim

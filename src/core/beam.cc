@@ -1,0 +1,292 @@
+// threshing_sim core: assumed-mode model of a clamped-free Euler-Bernoulli tooth on a drum.
+//
+// Mode shapes are evaluated in the cancellation-free form
+//   cosh z - sigma sinh z = ((1 - sigma) e^z + (1 + sigma) e^-z) / 2,
+// where (1 - sigma) ~ e^-(beta L) is computed directly, so every term stays O(1) for all modes.
+
+// GCC 12 at -O2 reports a false -Wmaybe-uninitialized inside Eigen 3.4's tridiagonalisation
+// (SelfAdjointEigenSolver) unless Eigen is a system include, as it is in the CMake build; the
+// guard keeps plain -I builds with -Werror clean as well.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+#include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kMaxModes = 12;
+
+// 8-point Gauss-Legendre rule on [-1, 1] (exact for polynomials of degree 15).
+constexpr int kGaussPoints = 8;
+constexpr std::array<double, kGaussPoints> kGaussNode = {
+    -0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
+    -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
+    0.79666647741362673959,  0.96028985649753623168};
+constexpr std::array<double, kGaussPoints> kGaussWeight = {
+    0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734, 0.36268378337836198297,
+    0.36268378337836198297, 0.31370664587788728734, 0.22238103445337447054, 0.10122853629037625915};
+
+// Sub-intervals per tooth length: with beta_12 L ~ 36, the fastest integrand (phi_12'^2) turns
+// by ~2.3 rad per sub-interval, where the 8-point rule is accurate to ~1e-14.
+constexpr int kSubintervalsPerLength = 32;
+
+// Calls add(x, weight) at the nodes of a composite Gauss-Legendre rule on [a, b]; the number of
+// sub-intervals is proportional to (b - a) / length_m so any sub-range is integrated as finely
+// as the whole tooth (the 1e-9 keeps a rounding excess on L / n_stations from adding one).
+template <typename AddFn>
+void forEachQuadraturePoint(double a_m, double b_m, double length_m, AddFn add) {
+  const int n_sub = std::max(
+      1, static_cast<int>(std::ceil(kSubintervalsPerLength * (b_m - a_m) / length_m - 1e-9)));
+  const double half_width_m = 0.5 * (b_m - a_m) / n_sub;
+  for (int k = 0; k < n_sub; ++k) {
+    const double mid_m = a_m + (2 * k + 1) * half_width_m;
+    for (int g = 0; g < kGaussPoints; ++g) {
+      add(mid_m + half_width_m * kGaussNode[g], half_width_m * kGaussWeight[g]);
+    }
+  }
+}
+
+// (1 - sigma_i) / 2 for the i-th mode, where sigma = (cosh bL + cos bL) / (sinh bL + sin bL).
+// Computed as (-e^-bL + sin bL - cos bL) / (2 (sinh bL + sin bL)): no cancellation, full
+// relative precision even when it is ~1e-16 (mode 12).
+double halfOneMinusSigma(double beta_L) {
+  return (-std::exp(-beta_L) + std::sin(beta_L) - std::cos(beta_L)) /
+         (2.0 * (std::sinh(beta_L) + std::sin(beta_L)));
+}
+
+// (1 - sigma_i) / 2 depends only on the mode index, so it is tabulated once for all teeth.
+const std::array<double, kMaxModes>& halfOneMinusSigmaTable() {
+  static const std::array<double, kMaxModes> table = [] {
+    std::array<double, kMaxModes> t{};
+    for (int i = 0; i < kMaxModes; ++i) t[i] = halfOneMinusSigma(cantileverBetaL(i));
+    return t;
+  }();
+  return table;
+}
+
+[[noreturn]] void throwInvalid(const char* field, const char* rule, double value) {
+  std::ostringstream message;
+  message << field << ": " << rule << " (got " << value << ")";
+  throw std::invalid_argument(message.str());
+}
+
+void requireFinite(const char* field, double value) {
+  if (!std::isfinite(value)) throwInvalid(field, "must be finite", value);
+}
+
+void requirePositive(const char* field, double value) {
+  requireFinite(field, value);
+  if (!(value > 0)) throwInvalid(field, "must be > 0", value);
+}
+
+void validateTooth(double drum_radius_m, const ToothModel& tooth) {
+  requireFinite("drum.radius", drum_radius_m);
+  if (!(drum_radius_m >= 0)) throwInvalid("drum.radius", "must be >= 0", drum_radius_m);
+  requireFinite("tooth.mount_angle", tooth.mount_angle_rad);
+  requirePositive("tooth.length", tooth.length_m);
+  requirePositive("tooth.diameter", tooth.diameter_m);
+  requirePositive("tooth.youngs_modulus", tooth.youngs_modulus_Pa);
+  requirePositive("tooth.density", tooth.density_kgpm3);
+  if (!(tooth.damping_ratio >= 0 && tooth.damping_ratio < 1)) {
+    throwInvalid("tooth.damping_ratio", "must be in [0, 1)", tooth.damping_ratio);
+  }
+  if (!(tooth.poisson_ratio >= 0 && tooth.poisson_ratio < 0.5)) {
+    throwInvalid("tooth.poisson_ratio", "must be in [0, 0.5)", tooth.poisson_ratio);
+  }
+  if (tooth.n_modes < 0 || tooth.n_modes > kMaxModes) {
+    throwInvalid("tooth.n_modes", "must be in [0, 12]", tooth.n_modes);
+  }
+  if (tooth.n_stations < 2) throwInvalid("tooth.n_stations", "must be >= 2", tooth.n_stations);
+}
+
+}  // namespace
+
+double cantileverBetaL(int i) {
+  if (i < 0) throwInvalid("mode index", "must be >= 0", i);
+  // Starting guess: the tabulated roots, then the asymptote (2i + 1) pi / 2 (0-based i).
+  constexpr std::array<double, 4> kTabulated = {1.87510407, 4.69409113, 7.85475744, 10.99554073};
+  double z = i < 4 ? kTabulated[i] : (2 * i + 1) * kPi / 2;
+
+  // Newton on the scaled characteristic equation cos z + 1 / cosh z = 0 (same roots as
+  // 1 + cos z cosh z = 0, but O(1) in size, so it converges to full precision).
+  for (int iter = 0; iter < 50; ++iter) {
+    const double sech = 1.0 / std::cosh(z);
+    const double residual = std::cos(z) + sech;
+    const double slope = -std::sin(z) - sech * std::tanh(z);
+    const double step = residual / slope;
+    z -= step;
+    if (std::abs(step) <= 2 * std::numeric_limits<double>::epsilon() * z) break;
+  }
+  return z;
+}
+
+void compileTooth(double drum_radius_m, ToothModel* tooth) {
+  validateTooth(drum_radius_m, *tooth);
+  ToothModel& t = *tooth;
+  const double R = drum_radius_m;
+  const double L = t.length_m;
+  const int n = t.n_modes;
+
+  // Round section properties.
+  t.area_m2 = kPi * t.diameter_m * t.diameter_m / 4;
+  t.second_moment_m4 = kPi * std::pow(t.diameter_m, 4) / 64;
+  t.mass_per_length_kgpm = t.density_kgpm3 * t.area_m2;
+  const double rhoA = t.mass_per_length_kgpm;
+  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
+
+  // Root and axes in the drum frame: the tooth stands radially at mounting angle alpha.
+  t.e1_D = Vec2(std::cos(t.mount_angle_rad), std::sin(t.mount_angle_rad));
+  t.e2_D = Vec2(-t.e1_D.y(), t.e1_D.x());
+  t.p_DR_D = R * t.e1_D;
+
+  // Modal constants. The clamped-free shape with C = 1 has int_0^L phi^2 dx = L, so
+  // C = 1 / sqrt(rho A L) mass-normalises every mode (checked numerically in the tests).
+  t.beta_per_m.resize(n);
+  t.sigma.resize(n);
+  t.norm_C.resize(n);
+  t.omega0_sq.resize(n);
+  t.damping_coeff.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const double beta_L = cantileverBetaL(i);
+    t.beta_per_m[i] = beta_L / L;
+    t.sigma[i] = (std::cosh(beta_L) + std::cos(beta_L)) / (std::sinh(beta_L) + std::sin(beta_L));
+    t.norm_C[i] = 1.0 / std::sqrt(rhoA * L);
+    t.omega0_sq[i] = std::pow(beta_L, 4) * EI / (rhoA * std::pow(L, 4));
+    t.damping_coeff[i] = 2 * t.damping_ratio * std::sqrt(t.omega0_sq[i]);
+  }
+
+  // Centrifugal stiffening K_G = int N phi' phi'^T and tangential inertia load
+  // p = int rho A (R + x) phi, with the axial force N(x) = rho A [R (L - x) + (L^2 - x^2) / 2].
+  t.K_G.setZero(n, n);
+  t.p_inertia.setZero(n);
+  VecX phi(n), dphi(n);
+  forEachQuadraturePoint(0.0, L, L, [&](double x_m, double weight_m) {
+    evaluateModes(t, x_m, &phi, &dphi);
+    const double axial_force = rhoA * (R * (L - x_m) + 0.5 * (L * L - x_m * x_m));
+    t.K_G.noalias() += (weight_m * axial_force) * dphi * dphi.transpose();
+    t.p_inertia += (weight_m * rhoA * (R + x_m)) * phi;
+  });
+
+  // Polar inertia of the undeformed tooth about the drum axis: int rho A (R + x)^2 dx.
+  t.I0_kgm2 = rhoA * (R * R * L + R * L * L + L * L * L / 3);
+
+  // Stations equally spaced on [0, L] (both ends exact), with phi and phi' there.
+  const int n_stations = t.n_stations;
+  t.station_x_m.resize(n_stations);
+  t.phi_s.resize(n_stations, n);
+  t.dphi_s.resize(n_stations, n);
+  for (int s = 0; s < n_stations; ++s) {
+    t.station_x_m[s] = L * (static_cast<double>(s) / (n_stations - 1));
+    evaluateModes(t, t.station_x_m[s], &phi, &dphi);
+    t.phi_s.row(s) = phi.transpose();
+    t.dphi_s.row(s) = dphi.transpose();
+  }
+
+  // Foreshortening matrices H(x_s) = int_0^{x_s} phi' phi'^T, accumulated station to station.
+  t.H_s.assign(n_stations, MatX::Zero(n, n));
+  for (int s = 1; s < n_stations; ++s) {
+    MatX& H = t.H_s[s];
+    H = t.H_s[s - 1];
+    forEachQuadraturePoint(t.station_x_m[s - 1], t.station_x_m[s], L,
+                           [&](double x_m, double weight_m) {
+                             evaluateModes(t, x_m, &phi, &dphi);
+                             H.noalias() += weight_m * dphi * dphi.transpose();
+                           });
+  }
+}
+
+void evaluateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
+  const int n = tooth.n_modes;
+  // resize() only allocates when the size changes, so repeated calls are allocation-free.
+  phi->resize(n);
+  dphi->resize(n);
+  const double x = std::clamp(x_m, 0.0, tooth.length_m);
+  const auto& half_one_minus_sigma = halfOneMinusSigmaTable();
+  for (int i = 0; i < n; ++i) {
+    // One exponential per mode: e^z and e^-z = 1 / e^z, with z = beta x <= beta L ~ 36.
+    const double beta = tooth.beta_per_m[i];
+    const double z = beta * x;
+    const double exp_z = std::exp(z);
+    const double exp_minus_z = 1.0 / exp_z;
+    const double cos_z = std::cos(z);
+    const double sin_z = std::sin(z);
+    const double sigma = tooth.sigma[i];
+    const double a = half_one_minus_sigma[i];  // (1 - sigma) / 2
+    const double b = 0.5 * (1.0 + sigma);      // (1 + sigma) / 2
+
+    // phi / C      = cosh z - sigma sinh z - cos z + sigma sin z
+    // phi' / (C beta) = sinh z - sigma cosh z + sin z + sigma cos z
+    (*phi)[i] = tooth.norm_C[i] * (a * exp_z + b * exp_minus_z - cos_z + sigma * sin_z);
+    (*dphi)[i] = tooth.norm_C[i] * beta * (a * exp_z - b * exp_minus_z + sin_z + sigma * cos_z);
+  }
+}
+
+void evaluateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi) {
+  const int n = tooth.n_modes;
+  ddphi->resize(n);
+  const double x = std::clamp(x_m, 0.0, tooth.length_m);
+  const auto& half_one_minus_sigma = halfOneMinusSigmaTable();
+  for (int i = 0; i < n; ++i) {
+    // phi'' / (C beta^2) = cosh z - sigma sinh z + cos z - sigma sin z, cancellation-free.
+    const double beta = tooth.beta_per_m[i];
+    const double z = beta * x;
+    const double exp_z = std::exp(z);
+    const double sigma = tooth.sigma[i];
+    const double a = half_one_minus_sigma[i];
+    const double b = 0.5 * (1.0 + sigma);
+    (*ddphi)[i] =
+        tooth.norm_C[i] * beta * beta * (a * exp_z + b / exp_z + std::cos(z) - sigma * std::sin(z));
+  }
+}
+
+void interpolateH(const ToothModel& tooth, double x_m, MatX* H) {
+  const VecX& xs = tooth.station_x_m;
+  const int last = static_cast<int>(xs.size()) - 1;
+  const double x = std::clamp(x_m, 0.0, tooth.length_m);
+
+  // Interval [x_s, x_{s+1}] holding x: guess from the equal spacing, then correct against the
+  // stored station positions so that x == x_s gives weight exactly 0 on the next station.
+  int s = std::clamp(static_cast<int>(x / tooth.length_m * last), 0, last - 1);
+  while (s > 0 && x < xs[s]) --s;
+  while (s < last - 1 && x >= xs[s + 1]) ++s;
+
+  // Linear blend of the two neighbouring station matrices.
+  const double t = (x - xs[s]) / (xs[s + 1] - xs[s]);
+  *H = (1.0 - t) * tooth.H_s[s] + t * tooth.H_s[s + 1];
+}
+
+MatX toothStiffness(const ToothModel& tooth, double omega_radps) {
+  const int n = tooth.n_modes;
+  const double omega_sq = omega_radps * omega_radps;
+  MatX K = omega_sq * (tooth.K_G - MatX::Identity(n, n));
+  K.diagonal() += tooth.omega0_sq;
+  return K;
+}
+
+VecX toothFrequenciesHz(const ToothModel& tooth, double omega_radps) {
+  if (tooth.n_modes == 0) return VecX();
+  // Eigenvalues of the symmetric stiffness (identity modal mass) are omega^2, ascending; a
+  // negative one (rotational softening instability) is reported as 0 Hz.
+  const Eigen::SelfAdjointEigenSolver<MatX> solver(toothStiffness(tooth, omega_radps),
+                                                   Eigen::EigenvaluesOnly);
+  return solver.eigenvalues().cwiseMax(0.0).cwiseSqrt() / (2 * kPi);
+}
+
+}  // namespace threshing_sim

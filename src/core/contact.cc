@@ -1,0 +1,468 @@
+// Contact kinematics: broad phase, narrow phase (gap, normal, Jacobians, rheonomic terms),
+// the compliant normal law, and the smooth generalised forces.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "internal.h"
+#include "threshing_sim/core/beam.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+inline Vec2 rotate(double angle_rad, const Vec2& v) {
+  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y());
+}
+inline Vec2 perp(const Vec2& v) { return Vec2(-v.y(), v.x()); }  // J v
+inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+// Effective modulus E* of two bodies in contact [Pa].
+double effectiveModulus(double E1, double nu1, double E2, double nu2) {
+  return 1.0 / ((1.0 - nu1 * nu1) / E1 + (1.0 - nu2 * nu2) / E2);
+}
+// Series combination of two radii of curvature (inf = flat) [m].
+double seriesRadius(double r1, double r2) {
+  const double k = (std::isfinite(r1) ? 1.0 / r1 : 0.0) + (std::isfinite(r2) ? 1.0 / r2 : 0.0);
+  return k > 0.0 ? 1.0 / k : std::numeric_limits<double>::infinity();
+}
+// Hertz point-contact constant K = 4/3 E* sqrt(R*), with R* = sqrt(R' R'') from the in-plane
+// and out-of-plane relative radii (Johnson, Contact Mechanics, eq. 4.24 equivalent sphere).
+double hertzConstant(double E_star, double r_in, double r_out) {
+  const double r_star = std::sqrt(r_in * r_out);
+  return 4.0 / 3.0 * E_star * std::sqrt(r_star);
+}
+
+// Kernel contact point Jacobian rows: d(v_point . dir)/d(vx, vy, omega).
+void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, SmallVec* w) {
+  w->resize(3);
+  (*w)[0] = sign * dir.x();
+  (*w)[1] = sign * dir.y();
+  (*w)[2] = sign * cross(p_W - c_W, dir);
+}
+
+}  // namespace
+
+int bodyDofOffset(const Model& m, int body) {
+  const int T = static_cast<int>(m.teeth.size());
+  return body < T ? m.teeth[body].dof_offset : m.kernels[body - T].dof_offset;
+}
+int bodyDofCount(const Model& m, int body) {
+  const int T = static_cast<int>(m.teeth.size());
+  return body < T ? m.teeth[body].n_modes : 3;
+}
+
+std::uint64_t pairKey(const PairId& p) {
+  return (static_cast<std::uint64_t>(p.kind) << 60) |
+         (static_cast<std::uint64_t>(static_cast<std::uint32_t>(p.a)) << 30) |
+         static_cast<std::uint64_t>(static_cast<std::uint32_t>(p.b));
+}
+
+Ellipse kernelEllipse(const Model& m, const VecX& z, int i) {
+  const KernelModel& k = m.kernels[i];
+  Ellipse e;
+  e.center = z.segment<2>(k.dof_offset);
+  e.angle_rad = z[k.dof_offset + 2];
+  e.a_m = k.semi_axis_a_m;
+  e.b_m = k.semi_axis_b_m;
+  return e;
+}
+
+void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* ws) {
+  // Lay out all teeth's stations in one array.
+  ws->station_offset.resize(m.teeth.size() + 1);
+  int total = 0;
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    ws->station_offset[k] = total;
+    total += m.teeth[k].n_stations;
+  }
+  ws->station_offset[m.teeth.size()] = total;
+  ws->stations_W.resize(total);
+  // r(x) = A(theta) [ b + (x + w_c(x)) e1 + w(x) e2 ] at every station.
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    const auto q = z.segment(tm.dof_offset, tm.n_modes);
+    for (int s = 0; s < tm.n_stations; ++s) {
+      double w = 0.0, wc = 0.0;
+      if (tm.n_modes > 0) {
+        w = tm.phi_s.row(s).dot(q);
+        wc = -0.5 * q.dot(tm.H_s[s] * q);
+      }
+      const Vec2 p_D = tm.p_DR_D + (tm.station_x_m[s] + wc) * tm.e1_D + w * tm.e2_D;
+      ws->stations_W[ws->station_offset[k] + s] = rotate(theta_rad, p_D);
+    }
+  }
+}
+
+void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
+  ws->candidates.clear();
+  const int K = static_cast<int>(m.kernels.size());
+  // Teeth against kernels: the deformed centreline's bounding circle against the kernel's.
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    const int s0 = ws->station_offset[k], s1 = ws->station_offset[k + 1];
+    Vec2 lo = ws->stations_W[s0], hi = lo;
+    for (int s = s0 + 1; s < s1; ++s) {
+      lo = lo.cwiseMin(ws->stations_W[s]);
+      hi = hi.cwiseMax(ws->stations_W[s]);
+    }
+    const double pad = 0.5 * tm.diameter_m + margin_m;
+    for (int i = 0; i < K; ++i) {
+      const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
+      const double r = m.kernels[i].semi_axis_a_m + pad;
+      if (c.x() + r < lo.x() || c.x() - r > hi.x() || c.y() + r < lo.y() || c.y() - r > hi.y())
+        continue;
+      ws->candidates.push_back({PairKind::kToothKernel, static_cast<int>(k), i});
+    }
+  }
+  // Kernels against kernels: sweep and prune along x over bounding circles.
+  ws->sort_index.resize(K);
+  for (int i = 0; i < K; ++i) ws->sort_index[i] = i;
+  auto xmin = [&](int i) {
+    return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m;
+  };
+  std::sort(ws->sort_index.begin(), ws->sort_index.end(),
+            [&](int a, int b) { return xmin(a) < xmin(b) || (xmin(a) == xmin(b) && a < b); });
+  for (int ia = 0; ia < K; ++ia) {
+    const int a = ws->sort_index[ia];
+    const Vec2 ca = z.segment<2>(m.kernels[a].dof_offset);
+    const double ra = m.kernels[a].semi_axis_a_m;
+    for (int ib = ia + 1; ib < K; ++ib) {
+      const int b = ws->sort_index[ib];
+      if (xmin(b) > ca.x() + ra + margin_m) break;
+      const Vec2 cb = z.segment<2>(m.kernels[b].dof_offset);
+      const double rr = ra + m.kernels[b].semi_axis_a_m + margin_m;
+      if ((cb - ca).squaredNorm() > rr * rr) continue;
+      ws->candidates.push_back({PairKind::kKernelKernel, std::min(a, b), std::max(a, b)});
+    }
+  }
+  // Kernels against obstacles.
+  for (int i = 0; i < K; ++i) {
+    const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
+    const double r = m.kernels[i].semi_axis_a_m + margin_m;
+    for (size_t j = 0; j < m.obstacles.size(); ++j) {
+      const ObstacleModel& o = m.obstacles[j];
+      double dist = 0.0;
+      if (o.type == ObstacleType::kPlane) {
+        dist = o.normal.dot(c - o.point_m);
+      } else if (o.type == ObstacleType::kCircle) {
+        dist = (c - o.center_m).norm() - o.radius_m;
+      } else {
+        const Vec2 ab = o.point_b_m - o.point_m;
+        const double s = std::clamp((c - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+        dist = (c - (o.point_m + s * ab)).norm() - o.radius_m;
+      }
+      if (dist <= r) ws->candidates.push_back({PairKind::kKernelObstacle, i, static_cast<int>(j)});
+    }
+  }
+  std::sort(ws->candidates.begin(), ws->candidates.end());
+}
+
+void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                     const PairId& pair, Workspace* ws, ContactGeom* g) {
+  g->pair = pair;
+  g->params = &m.contact[static_cast<int>(pair.kind)];
+  g->wtilde_n = g->wtilde_t = 0.0;
+  g->side[0].body = -1;
+  g->side[0].w_n.resize(0);
+  g->side[0].w_t.resize(0);
+  const int kb = pair.kind == PairKind::kKernelObstacle ? pair.a : pair.b;
+  const KernelModel& kern = m.kernels[kb];
+  const Ellipse e = kernelEllipse(m, z, kb);
+  double r_in = 0, r_out = 0, E_star = 0;
+
+  if (pair.kind == PairKind::kToothKernel) {
+    // Closest approach of the deformed centreline polyline to the ellipse.
+    const ToothModel& tm = m.teeth[pair.a];
+    const int s0 = ws->station_offset[pair.a];
+    Proximity best;
+    best.distance_m = std::numeric_limits<double>::infinity();
+    int best_seg = 0;
+    for (int s = 0; s + 1 < tm.n_stations; ++s) {
+      const Proximity p = segmentEllipse(ws->stations_W[s0 + s], ws->stations_W[s0 + s + 1], e);
+      if (p.distance_m < best.distance_m) {
+        best = p;
+        best_seg = s;
+      }
+    }
+    const double r_t = 0.5 * tm.diameter_m;
+    g->gap_m = best.distance_m - r_t;
+    g->n = best.normal;
+    g->t = perp(g->n);
+    g->p0 = best.point1 + r_t * g->n;
+    g->p1 = best.point2;
+    const double x0 = tm.station_x_m[best_seg], x1 = tm.station_x_m[best_seg + 1];
+    g->tooth_x_m = x0 + best.param * (x1 - x0);
+
+    // Tooth side: velocity of the surface point = Omega J p0 + Jq qdot, with
+    // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) phi'^T.
+    BodyJac& s = g->side[0];
+    s.body = toothBody(pair.a);
+    const int n = tm.n_modes;
+    s.w_n.resize(n);
+    s.w_t.resize(n);
+    if (n > 0) {
+      evaluateModes(tm, g->tooth_x_m, &ws->scratch_phi, &ws->scratch_dphi);
+      interpolateH(tm, g->tooth_x_m, &ws->scratch_H);
+      const auto q = z.segment(tm.dof_offset, n);
+      const Vec2 e1 = rotate(drive.theta_rad, tm.e1_D), e2 = rotate(drive.theta_rad, tm.e2_D);
+      const Vec2 jr = perp(r_t * g->n);
+      const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
+      const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
+      for (int i = 0; i < n; ++i) {
+        const double hq = ws->scratch_H.row(i).dot(q);
+        s.w_n[i] = -(e2n * ws->scratch_phi[i] - e1n * hq + jrn * ws->scratch_dphi[i]);
+        s.w_t[i] = -(e2t * ws->scratch_phi[i] - e1t * hq + jrt * ws->scratch_dphi[i]);
+      }
+    }
+    // Rheonomic term: the drum carries the tooth point at Omega J p0.
+    g->wtilde_n = -drive.omega_radps * cross(g->p0, g->n);
+    g->wtilde_t = -drive.omega_radps * cross(g->p0, g->t);
+    // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
+    const bool at_tip = best_seg == tm.n_stations - 2 && best.param >= 1.0 - 1e-12;
+    r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
+                        ellipseCurvatureRadius(e, g->p1));
+    r_out = seriesRadius(r_t, kern.semi_axis_b_m);
+    E_star = effectiveModulus(tm.youngs_modulus_Pa, tm.poisson_ratio, kern.youngs_modulus_Pa,
+                              kern.poisson_ratio);
+  } else if (pair.kind == PairKind::kKernelKernel) {
+    // Ellipse a against ellipse b; normal from a to b.
+    const KernelModel& ka = m.kernels[pair.a];
+    const Ellipse ea = kernelEllipse(m, z, pair.a);
+    const Proximity p = ellipseEllipse(ea, e);
+    g->gap_m = p.distance_m;
+    g->n = p.normal;
+    g->t = perp(g->n);
+    g->p0 = p.point1;
+    g->p1 = p.point2;
+    g->tooth_x_m = 0;
+    BodyJac& s = g->side[0];
+    s.body = kernelBody(m, pair.a);
+    kernelRow(g->p0, ea.center, g->n, -1.0, &s.w_n);
+    kernelRow(g->p0, ea.center, g->t, -1.0, &s.w_t);
+    r_in = seriesRadius(ellipseCurvatureRadius(ea, g->p0), p.radius2_m);
+    r_out = seriesRadius(ka.semi_axis_b_m, kern.semi_axis_b_m);
+    E_star = effectiveModulus(ka.youngs_modulus_Pa, ka.poisson_ratio, kern.youngs_modulus_Pa,
+                              kern.poisson_ratio);
+  } else {
+    // Fixed obstacle against the kernel; normal from the obstacle to the kernel.
+    const ObstacleModel& o = m.obstacles[pair.b];
+    Proximity p;
+    double r_obst = std::numeric_limits<double>::infinity();
+    if (o.type == ObstacleType::kPlane) {
+      p = planeEllipse(o.point_m, o.normal, e);
+    } else if (o.type == ObstacleType::kCircle) {
+      p = circleEllipse(o.center_m, o.radius_m, e);
+      r_obst = o.radius_m;
+    } else {
+      p = segmentEllipse(o.point_m, o.point_b_m, e);
+      p.distance_m -= o.radius_m;
+      p.point1 += o.radius_m * p.normal;
+    }
+    g->gap_m = p.distance_m;
+    g->n = p.normal;
+    g->t = perp(g->n);
+    g->p0 = p.point1;
+    g->p1 = p.point2;
+    g->tooth_x_m = 0;
+    r_in = seriesRadius(r_obst, p.radius2_m);
+    r_out = kern.semi_axis_b_m;  // bars and plates are straight along the drum axis
+    E_star = effectiveModulus(o.youngs_modulus_Pa, o.poisson_ratio, kern.youngs_modulus_Pa,
+                              kern.poisson_ratio);
+  }
+
+  // Kernel side (body 1) and the relative velocities.
+  BodyJac& s1 = g->side[1];
+  s1.body = kernelBody(m, kb);
+  kernelRow(g->p1, e.center, g->n, 1.0, &s1.w_n);
+  kernelRow(g->p1, e.center, g->t, 1.0, &s1.w_t);
+  g->vn = g->wtilde_n;
+  g->vt = g->wtilde_t;
+  for (const BodyJac& s : g->side) {
+    if (s.body < 0 || s.w_n.size() == 0) continue;
+    const auto ub = u.segment(bodyDofOffset(m, s.body), s.w_n.size());
+    g->vn += s.w_n.dot(ub);
+    g->vt += s.w_t.dot(ub);
+  }
+  g->hertz_K = hertzConstant(E_star, r_in, r_out);
+}
+
+void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f) {
+  for (const BodyJac& s : g.side) {
+    if (s.body < 0 || s.w_n.size() == 0) continue;
+    f->segment(bodyDofOffset(m, s.body), s.w_n.size()) += fn * s.w_n + ft * s.w_t;
+  }
+}
+
+double compliantNormalForce(const ContactGeom& g, double v_in_mps, double v_floor_mps) {
+  const double delta = -g.gap_m;
+  if (delta <= 0.0) return 0.0;
+  // F = K delta^{3/2} (1 + chi d(delta)/dt), chi = c* / v_in, clamped: no adhesion.
+  const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
+  const double f = g.hertz_K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
+  return std::max(f, 0.0);
+}
+
+Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_WP) {
+  const KernelModel& k = m.kernels[i];
+  const Vec2 c = z.segment<2>(k.dof_offset);
+  const Vec2 r = rotate(z[k.dof_offset + 2], k.pedicel.p_KP_K);
+  *p_WP = c + r;
+  const Vec2 v = u.segment<2>(k.dof_offset) + u[k.dof_offset + 2] * perp(r);
+  const Vec2 d = *p_WP - k.pedicel.p_WA_W;
+  const double len = d.norm();
+  if (len <= 0.0) return Vec2::Zero();
+  const Vec2 dir = d / len;
+  // Linear spring on the stem's elongation, viscous damper on its rate.
+  const double tension = k.pedicel.stiffness_Npm * (len - k.pedicel.rest_length_m) +
+                         k.pedicel.damping_Nspm * dir.dot(v);
+  return -tension * dir;
+}
+
+void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u,
+                  const Drive& drive, VecX* f) {
+  f->setZero(m.n_dof);
+  // Teeth: -D qdot - [Lambda + Omega^2 (K_G - I)] q - dOmega/dt p.
+  const double w2 = drive.omega_radps * drive.omega_radps;
+  for (const ToothModel& tm : m.teeth) {
+    const int n = tm.n_modes;
+    if (n == 0) continue;
+    const auto q = z.segment(tm.dof_offset, n);
+    const auto qd = u.segment(tm.dof_offset, n);
+    auto out = f->segment(tm.dof_offset, n);
+    out.noalias() = -w2 * (tm.K_G * q);
+    out.array() += -(tm.omega0_sq.array() - w2) * q.array() -
+                   tm.damping_coeff.array() * qd.array() - drive.alpha_radps2 * tm.p_inertia.array();
+  }
+  // Kernels: gravity, and the pedicel while it holds.
+  for (size_t i = 0; i < m.kernels.size(); ++i) {
+    const KernelModel& k = m.kernels[i];
+    f->segment<2>(k.dof_offset) += k.mass_kg * m.gravity_mps2;
+    if (k.pedicel.present && d.kernel_attached[i]) {
+      Vec2 p_WP;
+      const Vec2 F = pedicelForce(m, z, u, static_cast<int>(i), &p_WP);
+      f->segment<2>(k.dof_offset) += F;
+      (*f)[k.dof_offset + 2] += cross(p_WP - z.segment<2>(k.dof_offset), F);
+    }
+  }
+}
+
+
+void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int body,
+                      const SmallVec& v, double scale, VecX* out) {
+  if (body < 0 || v.size() == 0) return;
+  const int off = bodyDofOffset(m, body);
+  const int T = static_cast<int>(m.teeth.size());
+  if (body < T) {
+    if (tooth_minv) {
+      out->segment(off, v.size()).noalias() += scale * ((*tooth_minv)[body] * v);
+    } else {
+      out->segment(off, v.size()) += scale * v;
+    }
+  } else {
+    const KernelModel& k = m.kernels[body - T];
+    (*out)[off] += scale * v[0] / k.mass_kg;
+    (*out)[off + 1] += scale * v[1] / k.mass_kg;
+    (*out)[off + 2] += scale * v[2] / k.inertia_kgm2;
+  }
+}
+
+namespace {
+
+// w1^T Minv_body w2 for two Jacobian rows on the same body.
+double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
+                   const SmallVec& w1, const SmallVec& w2) {
+  const int T = static_cast<int>(m.teeth.size());
+  if (body < T) return tooth_minv ? w1.dot((*tooth_minv)[body] * w2) : w1.dot(w2);
+  const KernelModel& k = m.kernels[body - T];
+  return (w1[0] * w2[0] + w1[1] * w2[1]) / k.mass_kg + w1[2] * w2[2] / k.inertia_kgm2;
+}
+
+int findRoot(std::vector<int>* parent, int i) {
+  while ((*parent)[i] != i) i = (*parent)[i] = (*parent)[(*parent)[i]];
+  return i;
+}
+
+}  // namespace
+
+bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Workspace* ws) {
+  const int k = static_cast<int>(ws->active.size());
+  ws->lambda.setZero(2 * k);
+  ws->y.resize(2 * k);
+  if (k == 0) return true;
+
+  // Union-find over bodies: two contacts sharing a moving body are in the same island.
+  const int nb = numBodies(m);
+  ws->island_parent.resize(nb);
+  for (int i = 0; i < nb; ++i) ws->island_parent[i] = i;
+  for (int c = 0; c < k; ++c) {
+    const ContactGeom& g = ws->geoms[ws->active[c]];
+    if (g.side[0].body >= 0) {
+      const int r0 = findRoot(&ws->island_parent, g.side[0].body);
+      const int r1 = findRoot(&ws->island_parent, g.side[1].body);
+      ws->island_parent[r0] = r1;
+    }
+  }
+  // Order the contacts by island root (stable, so the order inside an island is the input's).
+  ws->island_contacts.resize(k);
+  ws->island_of_body.resize(k);
+  for (int c = 0; c < k; ++c) {
+    ws->island_contacts[c] = c;
+    ws->island_of_body[c] = findRoot(&ws->island_parent, ws->geoms[ws->active[c]].side[1].body);
+  }
+  std::stable_sort(ws->island_contacts.begin(), ws->island_contacts.end(),
+                   [&](int a, int b) { return ws->island_of_body[a] < ws->island_of_body[b]; });
+
+  bool all_ok = true;
+  for (int begin = 0; begin < k;) {
+    int end = begin + 1;
+    const int root = ws->island_of_body[ws->island_contacts[begin]];
+    while (end < k && ws->island_of_body[ws->island_contacts[end]] == root) ++end;
+    const int ki = end - begin;
+
+    // Delassus matrix G = W^T Minv W of the island, and its right-hand side.
+    ws->G_island.setZero(2 * ki, 2 * ki);
+    ws->b_island.resize(2 * ki);
+    ws->rows_island.resize(ki);
+    for (int i = 0; i < ki; ++i) {
+      const int ci = ws->island_contacts[begin + i];
+      const ContactGeom& gi = ws->geoms[ws->active[ci]];
+      ws->b_island.segment<2>(2 * i) = ws->b.segment<2>(2 * ci);
+      ws->rows_island[i] = ws->rows[ci];
+      for (int j = 0; j <= i; ++j) {
+        const ContactGeom& gj = ws->geoms[ws->active[ws->island_contacts[begin + j]]];
+        double nn = 0, nt = 0, tn = 0, tt = 0;
+        for (const BodyJac& si : gi.side) {
+          for (const BodyJac& sj : gj.side) {
+            if (si.body < 0 || si.body != sj.body) continue;
+            nn += weightedDot(m, tooth_minv, si.body, si.w_n, sj.w_n);
+            nt += weightedDot(m, tooth_minv, si.body, si.w_n, sj.w_t);
+            tn += weightedDot(m, tooth_minv, si.body, si.w_t, sj.w_n);
+            tt += weightedDot(m, tooth_minv, si.body, si.w_t, sj.w_t);
+          }
+        }
+        ws->G_island(2 * i, 2 * j) = ws->G_island(2 * j, 2 * i) = nn;
+        ws->G_island(2 * i, 2 * j + 1) = ws->G_island(2 * j + 1, 2 * i) = nt;
+        ws->G_island(2 * i + 1, 2 * j) = ws->G_island(2 * j, 2 * i + 1) = tn;
+        ws->G_island(2 * i + 1, 2 * j + 1) = ws->G_island(2 * j + 1, 2 * i + 1) = tt;
+      }
+    }
+
+    // One complementarity problem over the island's contacts.
+    const bool ok = solveContactProblem(ws->G_island, ws->b_island, ws->rows_island,
+                                        &ws->lambda_island, &ws->y_island, &ws->lcp);
+    all_ok = all_ok && ok;
+    for (int i = 0; i < ki; ++i) {
+      const int ci = ws->island_contacts[begin + i];
+      ws->lambda.segment<2>(2 * ci) = ok ? Vec2(ws->lambda_island.segment<2>(2 * i)) : Vec2::Zero();
+      ws->y.segment<2>(2 * ci) = ok ? Vec2(ws->y_island.segment<2>(2 * i))
+                                    : Vec2(ws->b_island.segment<2>(2 * i));
+    }
+    begin = end;
+  }
+  return all_ok;
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,764 @@
+// Event-driven integration (physics.md sections 7-9, the paper's method).
+//
+// Between events the index sets are fixed: each pair is separated, in compliant contact, or
+// closed under the rigid law, and each contact sticks or slips one way. The smooth phase is
+// integrated by Dormand-Prince 5(4) to the tolerance; the multipliers of closed normals and
+// sticking tangents come from g'' = 0 at every right-hand side. After each accepted step the
+// event functions are checked (gap, normal force, friction limit, slip velocity, pedicel
+// force); a sign change is located by re-stepping from the step start (secant/Illinois on the
+// step length), the state is advanced to just past it, and the index sets are switched:
+// impacts are solved as a velocity-level complementarity problem, stick/slip/separation as
+// an acceleration-level one. Impacts slower than zeno_velocity are plastic (Zeno rule).
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/LU>
+#include <limits>
+
+#include "internal.h"
+#include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Dormand-Prince 5(4) tableau.
+constexpr double kC[7] = {0, 1. / 5, 3. / 10, 4. / 5, 8. / 9, 1, 1};
+constexpr double kA[7][6] = {{0},
+                             {1. / 5},
+                             {3. / 40, 9. / 40},
+                             {44. / 45, -56. / 15, 32. / 9},
+                             {19372. / 6561, -25360. / 2187, 64448. / 6561, -212. / 729},
+                             {9017. / 3168, -355. / 33, 46732. / 5247, 49. / 176, -5103. / 18656},
+                             {35. / 384, 0, 500. / 1113, 125. / 192, -2187. / 6784, 11. / 84}};
+constexpr double kE[7] = {71. / 57600,      0, -71. / 16695, 71. / 1920, -17253. / 339200,
+                          22. / 525,        -1. / 40};
+
+// Per-step context: the data at the step start (drum state) and the candidate pairs.
+struct Ctx {
+  const Model& m;
+  Data& d;
+  Workspace& ws;
+};
+
+bool isActive(const PairMemory& mem) { return mem.state != ContactState::kSeparated; }
+
+// Drum state at absolute time t (the target is fixed within a step).
+Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
+
+// Evaluates every candidate pair at (z, u, t) into ws.geoms.
+void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr) {
+  updateStations(c.m, z, dr.theta_rad, &c.ws);
+  c.ws.geoms.resize(c.ws.candidates.size());
+  for (size_t i = 0; i < c.ws.candidates.size(); ++i)
+    evaluateContact(c.m, z, u, dr, c.ws.candidates[i], &c.ws, &c.ws.geoms[i]);
+}
+
+// Relative velocity derivative along the motion with u frozen: (d/dt W)^T u + d(wtilde)/dt,
+// by a central difference over +-eps of time, for the normal (0) and tangential (1) rows.
+Vec2 velocityDrift(const Ctx& c, const VecX& z, const VecX& u, double t, const PairId& pair) {
+  const double eps = 1e-8;
+  ContactGeom gp, gm;
+  c.ws.z_mid = z + eps * u;
+  Drive dp = driveAtTime(c, t + eps);
+  updateStations(c.m, c.ws.z_mid, dp.theta_rad, &c.ws);
+  evaluateContact(c.m, c.ws.z_mid, u, dp, pair, &c.ws, &gp);
+  c.ws.z_mid = z - eps * u;
+  Drive dm = driveAtTime(c, t - eps);
+  updateStations(c.m, c.ws.z_mid, dm.theta_rad, &c.ws);
+  evaluateContact(c.m, c.ws.z_mid, u, dm, pair, &c.ws, &gm);
+  return Vec2((gp.vn - gm.vn) / (2 * eps), (gp.vt - gm.vt) / (2 * eps));
+}
+
+// Right-hand side under the current index sets: udot, the contact forces (stored in the pair
+// memory's normal/tangential force) and the contact torque on the drum. Returns false if the
+// constraint system is singular.
+bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, double* drum_torque,
+         bool store_forces) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  const Drive dr = driveAtTime(c, t);
+  smoothForces(m, c.d, z, u, dr, &ws.forces);
+  evaluateAll(c, z, u, dr);
+
+  // Known forces: compliant normals and every sliding friction with a known normal.
+  ws.active.clear();
+  ws.rows.clear();
+  for (size_t i = 0; i < ws.geoms.size(); ++i) {
+    ContactGeom& g = ws.geoms[i];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    if (!isActive(mem)) continue;
+    ContactRow row;
+    row.mu = g.params->friction;
+    row.slip_sign = mem.slip_sign;
+    if (g.params->law == ContactLaw::kCompliant) {
+      row.normal_unknown = false;
+      row.lambda_n_fixed = compliantNormalForce(g, mem.v_in_mps, m.hc_min_impact_speed_mps);
+    }
+    ws.active.push_back(static_cast<int>(i));
+    ws.rows.push_back(row);
+  }
+
+  // Constraint rows: closed rigid normals and sticking tangents, g'' = 0.
+  const int k = static_cast<int>(ws.active.size());
+  ws.b.setZero(2 * k);
+  ws.lambda.setZero(2 * k);
+  int nc = 0;
+  for (int i = 0; i < k; ++i) {
+    nc += ws.rows[i].normal_unknown ? 1 : 0;
+    nc += (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) ? 1 : 0;
+  }
+  // Free accelerations a = Minv f.
+  ws.du.setZero(m.n_dof);
+  for (size_t b = 0; b < m.teeth.size() + m.kernels.size(); ++b) {
+    const int off = bodyDofOffset(m, static_cast<int>(b));
+    const int n = bodyDofCount(m, static_cast<int>(b));
+    if (n == 0) continue;
+    SmallVec fb = ws.forces.segment(off, n);
+    applyInverseMass(m, nullptr, static_cast<int>(b), fb, 1.0, &ws.du);
+  }
+  // Known contact forces, into the free acceleration.
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    const ContactRow& row = ws.rows[i];
+    if (row.normal_unknown) continue;
+    const double fn = row.lambda_n_fixed;
+    const double ft = row.slip_sign != 0 ? -row.slip_sign * row.mu * fn : 0.0;
+    ws.lambda[2 * i] = fn;
+    ws.lambda[2 * i + 1] = ft;
+    for (const BodyJac& s : g.side) {
+      applyInverseMass(m, nullptr, s.body, s.w_n, fn, &ws.du);
+      applyInverseMass(m, nullptr, s.body, s.w_t, ft, &ws.du);
+    }
+  }
+  if (nc > 0) {
+    // Unknowns: per constraint row, lambda along a direction that may carry a slip coupling.
+    MatX A = MatX::Zero(nc, nc);
+    VecX rhs_c = VecX::Zero(nc);
+    std::vector<std::pair<int, int>> idx;  // (active contact, 0 = normal / 1 = tangent)
+    for (int i = 0; i < k; ++i) {
+      if (ws.rows[i].normal_unknown) idx.push_back({i, 0});
+      if (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) idx.push_back({i, 1});
+    }
+    for (int r = 0; r < nc; ++r) {
+      const ContactGeom& gr = ws.geoms[ws.active[idx[r].first]];
+      // Row: current g'' from the free acceleration, plus the velocity drift term.
+      const Vec2 drift = velocityDrift(c, z, u, t, gr.pair);
+      double acc = idx[r].second == 0 ? drift[0] : drift[1];
+      for (const BodyJac& s : gr.side) {
+        if (s.body < 0 || s.w_n.size() == 0) continue;
+        const auto ab = ws.du.segment(bodyDofOffset(m, s.body), s.w_n.size());
+        acc += (idx[r].second == 0 ? s.w_n : s.w_t).dot(ab);
+      }
+      rhs_c[r] = -acc;
+      // Columns: effect of each unknown on this row's acceleration.
+      for (int col = 0; col < nc; ++col) {
+        const int ic = idx[col].first;
+        const ContactGeom& gc = ws.geoms[ws.active[ic]];
+        const ContactRow& rowc = ws.rows[ic];
+        double ft_per = 0.0, fn_per = 0.0;
+        if (idx[col].second == 0) {
+          fn_per = 1.0;
+          ft_per = rowc.slip_sign != 0 ? -rowc.slip_sign * rowc.mu : 0.0;
+        } else {
+          ft_per = 1.0;
+        }
+        double v = 0.0;
+        for (const BodyJac& sr : gr.side) {
+          for (const BodyJac& sc : gc.side) {
+            if (sr.body < 0 || sr.body != sc.body) continue;
+            const SmallVec& wr = idx[r].second == 0 ? sr.w_n : sr.w_t;
+            const int T = static_cast<int>(m.teeth.size());
+            if (sr.body < T) {
+              v += fn_per * wr.dot(sc.w_n) + ft_per * wr.dot(sc.w_t);
+            } else {
+              const KernelModel& km = m.kernels[sr.body - T];
+              const Eigen::Vector3d inv(1 / km.mass_kg, 1 / km.mass_kg, 1 / km.inertia_kgm2);
+              for (int q = 0; q < 3; ++q)
+                v += wr[q] * inv[q] * (fn_per * sc.w_n[q] + ft_per * sc.w_t[q]);
+            }
+          }
+        }
+        A(r, col) = v;
+      }
+    }
+    const Eigen::FullPivLU<MatX> lu(A);
+    if (!lu.isInvertible()) return false;
+    const VecX lam = lu.solve(rhs_c);
+    for (int r = 0; r < nc; ++r) {
+      const int i = idx[r].first;
+      const ContactGeom& g = ws.geoms[ws.active[i]];
+      const ContactRow& row = ws.rows[i];
+      double fn = 0, ft = 0;
+      if (idx[r].second == 0) {
+        fn = lam[r];
+        ws.lambda[2 * i] = fn;
+        if (row.slip_sign != 0) {
+          ft = -row.slip_sign * row.mu * fn;
+          ws.lambda[2 * i + 1] = ft;
+        }
+      } else {
+        ft = lam[r];
+        ws.lambda[2 * i + 1] = ft;
+      }
+      for (const BodyJac& s : g.side) {
+        applyInverseMass(m, nullptr, s.body, s.w_n, fn, &ws.du);
+        applyInverseMass(m, nullptr, s.body, s.w_t, ft, &ws.du);
+      }
+    }
+  }
+  *udot = ws.du;
+
+  // Contact torque on the drum (for the drive work) and, if asked, the forces for reporting.
+  double torque = 0.0;
+  ws.ed_fn.setZero(ws.geoms.size());
+  ws.ed_ft.setZero(ws.geoms.size());
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    ws.ed_fn[ws.active[i]] = ws.lambda[2 * i];
+    ws.ed_ft[ws.active[i]] = ws.lambda[2 * i + 1];
+    if (g.pair.kind == PairKind::kToothKernel) {
+      const Vec2& p = g.p0;
+      torque += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
+                ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
+    }
+    if (store_forces) {
+      PairMemory& mem = ws.memory[pairKey(g.pair)];
+      mem.normal_force_N = ws.lambda[2 * i];
+      mem.tangential_force_N = ws.lambda[2 * i + 1];
+    }
+  }
+  *drum_torque = torque;
+  return true;
+}
+
+// Event functions: positive while the current index sets stay valid. Fills vals in the
+// order of ws.geoms (4 per pair) followed by one per kernel (pedicel). Uses the forces the
+// last rhs() call stored for (z, u) at time t.
+void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  VecX udot;
+  double torque;
+  rhs(c, t, z, u, &udot, &torque, true);
+  vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
+  for (size_t i = 0; i < ws.geoms.size(); ++i) {
+    const ContactGeom& g = ws.geoms[i];
+    const PairMemory& mem = ws.memory[pairKey(g.pair)];
+    double* v = &(*vals)[4 * i];
+    if (!isActive(mem)) {
+      // Separated: the gap closes.
+      v[0] = g.gap_m;
+      continue;
+    }
+    const double mu = g.params->friction;
+    const double fn = mem.normal_force_N, ft = mem.tangential_force_N;
+    if (g.params->law == ContactLaw::kCompliant) {
+      // Compliant: the bodies part, or the damped force would pull.
+      v[0] = -g.gap_m;
+      const double delta = std::max(-g.gap_m, 0.0);
+      v[1] = g.hertz_K * delta * std::sqrt(delta) *
+             (1.0 - g.params->hc_damping_factor / std::max(mem.v_in_mps, m.hc_min_impact_speed_mps) *
+                        g.vn) /
+             std::max(1.0, g.hertz_K * 1e-9);
+    } else {
+      // Rigid: the normal multiplier falls to zero.
+      v[0] = fn;
+    }
+    if (mu > 0) {
+      // Stick: the friction limit is reached. Slip: the sliding velocity reverses.
+      v[2] = mem.slip_sign == 0 ? mu * fn - std::abs(ft) : mem.slip_sign * g.vt;
+    }
+  }
+  for (size_t i = 0; i < m.kernels.size(); ++i) {
+    const KernelModel& k = m.kernels[i];
+    if (!k.pedicel.present || !c.d.kernel_attached[i]) continue;
+    Vec2 p;
+    (*vals)[4 * ws.geoms.size() + i] =
+        k.pedicel.detachment_force_N - pedicelForce(m, z, u, static_cast<int>(i), &p).norm();
+  }
+}
+
+// One Dormand-Prince step of length h from (t0, y0 = [z; u]); y1 and its error estimate.
+bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0, VecX* z1,
+               VecX* u1, double* err, double* torque1) {
+  const int n = c.m.n_dof;
+  Workspace& ws = c.ws;
+  for (auto& k : ws.rk_k) k.resize(2 * n);
+  ws.rk_tmp.resize(2 * n);
+  VecX zz(n), uu(n), udot(n);
+  double torque = 0;
+  ws.ed_imp_n.setZero(ws.candidates.size());
+  ws.ed_imp_t.setZero(ws.candidates.size());
+  ws.ed_torque_impulse = 0;
+  for (int s = 0; s < 7; ++s) {
+    zz = z0;
+    uu = u0;
+    for (int j = 0; j < s; ++j) {
+      if (kA[s][j] == 0.0) continue;
+      zz += h * kA[s][j] * ws.rk_k[j].head(n);
+      uu += h * kA[s][j] * ws.rk_k[j].tail(n);
+    }
+    if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false)) return false;
+    ws.rk_k[s].head(n) = uu;
+    ws.rk_k[s].tail(n) = udot;
+    // Contact impulses and drum torque integrated with the 5th-order weights (b = row 7 of A).
+    if (s < 6 && kA[6][s] != 0.0) {
+      ws.ed_imp_n += h * kA[6][s] * ws.ed_fn;
+      ws.ed_imp_t += h * kA[6][s] * ws.ed_ft;
+      ws.ed_torque_impulse += h * kA[6][s] * torque;
+    }
+  }
+  // Stage 7 is the 5th-order solution (FSAL).
+  *z1 = zz;
+  *u1 = uu;
+  *torque1 = torque;
+  // Error estimate scaled per component: positions by 1e-2 m, velocities by 1 m/s.
+  double e2 = 0.0;
+  for (int i = 0; i < 2 * n; ++i) {
+    double ei = 0.0;
+    for (int s = 0; s < 7; ++s) ei += kE[s] * ws.rk_k[s][i];
+    ei *= h;
+    const double y = i < n ? std::max(std::abs(z0[i]), std::abs(zz[i]))
+                           : std::max(std::abs(u0[i - n]), std::abs(uu[i - n]));
+    const double scale = c.m.integrator.tolerance * ((i < n ? 1e-2 : 1.0) + y);
+    e2 += (ei / scale) * (ei / scale);
+  }
+  *err = std::sqrt(e2 / std::max(1, 2 * n));
+  return z1->allFinite() && u1->allFinite();
+}
+
+// Velocity-level impact over the closed rigid contacts: Newton restitution, Coulomb friction on
+// the impulses. Falls back to a plastic impact if the Newton law would raise the energy.
+void solveImpact(const Ctx& c, double t, bool force_plastic) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  Data& d = c.d;
+  const Drive dr = driveAtTime(c, t);
+  evaluateAll(c, d.z, d.u, dr);
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const bool plastic = force_plastic || attempt == 1;
+    ws.active.clear();
+    ws.rows.clear();
+    for (size_t i = 0; i < ws.geoms.size(); ++i) {
+      const ContactGeom& g = ws.geoms[i];
+      const PairMemory& mem = ws.memory[pairKey(g.pair)];
+      if (g.params->law != ContactLaw::kRigid) continue;
+      if (!(mem.closed || g.gap_m <= 10 * m.integrator.tolerance * 1e-3)) continue;
+      ContactRow row;
+      row.mu = g.params->friction;
+      ws.active.push_back(static_cast<int>(i));
+      ws.rows.push_back(row);
+    }
+    const int k = static_cast<int>(ws.active.size());
+    ws.b.resize(2 * k);
+    for (int i = 0; i < k; ++i) {
+      const ContactGeom& g = ws.geoms[ws.active[i]];
+      const bool slow = g.vn > -m.integrator.zeno_velocity_mps;
+      ws.b[2 * i] = g.vn + (plastic || slow ? 0.0 : g.params->restitution * std::min(g.vn, 0.0));
+      ws.b[2 * i + 1] = g.vt;
+    }
+    const double e_before = energyOf(m, d, d.z, d.u, dr.omega_radps);
+    const double H_before = angularMomentumOf(m, d.z, d.u, dr.omega_radps);
+    solveContactIslands(m, nullptr, &ws);
+    ws.u_old = d.u;
+    double ang = 0.0;
+    for (int i = 0; i < k; ++i) {
+      const ContactGeom& g = ws.geoms[ws.active[i]];
+      for (const BodyJac& s : g.side) {
+        applyInverseMass(m, nullptr, s.body, s.w_n, ws.lambda[2 * i], &d.u);
+        applyInverseMass(m, nullptr, s.body, s.w_t, ws.lambda[2 * i + 1], &d.u);
+      }
+      if (g.pair.kind == PairKind::kToothKernel) {
+        const Vec2& p = g.p0;
+        ang += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
+               ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
+      }
+    }
+    const double H_after = angularMomentumOf(m, d.z, d.u, dr.omega_radps);
+    const double work = dr.omega_radps * (H_after - H_before - ang);
+    const double gain = energyOf(m, d, d.z, d.u, dr.omega_radps) - e_before - work;
+    // Newton's law with friction can create energy: redo the impact plastically.
+    if (gain > 1e-12 * std::max(1.0, std::abs(e_before)) && !plastic) {
+      d.u = ws.u_old;
+      continue;
+    }
+    d.stats.drive_work_J += work;
+    const double e_net_after = e_before + gain - (d.stats.drive_work_J);
+    // Report each contact that took an impulse.
+    for (int i = 0; i < k; ++i) {
+      const ContactGeom& g = ws.geoms[ws.active[i]];
+      PairMemory& mem = ws.memory[pairKey(g.pair)];
+      const double pn = ws.lambda[2 * i], pt = ws.lambda[2 * i + 1];
+      if (pn <= 0.0) continue;
+      const bool was_open = !mem.closed;
+      if (was_open) beginEpisode(m, &d, &mem, g, t, e_before - (d.stats.drive_work_J - work));
+      ContactEvent ev;
+      ev.t_s = t;
+      ev.pair = g.pair;
+      ev.from = was_open ? ContactState::kSeparated : mem.state;
+      ev.to = ContactState::kImpact;
+      ev.is_impact = true;
+      ev.vn_before_mps = g.vn;
+      ev.vt_before_mps = g.vt;
+      ev.vn_after_mps = ws.y[2 * i];
+      ev.vt_after_mps = ws.y[2 * i + 1];
+      ev.impulse_normal_Ns = pn;
+      ev.impulse_tangential_Ns = pt;
+      ev.energy_lost_J = -gain;
+      ev.macro_collision = mem.macro_index;
+      ev.sub_collision = mem.sub_index;
+      d.events.push_back(ev);
+      ++d.stats.impacts;
+      const int kb = g.pair.kind == PairKind::kKernelObstacle ? g.pair.a : g.pair.b;
+      ++d.stats.kernel_impacts[kb];
+      if (g.pair.kind == PairKind::kKernelKernel) ++d.stats.kernel_impacts[g.pair.a];
+      d.stats.max_energy_gain_at_impact_J = std::max(d.stats.max_energy_gain_at_impact_J, gain);
+      d.stats.total_normal_impulse_Ns += pn;
+      mem.impulse_n_acc += pn;
+      mem.impulse_t_acc += pt;
+      mem.episode_impulse_n += pn;
+      mem.episode_impulse_t += pt;
+      // Closed if the contact does not leave after the impact; otherwise it bounced.
+      const bool stays = ws.y[2 * i] <= m.integrator.zeno_velocity_mps;
+      mem.closed = stays;
+      mem.state = ContactState::kImpact;
+      mem.slip_sign = 0;
+      if (!stays) {
+        // It bounced: the episode was the instant of the impact.
+        mem.last_contact_end_s = t;
+        mem.state = ContactState::kSeparated;
+        mem.closed = false;
+      }
+    }
+    (void)e_net_after;
+    return;
+  }
+}
+
+// Chooses stick / slip / separation for every active contact from an acceleration-level
+// complementarity problem over the closed rigid normals and the stick-capable tangents.
+// Returns false if that problem has no solution found (Painleve); the caller then applies a
+// tangential impact.
+bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  Data& d = c.d;
+  const Drive dr = driveAtTime(c, t);
+  smoothForces(m, d, d.z, d.u, dr, &ws.forces);
+  evaluateAll(c, d.z, d.u, dr);
+  ws.du.setZero(m.n_dof);
+  for (size_t b = 0; b < m.teeth.size() + m.kernels.size(); ++b) {
+    const int off = bodyDofOffset(m, static_cast<int>(b));
+    const int n = bodyDofCount(m, static_cast<int>(b));
+    if (n == 0) continue;
+    SmallVec fb = ws.forces.segment(off, n);
+    applyInverseMass(m, nullptr, static_cast<int>(b), fb, 1.0, &ws.du);
+  }
+  const double v_eps = m.integrator.zeno_velocity_mps;
+  ws.active.clear();
+  ws.rows.clear();
+  for (size_t i = 0; i < ws.geoms.size(); ++i) {
+    const ContactGeom& g = ws.geoms[i];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    if (!isActive(mem)) continue;
+    ContactRow row;
+    row.mu = g.params->friction;
+    if (g.params->law == ContactLaw::kCompliant) {
+      row.normal_unknown = false;
+      row.lambda_n_fixed = compliantNormalForce(g, mem.v_in_mps, m.hc_min_impact_speed_mps);
+    } else if (!mem.closed) {
+      continue;
+    }
+    // Sliding contacts keep their direction; slow ones may stick.
+    const bool forced = std::find(forced_slip.begin(), forced_slip.end(), static_cast<int>(i)) !=
+                        forced_slip.end();
+    if (forced) {
+      row.slip_sign = mem.slip_sign;
+    } else {
+      row.slip_sign = std::abs(g.vt) > v_eps ? (g.vt > 0 ? 1 : -1) : 0;
+    }
+    if (row.mu == 0) row.slip_sign = 0;
+    ws.active.push_back(static_cast<int>(i));
+    ws.rows.push_back(row);
+  }
+  const int k = static_cast<int>(ws.active.size());
+  ws.b.resize(2 * k);
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    const Vec2 drift = velocityDrift(c, d.z, d.u, t, g.pair);
+    double an = drift[0], at = drift[1];
+    for (const BodyJac& s : g.side) {
+      if (s.body < 0 || s.w_n.size() == 0) continue;
+      const auto ab = ws.du.segment(bodyDofOffset(m, s.body), s.w_n.size());
+      an += s.w_n.dot(ab);
+      at += s.w_t.dot(ab);
+    }
+    ws.b[2 * i] = an;
+    ws.b[2 * i + 1] = at;
+  }
+  // The drift evaluations moved the stations; restore them for the current state.
+  evaluateAll(c, d.z, d.u, dr);
+  if (!solveContactIslands(m, nullptr, &ws)) return false;
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    const ContactRow& row = ws.rows[i];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    const double fn = ws.lambda[2 * i], ft = ws.lambda[2 * i + 1];
+    const ContactState before = mem.state;
+    if (row.normal_unknown && fn <= 0.0 && ws.y[2 * i] > 0.0) {
+      // The normal multiplier vanished with a separating acceleration: the contact opens.
+      endEpisode(m, &d, &mem, g, t, energyOf(m, d, d.z, d.u, dr.omega_radps) - d.stats.drive_work_J);
+      continue;
+    }
+    if (row.mu == 0.0) {
+      mem.slip_sign = 0;
+      mem.state = std::abs(g.vt) > v_eps ? ContactState::kSlip : ContactState::kStick;
+    } else if (row.slip_sign != 0) {
+      mem.slip_sign = row.slip_sign;
+      mem.state = ContactState::kSlip;
+    } else if (std::abs(ft) < row.mu * fn * (1.0 - 1e-9)) {
+      mem.slip_sign = 0;
+      mem.state = ContactState::kStick;
+    } else {
+      // At the friction limit the contact slides the way the tangential acceleration points.
+      mem.slip_sign = ft > 0 ? -1 : 1;
+      mem.state = ContactState::kSlip;
+    }
+    if (before != mem.state && before != ContactState::kImpact)
+      emitTransition(&d, g.pair, before, mem.state, t, g);
+  }
+  return true;
+}
+
+// Projects the state back onto closed rigid contacts (g = 0, dg/dt = 0) and sticking tangents
+// (dg_T/dt = 0) after a step, so that constraint drift never accumulates.
+void projectConstraints(const Ctx& c, double t) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  Data& d = c.d;
+  const Drive dr = driveAtTime(c, t);
+  for (int pass = 0; pass < 2; ++pass) {
+    evaluateAll(c, d.z, d.u, dr);
+    for (size_t i = 0; i < ws.geoms.size(); ++i) {
+      const ContactGeom& g = ws.geoms[i];
+      const PairMemory& mem = ws.memory[pairKey(g.pair)];
+      if (!isActive(mem)) continue;
+      const bool normal = g.params->law == ContactLaw::kRigid && mem.closed;
+      const bool tangent = mem.slip_sign == 0 && g.params->friction > 0 &&
+                           mem.state == ContactState::kStick;
+      // One contact at a time (Gauss-Seidel): minimal mass-weighted correction.
+      double gnn = 0, gtt = 0;
+      for (const BodyJac& s : g.side) {
+        if (s.body < 0 || s.w_n.size() == 0) continue;
+        SmallVec tmp = SmallVec::Zero(s.w_n.size());
+        VecX acc = VecX::Zero(m.n_dof);
+        applyInverseMass(m, nullptr, s.body, s.w_n, 1.0, &acc);
+        gnn += s.w_n.dot(acc.segment(bodyDofOffset(m, s.body), s.w_n.size()));
+        acc.setZero();
+        applyInverseMass(m, nullptr, s.body, s.w_t, 1.0, &acc);
+        gtt += s.w_t.dot(acc.segment(bodyDofOffset(m, s.body), s.w_t.size()));
+        (void)tmp;
+      }
+      if (normal && gnn > 0) {
+        for (const BodyJac& s : g.side) {
+          applyInverseMass(m, nullptr, s.body, s.w_n, -g.gap_m / gnn, &d.z);
+          applyInverseMass(m, nullptr, s.body, s.w_n, -g.vn / gnn, &d.u);
+        }
+      }
+      if (tangent && gtt > 0) {
+        for (const BodyJac& s : g.side)
+          applyInverseMass(m, nullptr, s.body, s.w_t, -g.vt / gtt, &d.u);
+      }
+    }
+  }
+}
+
+// Size of the next trial step: bounded by the broad-phase margin over the fastest motion.
+double motionBound(const Ctx& c) {
+  double v = 1e-6;
+  for (const ToothModel& tm : c.m.teeth)
+    v = std::max(v, std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) +
+                        (tm.n_modes > 0 ? 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm()
+                                        : 0.0));
+  for (const KernelModel& k : c.m.kernels)
+    v = std::max(v, c.d.u.segment<2>(k.dof_offset).norm() +
+                        std::abs(c.d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
+  return v;
+}
+
+}  // namespace
+
+StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
+  Workspace& ws = *d->ws;
+  Ctx c{m, *d, ws};
+  const int n = m.n_dof;
+
+  // Candidate pairs for this step: broad phase with a margin the step cannot outrun.
+  const double v_bound = motionBound(c);
+  const double margin = std::max(m.broadphase_margin_m, 1e-6);
+  updateStations(m, d->z, d->theta_rad, &ws);
+  broadPhase(m, d->z, 2.0 * margin, &ws);
+  for (const PairId& p : ws.candidates) ws.memory[pairKey(p)];
+  // Contacts that left the candidate set are separated.
+  for (auto& kv : ws.memory) kv.second.seen = false;
+  for (const PairId& p : ws.candidates) ws.memory[pairKey(p)].seen = true;
+  for (auto& kv : ws.memory) {
+    PairMemory& mem = kv.second;
+    if (mem.seen || !isActive(mem)) continue;
+    ContactGeom g;
+    g.pair = PairId{static_cast<PairKind>(kv.first >> 60),
+                    static_cast<int>((kv.first >> 30) & 0x3fffffff),
+                    static_cast<int>(kv.first & 0x3fffffff)};
+    g.params = &m.contact[static_cast<int>(g.pair.kind)];
+    endEpisode(m, d, &mem, g, d->t_s, mechanicalEnergy(m, *d) - d->stats.drive_work_J);
+  }
+
+  // Trial step size.
+  double h = ws.ed_h > 0 ? ws.ed_h : std::min(m.integrator.max_step_s, 1e-6);
+  h = std::min({h, m.integrator.max_step_s, t_end_s - d->t_s, margin / v_bound});
+  const double ramp = timeToTarget(m, *d);
+  if (ramp > 1e-15 && ramp < h) h = ramp;
+  if (!(h > 0)) h = t_end_s - d->t_s;
+
+  // Event values at the start of the step.
+  std::vector<double> ev0, ev1;
+  eventValues(c, d->t_s, d->z, d->u, &ev0);
+  VecX udot0(n);
+
+  // Adaptive step until the error is within tolerance.
+  VecX z1(n), u1(n);
+  double err = 0, torque1 = 0;
+  for (int attempt = 0;; ++attempt) {
+    if (!dopriStep(c, d->t_s, h, d->z, d->u, &z1, &u1, &err, &torque1)) err = kInf;
+    if (err <= 1.0) break;
+    ++d->stats.rejected_steps;
+    h *= std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
+    if (h < 1e-15 || attempt > 200) return StepStatus::kFailed;
+  }
+  const double h_next = h * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2));
+
+  // Events: did any function change sign over the step?
+  eventValues(c, d->t_s + h, z1, u1, &ev1);
+  auto triggered = [&](const std::vector<double>& a, const std::vector<double>& b) {
+    for (size_t i = 0; i < a.size() && i < b.size(); ++i)
+      if (a[i] > 0 && b[i] <= 0) return true;
+    return false;
+  };
+  double h_take = h;
+  bool event = ev0.size() == ev1.size() && triggered(ev0, ev1);
+  if (event) {
+    // Bisection on the step length (re-stepping from the start each time) to the tolerance.
+    double lo = 0, hi = h;
+    const double t_tol = std::max(1e-15, 1e-3 * m.integrator.tolerance * 1e-3);
+    VecX zt(n), ut(n);
+    double et, tq;
+    for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      dopriStep(c, d->t_s, mid, d->z, d->u, &zt, &ut, &et, &tq);
+      std::vector<double> evm;
+      eventValues(c, d->t_s + mid, zt, ut, &evm);
+      (evm.size() == ev0.size() && triggered(ev0, evm) ? hi : lo) = mid;
+    }
+    h_take = hi;
+    dopriStep(c, d->t_s, h_take, d->z, d->u, &z1, &u1, &err, &torque1);
+    eventValues(c, d->t_s + h_take, z1, u1, &ev1);
+  }
+
+  // Accept: drive work, then move the state and the drum.
+  const Drive mid = driveAt(m, *d, 0.5 * h_take);
+  const Drive end = driveAt(m, *d, h_take);
+  const double H0 = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  const double H1 = angularMomentumOf(m, z1, u1, end.omega_radps);
+  d->stats.drive_work_J += mid.omega_radps * (H1 - H0 - ws.ed_torque_impulse);
+  const VecX imp_n = ws.ed_imp_n, imp_t = ws.ed_imp_t;
+  d->z = z1;
+  d->u = u1;
+  d->t_s = end.t_s;
+  d->theta_rad = end.theta_rad;
+  d->omega_radps = end.omega_radps;
+  d->alpha_radps2 = end.alpha_radps2;
+  ++d->steps;
+  if (!event) ws.ed_h = h_next;
+  const double t = d->t_s;
+
+  // Statistics of the forces over the accepted step (end point).
+  rhs(c, t, d->z, d->u, &udot0, &torque1, true);
+  for (size_t i = 0; i < ws.geoms.size(); ++i) {
+    const ContactGeom& g = ws.geoms[i];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    if (!isActive(mem)) continue;
+    recordForce(m, d, g, mem.normal_force_N, mem.tangential_force_N, t);
+    mem.episode_peak_N = std::max(mem.episode_peak_N, mem.normal_force_N);
+    mem.episode_impulse_n += imp_n[i];
+    mem.episode_impulse_t += imp_t[i];
+    mem.impulse_n_acc += imp_n[i];
+    mem.impulse_t_acc += imp_t[i];
+    d->stats.total_normal_impulse_Ns += imp_n[i];
+    if (mem.state == ContactState::kImpact && g.params->law == ContactLaw::kCompliant)
+      mem.state = mem.slip_sign == 0 ? ContactState::kStick : ContactState::kSlip;
+  }
+
+  // Switch the index sets for every event function at or past zero.
+  if (event) {
+    const double e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
+    bool rigid_impact = false;
+    std::vector<int> forced_slip;
+    for (size_t i = 0; i < ws.geoms.size(); ++i) {
+      if (!(ev0[4 * i] > 0 || ev0[4 * i + 1] > 0 || ev0[4 * i + 2] > 0)) continue;
+      const ContactGeom& g = ws.geoms[i];
+      PairMemory& mem = ws.memory[pairKey(g.pair)];
+      const bool fired0 = ev0[4 * i] > 0 && ev1[4 * i] <= 0;
+      const bool fired1 = ev0[4 * i + 1] > 0 && ev1[4 * i + 1] <= 0;
+      const bool fired2 = ev0[4 * i + 2] > 0 && ev1[4 * i + 2] <= 0;
+      if (!isActive(mem)) {
+        if (!fired0 || g.vn >= 0) continue;
+        if (g.params->law == ContactLaw::kRigid) {
+          rigid_impact = true;
+        } else {
+          // Compliant: the contact opens with its approach speed fixing the damping.
+          mem.v_in_mps = -g.vn;
+          beginEpisode(m, d, &mem, g, t, e_net);
+          mem.state = ContactState::kImpact;
+          mem.slip_sign = 0;
+          emitTransition(d, g.pair, ContactState::kSeparated, ContactState::kImpact, t, g);
+        }
+      } else if (g.params->law == ContactLaw::kCompliant && (fired0 || fired1)) {
+        endEpisode(m, d, &mem, g, t, e_net);
+      } else if (g.params->law == ContactLaw::kRigid && fired0) {
+        endEpisode(m, d, &mem, g, t, e_net);
+      } else if (fired2) {
+        if (mem.slip_sign == 0) {
+          // Stick -> slip against the friction force.
+          mem.slip_sign = mem.tangential_force_N > 0 ? -1 : 1;
+          forced_slip.push_back(static_cast<int>(i));
+          emitTransition(d, g.pair, mem.state, ContactState::kSlip, t, g);
+          mem.state = ContactState::kSlip;
+        } else {
+          // Slip velocity reached zero: stick or reverse, decided below.
+          mem.slip_sign = 0;
+        }
+      }
+    }
+    if (rigid_impact) solveImpact(c, t, false);
+    // Pedicels that reached their detachment force break.
+    updatePedicels(m, d);
+    if (!updateModes(c, t, forced_slip)) {
+      // Painleve: no consistent accelerations; a tangential (plastic) impact resolves it.
+      solveImpact(c, t, true);
+      if (!updateModes(c, t, forced_slip)) ++d->stats.numerical_recoveries;
+    }
+  } else {
+    updatePedicels(m, d);
+  }
+  projectConstraints(c, t);
+  rhs(c, t, d->z, d->u, &udot0, &torque1, true);
+  publishContacts(d, &ws);
+  return StepStatus::kOk;
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,193 @@
+// threshing_sim core internals shared by the contact code and the two integrators.
+// Not installed; nothing outside src/core includes it.
+#pragma once
+
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/geometry.h"
+#include "threshing_sim/core/lcp.h"
+#include "threshing_sim/core/model.h"
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+namespace internal {
+
+// A short vector that never touches the heap (a tooth has at most 12 modes, a kernel 3 dofs).
+using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1>;
+
+// Rheonomic drum state at one instant.
+struct Drive {
+  double t_s = 0;          // time [s]
+  double theta_rad = 0;    // drum angle [rad]
+  double omega_radps = 0;  // drum speed [rad/s]
+  double alpha_radps2 = 0; // drum acceleration [rad/s^2]
+};
+
+// Bodies are numbered teeth first (0..T-1), then kernels (T..T+K-1); -1 is the fixed world.
+inline int toothBody(int k) { return k; }
+inline int kernelBody(const Model& m, int i) { return static_cast<int>(m.teeth.size()) + i; }
+inline int numBodies(const Model& m) {
+  return static_cast<int>(m.teeth.size() + m.kernels.size());
+}
+int bodyDofOffset(const Model& m, int body);
+int bodyDofCount(const Model& m, int body);
+
+// One body's share of a contact's Jacobians: dg/dt = w_n . u_body (+ the other body + rheonomic).
+struct BodyJac {
+  int body = -1;   // body index, -1 = fixed
+  SmallVec w_n;    // d(dg_N/dt)/d(u_body)
+  SmallVec w_t;    // d(dg_T/dt)/d(u_body)
+};
+
+// Everything known about one contact pair at one configuration.
+struct ContactGeom {
+  PairId pair;
+  double gap_m = 0;               // signed gap [m]
+  Vec2 n = Vec2::UnitY();         // unit normal towards the kernel (body 1) [-]
+  Vec2 t = Vec2::UnitX();         // unit tangent J n [-]
+  Vec2 p0 = Vec2::Zero();         // contact point on body 0's surface [m]
+  Vec2 p1 = Vec2::Zero();         // contact point on body 1's (the kernel's) surface [m]
+  double tooth_x_m = 0;           // tooth contacts: material coordinate [m]
+  BodyJac side[2];                // side 0: tooth / kernel a / fixed; side 1: the kernel b
+  double wtilde_n = 0;            // rheonomic part of dg_N/dt [m/s]
+  double wtilde_t = 0;            // rheonomic part of dg_T/dt [m/s]
+  double vn = 0;                  // dg_N/dt [m/s]
+  double vt = 0;                  // dg_T/dt [m/s]
+  double hertz_K = 0;             // Hertz constant K in F = K delta^{3/2} [N/m^{3/2}]
+  const ContactParams* params = nullptr;
+};
+
+// Per-pair memory carried across steps (state, episode bookkeeping for events and stats).
+struct PairMemory {
+  ContactState state = ContactState::kSeparated;
+  bool closed = false;            // rigid law: normal constraint active
+  int slip_sign = 0;              // slip direction while sliding (sign of dg_T/dt)
+  double v_in_mps = 0;            // compliant: approach speed at first touch [m/s]
+  double episode_start_s = -1;    // time of first touch of the current episode [s]
+  double episode_peak_N = 0;      // peak normal force within the episode [N]
+  double episode_impulse_n = 0;   // normal impulse within the episode [N s]
+  double episode_impulse_t = 0;   // tangential impulse within the episode [N s]
+  double vn_before = 0, vt_before = 0;  // velocities at the start of the episode [m/s]
+  double energy_before_J = 0;     // energy minus drive work at the start of the episode [J]
+  double last_contact_end_s = -1; // end of the previous episode [s]
+  int macro_index = -1;           // macro-collision counter of this pair
+  int sub_index = -1;             // sub-collision index within the macro-collision
+  double normal_force_N = 0;      // last force values (for ContactInfo) [N]
+  double tangential_force_N = 0;
+  double impulse_n_acc = 0;       // impulses since the last clearImpulseAccumulators [N s]
+  double impulse_t_acc = 0;
+  bool seen = false;              // touched by the broad phase in the current step
+};
+
+std::uint64_t pairKey(const PairId& p);
+
+
+}  // namespace internal
+
+// Integrator scratch memory; grows to the largest sizes seen, then is reused.
+struct Workspace {
+  std::vector<PairId> candidates;          // broad-phase survivors
+  std::vector<internal::ContactGeom> geoms;          // narrow-phase results for candidates
+  std::unordered_map<std::uint64_t, internal::PairMemory> memory;
+  std::vector<int> sort_index;             // sweep-and-prune order
+  std::vector<Vec2> stations_W;            // deformed tooth centrelines, all teeth [m]
+  std::vector<int> station_offset;         // first station of each tooth in stations_W
+  VecX forces;                             // generalised forces [N or sqrt(kg) m/s^2]
+  VecX u_free, z_mid, u_old, z_old, du;
+  VecX guard_z, guard_u;                   // last good state for the non-finite guard
+  std::vector<MatX> iteration_inverse;     // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  double iteration_omega = -1;             // drum speed the matrices above were built at
+  std::vector<int> island_of_body, island_contacts, island_start, island_parent;
+  MatX G_island;
+  VecX b_island, lambda_island, y_island;
+  std::vector<ContactRow> rows_island;
+  std::vector<int> active;                 // indices into geoms of contacts in the problem
+  MatX G;                                  // Delassus matrix of one island
+  VecX b, lambda, y;
+  std::vector<ContactRow> rows;
+  LcpWorkspace lcp;
+  VecX scratch_phi, scratch_dphi;
+  MatX scratch_H;
+  // Event-driven integrator state.
+  VecX rk_k[7], rk_y0, rk_y1, rk_err, rk_tmp, dense_a, dense_b;
+  double ed_h = 0;                          // last accepted step size [s]
+  VecX ed_fn, ed_ft;                        // contact forces per geom at the last rhs [N]
+  VecX ed_imp_n, ed_imp_t;                  // their integrals over the last trial step [N s]
+  double ed_torque_impulse = 0;             // integral of the drum contact torque [N m s]
+};
+
+namespace internal {
+
+// --- drum drive ---------------------------------------------------------------------------
+// Drum state after dt from d with the current target (piecewise-constant acceleration).
+// At most one switch of acceleration occurs when the target speed is reached.
+Drive driveAt(const Model& m, const Data& d, double dt_s);
+// Time until the drum reaches its target speed from data (inf if it is there) [s].
+double timeToTarget(const Model& m, const Data& d);
+
+// --- kinematics ----------------------------------------------------------------------------
+// Deformed centreline of every tooth at its stations, in world, for configuration z.
+void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* ws);
+// Kernel as a geometric ellipse.
+Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
+
+// Broad phase: pairs whose bounding shapes are within margin_m; fills ws->candidates, sorted.
+void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
+
+// Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
+// Requires updateStations for z first.
+void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                     const PairId& pair, Workspace* ws, ContactGeom* g);
+
+// Adds w * scale to the generalised vector f for each side of the contact.
+void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f);
+
+// Generalised inverse mass per body: teeth use tooth_minv[k] if given (time stepping's
+// iteration matrix inverse) or the identity (mass-normalised modes); kernels diag(1/m,1/m,1/J).
+// out += Minv_body * v for the body's block.
+void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int body,
+                      const SmallVec& v, double scale, VecX* out);
+
+// Solves one frictional contact problem per island (bodies coupled through contacts) for the
+// contacts ws->active (indices into ws->geoms), with ws->rows and ws->b (2 per active contact,
+// [N, T]) already filled. Fills ws->lambda and ws->y (same layout). Returns false if any
+// island's LCP failed (its lambda is then zero).
+bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Workspace* ws);
+
+// Compliant normal force (Hertz with Hunt-Crossley damping), >= 0 [N].
+double compliantNormalForce(const ContactGeom& g, double v_in_mps, double v_floor_mps);
+
+// Smooth generalised forces without contacts: tooth damping, stiffness and drum-acceleration
+// load; kernel gravity and pedicels.
+void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u,
+                  const Drive& drive, VecX* f);
+// Pedicel spring-damper force on kernel i (world, at its attachment point) [N] and that point.
+Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_WP);
+
+// --- bookkeeping ---------------------------------------------------------------------------
+// Mechanical energy of a configuration (see simulator.h) and the teeth's angular momentum.
+double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, double omega);
+double angularMomentumOf(const Model& m, const VecX& z, const VecX& u, double omega);
+// Records peak force statistics for one contact at time t.
+void recordForce(const Model& m, Data* d, const ContactGeom& g, double fn, double ft, double t);
+// Opens / closes contact episodes and emits ContactEvents.
+void beginEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, double t,
+                  double energy_net);
+void endEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, double t,
+                double energy_net);
+void emitTransition(Data* d, const PairId& pair, ContactState from, ContactState to, double t,
+                    const ContactGeom& g);
+// Fills data.contacts from the current geoms and memory.
+void publishContacts(Data* d, Workspace* ws);
+// Detaches pedicels whose force passed the threshold.
+void updatePedicels(const Model& m, Data* d);
+
+// --- the integrators -------------------------------------------------------------------------
+StepStatus timeSteppingStep(const Model& m, Data* d, double h_s);
+StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s);
+
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,163 @@
+// Model compilation: validation, generalised-coordinate layout, derived constants.
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+namespace {
+
+[[noreturn]] void fail(const std::string& field, const std::string& rule, double value) {
+  std::ostringstream msg;
+  msg << field << ": " << rule << " (got " << value << ")";
+  throw std::invalid_argument(msg.str());
+}
+
+void requirePositive(const std::string& field, double value) {
+  if (!(value > 0.0) || !std::isfinite(value)) fail(field, "must be a finite number > 0", value);
+}
+
+void requireFinite(const std::string& field, double value) {
+  if (!std::isfinite(value)) fail(field, "must be finite", value);
+}
+
+// Restitution reached by the dimensionless Hunt-Crossley impact
+//   x'' = -x^{3/2} (1 + c x'),  x(0) = 0, x'(0) = 1,
+// with the force clamped at zero (no adhesion): the exit speed -x' when contact ends.
+double huntCrossleyRestitution(double c) {
+  // Integrate with RK4 at a step small against the dimensionless contact time (~3.2).
+  const double h = 1e-3;
+  double x = 0.0, v = 1.0;
+  auto acc = [c](double xx, double vv) {
+    if (xx <= 0.0) return 0.0;
+    const double f = std::pow(xx, 1.5) * (1.0 + c * vv);
+    return f > 0.0 ? -f : 0.0;
+  };
+  for (int i = 0; i < 200000; ++i) {
+    const double k1x = v, k1v = acc(x, v);
+    const double k2x = v + 0.5 * h * k1v, k2v = acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v);
+    const double k3x = v + 0.5 * h * k2v, k3v = acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v);
+    const double k4x = v + h * k3v, k4v = acc(x + h * k3x, v + h * k3v);
+    x += h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x);
+    v += h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
+    // Contact ends when the bodies part or the (clamped) force vanishes on the way out.
+    if (x <= 0.0 || (v < 0.0 && 1.0 + c * v <= 0.0)) return -v;
+  }
+  return 0.0;
+}
+
+// Inverts huntCrossleyRestitution by bisection: the damping factor c* = chi v_in giving e.
+double huntCrossleyFactor(double e) {
+  if (e >= 1.0) return 0.0;
+  const double e_min = 0.01;  // below this the factor diverges; treat as almost plastic
+  const double target = std::max(e, e_min);
+  double lo = 0.0, hi = 1.0;
+  while (huntCrossleyRestitution(hi) > target && hi < 1e6) hi *= 2.0;
+  for (int it = 0; it < 60; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (huntCrossleyRestitution(mid) > target ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+}  // namespace
+
+void compileModel(Model* model) {
+  Model& m = *model;
+  // Drum and global values.
+  requirePositive("drum.radius", m.drum.radius_m);
+  requireFinite("drum.speed", m.drum.initial_speed_radps);
+  requireFinite("drum.angle", m.drum.initial_angle_rad);
+  requirePositive("drum.max_acceleration", m.drum.max_acceleration_radps2);
+  requireFinite("gravity.x", m.gravity_mps2.x());
+  requireFinite("gravity.y", m.gravity_mps2.y());
+  requirePositive("duration", m.duration_s);
+  if (!(m.broadphase_margin_m >= 0.0)) fail("broadphase_margin", "must be >= 0", m.broadphase_margin_m);
+  requirePositive("integrator.tolerance", m.integrator.tolerance);
+  requirePositive("integrator.dt", m.integrator.dt_s);
+  requirePositive("integrator.max_step", m.integrator.max_step_s);
+  requirePositive("integrator.zeno_velocity", m.integrator.zeno_velocity_mps);
+  if (!(m.integrator.theta >= 0.5 && m.integrator.theta <= 1.0))
+    fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
+
+  // Teeth: modal data, and their modal coordinates first in the generalised vector.
+  int offset = 0;
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    try {
+      compileTooth(m.drum.radius_m, &m.teeth[k]);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("teeth." + std::to_string(k) + "." + e.what());
+    }
+    m.teeth[k].dof_offset = offset;
+    offset += m.teeth[k].n_modes;
+  }
+
+  // Kernels: uniform elliptic disc inertia, then (c_x, c_y, psi) each.
+  for (size_t i = 0; i < m.kernels.size(); ++i) {
+    KernelModel& k = m.kernels[i];
+    const std::string f = "kernels." + std::to_string(i) + ".";
+    requirePositive(f + "mass", k.mass_kg);
+    requirePositive(f + "semi_axes[0]", k.semi_axis_a_m);
+    requirePositive(f + "semi_axes[1]", k.semi_axis_b_m);
+    if (k.semi_axis_b_m > k.semi_axis_a_m)
+      fail(f + "semi_axes", "a must be >= b; b is", k.semi_axis_b_m);
+    requirePositive(f + "youngs_modulus", k.youngs_modulus_Pa);
+    if (!(k.poisson_ratio >= 0.0 && k.poisson_ratio < 0.5))
+      fail(f + "poisson_ratio", "must be in [0, 0.5)", k.poisson_ratio);
+    if (k.pedicel.present) {
+      requirePositive(f + "pedicel.stiffness", k.pedicel.stiffness_Npm);
+      requirePositive(f + "pedicel.detachment_force", k.pedicel.detachment_force_N);
+      if (!(k.pedicel.damping_Nspm >= 0.0))
+        fail(f + "pedicel.damping", "must be >= 0", k.pedicel.damping_Nspm);
+      // A negative rest length means "the distance at the start".
+      if (k.pedicel.rest_length_m < 0.0) {
+        const double c = std::cos(k.initial_angle_rad), s = std::sin(k.initial_angle_rad);
+        const Vec2 p_WP = k.initial_position_m +
+                          Vec2(c * k.pedicel.p_KP_K.x() - s * k.pedicel.p_KP_K.y(),
+                               s * k.pedicel.p_KP_K.x() + c * k.pedicel.p_KP_K.y());
+        k.pedicel.rest_length_m = (p_WP - k.pedicel.p_WA_W).norm();
+      }
+    }
+    k.inertia_kgm2 = k.mass_kg * (k.semi_axis_a_m * k.semi_axis_a_m +
+                                  k.semi_axis_b_m * k.semi_axis_b_m) / 4.0;
+    k.dof_offset = offset;
+    offset += 3;
+  }
+  m.n_dof = offset;
+
+  // Obstacles: unit normals, positive sizes.
+  for (size_t j = 0; j < m.obstacles.size(); ++j) {
+    ObstacleModel& o = m.obstacles[j];
+    const std::string f = "obstacles." + std::to_string(j) + ".";
+    if (o.type == ObstacleType::kPlane) {
+      const double n = o.normal.norm();
+      if (!(n > 0.0) || !std::isfinite(n)) fail(f + "normal", "must be a non-zero vector, norm", n);
+      o.normal /= n;
+    } else if (o.type == ObstacleType::kCircle) {
+      requirePositive(f + "radius", o.radius_m);
+    } else {
+      if (!((o.point_b_m - o.point_m).norm() > 0.0))
+        fail(f + "point_b", "must differ from point; distance", 0.0);
+      if (!(o.radius_m >= 0.0)) fail(f + "radius", "must be >= 0", o.radius_m);
+    }
+    requirePositive(f + "youngs_modulus", o.youngs_modulus_Pa);
+  }
+
+  // Contact laws: Hunt-Crossley factor matched to each restitution coefficient.
+  const char* names[3] = {"contact.tooth_kernel", "contact.kernel_kernel",
+                          "contact.kernel_obstacle"};
+  for (int p = 0; p < 3; ++p) {
+    ContactParams& c = m.contact[p];
+    if (!(c.restitution >= 0.0 && c.restitution <= 1.0))
+      fail(std::string(names[p]) + ".restitution", "must be in [0, 1]", c.restitution);
+    if (!(c.friction >= 0.0) || !std::isfinite(c.friction))
+      fail(std::string(names[p]) + ".friction", "must be >= 0", c.friction);
+    c.hc_damping_factor = huntCrossleyFactor(c.restitution);
+  }
+  m.compiled = true;
+}
+
+}  // namespace threshing_sim

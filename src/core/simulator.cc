@@ -1,0 +1,328 @@
+// The stepping API: reset, drum drive, advanceTo with non-finite guard, and the bookkeeping
+// shared by both integrators (episodes, events, statistics).
+#include "threshing_sim/core/simulator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+#include "internal.h"
+#include "threshing_sim/core/beam.h"
+
+namespace threshing_sim {
+
+const char* toString(ContactState s) {
+  switch (s) {
+    case ContactState::kSeparated: return "separated";
+    case ContactState::kImpact: return "impact";
+    case ContactState::kStick: return "stick";
+    case ContactState::kSlip: return "slip";
+  }
+  return "?";
+}
+
+const char* toString(PairKind k) {
+  switch (k) {
+    case PairKind::kToothKernel: return "tooth_kernel";
+    case PairKind::kKernelKernel: return "kernel_kernel";
+    case PairKind::kKernelObstacle: return "kernel_obstacle";
+  }
+  return "?";
+}
+
+bool PairId::operator<(const PairId& o) const {
+  return std::tie(kind, a, b) < std::tie(o.kind, o.a, o.b);
+}
+
+Data::Data() : ws(std::make_unique<Workspace>()) {}
+Data::~Data() = default;
+Data::Data(Data&&) noexcept = default;
+Data& Data::operator=(Data&&) noexcept = default;
+
+namespace internal {
+
+Drive driveAt(const Model& m, const Data& d, double dt_s) {
+  Drive out;
+  out.t_s = d.t_s + dt_s;
+  const double gap = d.omega_target_radps - d.omega_radps;
+  const double a = m.drum.max_acceleration_radps2;
+  const double ramp = std::abs(gap) / a;  // time left on the ramp [s]
+  const double s = gap > 0 ? 1.0 : (gap < 0 ? -1.0 : 0.0);
+  if (dt_s < ramp) {
+    // Still ramping at the acceleration limit.
+    out.alpha_radps2 = s * a;
+    out.omega_radps = d.omega_radps + s * a * dt_s;
+    out.theta_rad = d.theta_rad + d.omega_radps * dt_s + 0.5 * s * a * dt_s * dt_s;
+  } else {
+    // Ramp finished (or none): cruise at the target for the rest of the interval.
+    out.alpha_radps2 = 0.0;
+    out.omega_radps = d.omega_target_radps;
+    out.theta_rad = d.theta_rad + d.omega_radps * ramp + 0.5 * s * a * ramp * ramp +
+                    d.omega_target_radps * (dt_s - ramp);
+  }
+  return out;
+}
+
+double timeToTarget(const Model& m, const Data& d) {
+  const double gap = std::abs(d.omega_target_radps - d.omega_radps);
+  return gap > 0 ? gap / m.drum.max_acceleration_radps2 : std::numeric_limits<double>::infinity();
+}
+
+namespace {
+int kernelOf(const PairId& p) { return p.kind == PairKind::kKernelObstacle ? p.a : p.b; }
+}  // namespace
+
+void recordForce(const Model& m, Data* d, const ContactGeom& g, double fn, double ft, double t) {
+  (void)m;
+  RunStats& st = d->stats;
+  if (fn > st.peak_normal_force_N) {
+    st.peak_normal_force_N = fn;
+    st.time_of_peak_normal_s = t;
+  }
+  if (std::abs(ft) > st.peak_tangential_force_N) {
+    st.peak_tangential_force_N = std::abs(ft);
+    st.time_of_peak_tangential_s = t;
+  }
+  const int kb = kernelOf(g.pair);
+  st.kernel_peak_normal_force_N[kb] = std::max(st.kernel_peak_normal_force_N[kb], fn);
+  if (g.pair.kind == PairKind::kKernelKernel)
+    st.kernel_peak_normal_force_N[g.pair.a] = std::max(st.kernel_peak_normal_force_N[g.pair.a], fn);
+  st.max_penetration_m = std::max(st.max_penetration_m, -g.gap_m);
+}
+
+void emitTransition(Data* d, const PairId& pair, ContactState from, ContactState to, double t,
+                    const ContactGeom& g) {
+  ContactEvent ev;
+  ev.t_s = t;
+  ev.pair = pair;
+  ev.from = from;
+  ev.to = to;
+  ev.vn_before_mps = ev.vn_after_mps = g.vn;
+  ev.vt_before_mps = ev.vt_after_mps = g.vt;
+  d->events.push_back(ev);
+}
+
+void beginEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, double t,
+                  double energy_net) {
+  // A new sub-collision; a new macro-collision if the pair was apart for long enough.
+  if (mem->last_contact_end_s < 0 || t - mem->last_contact_end_s > m.macro_collision_gap_s) {
+    ++mem->macro_index;
+    mem->sub_index = 0;
+  } else {
+    ++mem->sub_index;
+  }
+  mem->episode_start_s = t;
+  mem->episode_peak_N = 0;
+  mem->episode_impulse_n = mem->episode_impulse_t = 0;
+  mem->vn_before = g.vn;
+  mem->vt_before = g.vt;
+  mem->energy_before_J = energy_net;
+  ++d->stats.contact_episodes;
+}
+
+void endEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, double t,
+                double energy_net) {
+  (void)m;
+  mem->last_contact_end_s = t;
+  // Under the compliant law the whole episode is the impact: report it now.
+  if (g.params->law == ContactLaw::kCompliant) {
+    ContactEvent ev;
+    ev.t_s = t;
+    ev.pair = g.pair;
+    ev.from = mem->state;
+    ev.to = ContactState::kSeparated;
+    ev.is_impact = true;
+    ev.vn_before_mps = mem->vn_before;
+    ev.vt_before_mps = mem->vt_before;
+    ev.vn_after_mps = g.vn;
+    ev.vt_after_mps = g.vt;
+    ev.impulse_normal_Ns = mem->episode_impulse_n;
+    ev.impulse_tangential_Ns = mem->episode_impulse_t;
+    ev.energy_lost_J = mem->energy_before_J - energy_net;
+    ev.peak_normal_force_N = mem->episode_peak_N;
+    ev.macro_collision = mem->macro_index;
+    ev.sub_collision = mem->sub_index;
+    d->events.push_back(ev);
+    ++d->stats.impacts;
+    ++d->stats.kernel_impacts[kernelOf(g.pair)];
+    if (g.pair.kind == PairKind::kKernelKernel) ++d->stats.kernel_impacts[g.pair.a];
+    d->stats.max_energy_gain_at_impact_J =
+        std::max(d->stats.max_energy_gain_at_impact_J, -ev.energy_lost_J);
+  } else {
+    emitTransition(d, g.pair, mem->state, ContactState::kSeparated, t, g);
+  }
+  mem->state = ContactState::kSeparated;
+  mem->closed = false;
+  mem->slip_sign = 0;
+  mem->normal_force_N = mem->tangential_force_N = 0;
+}
+
+void publishContacts(Data* d, Workspace* ws) {
+  d->contacts.resize(ws->geoms.size());
+  for (size_t i = 0; i < ws->geoms.size(); ++i) {
+    const ContactGeom& g = ws->geoms[i];
+    const PairMemory& mem = ws->memory[pairKey(g.pair)];
+    ContactInfo& c = d->contacts[i];
+    c.pair = g.pair;
+    c.state = mem.state;
+    c.gap_m = g.gap_m;
+    c.p_W = 0.5 * (g.p0 + g.p1);
+    c.n_W = g.n;
+    c.tooth_x_m = g.tooth_x_m;
+    c.normal_velocity_mps = g.vn;
+    c.slip_velocity_mps = g.vt;
+    c.normal_force_N = mem.normal_force_N;
+    c.tangential_force_N = mem.tangential_force_N;
+    c.impulse_normal_Ns = mem.impulse_n_acc;
+    c.impulse_tangential_Ns = mem.impulse_t_acc;
+  }
+}
+
+void updatePedicels(const Model& m, Data* d) {
+  for (size_t i = 0; i < m.kernels.size(); ++i) {
+    const KernelModel& k = m.kernels[i];
+    if (!k.pedicel.present || !d->kernel_attached[i]) continue;
+    Vec2 p_WP;
+    const double f = pedicelForce(m, d->z, d->u, static_cast<int>(i), &p_WP).norm();
+    // The stem breaks for good once its force passes the detachment threshold.
+    if (f > k.pedicel.detachment_force_N) {
+      d->kernel_attached[i] = 0;
+      d->stats.kernel_detach_time_s[i] = d->t_s;
+    }
+  }
+}
+
+}  // namespace internal
+
+namespace {
+
+// Kernels, teeth and pedicels back to the scene's initial state (time and drum untouched).
+void resetBodies(const Model& m, Data* d) {
+  d->z.setZero(m.n_dof);
+  d->u.setZero(m.n_dof);
+  for (const KernelModel& k : m.kernels) {
+    d->z.segment<2>(k.dof_offset) = k.initial_position_m;
+    d->z[k.dof_offset + 2] = k.initial_angle_rad;
+    d->u.segment<2>(k.dof_offset) = k.initial_velocity_mps;
+    d->u[k.dof_offset + 2] = k.initial_angular_velocity_radps;
+  }
+  d->kernel_attached.assign(m.kernels.size(), 1);
+  d->omega_target_radps = m.drum.initial_speed_radps;
+  d->ws->memory.clear();
+  d->ws->geoms.clear();
+  d->contacts.clear();
+  d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);
+  d->stats.kernel_impacts.assign(m.kernels.size(), 0);
+  d->stats.kernel_detach_time_s.assign(m.kernels.size(), -1.0);
+}
+
+bool finiteState(const Data& d) {
+  return d.z.allFinite() && d.u.allFinite() && std::isfinite(d.omega_radps) &&
+         std::isfinite(d.theta_rad);
+}
+
+}  // namespace
+
+void resetData(const Model& model, Data* data) {
+  data->t_s = 0;
+  data->steps = 0;
+  data->theta_rad = model.drum.initial_angle_rad;
+  data->omega_radps = model.drum.initial_speed_radps;
+  data->alpha_radps2 = 0;
+  data->events.clear();
+  data->stats = RunStats();
+  data->ws->iteration_omega = -1;
+  data->ws->ed_h = 0;
+  resetBodies(model, data);
+  data->stats.energy_initial_J = mechanicalEnergy(model, *data);
+}
+
+void resetBodiesKeepTime(const Model& model, Data* data) {
+  resetBodies(model, data);
+  data->stats.drive_work_J = 0;
+  data->stats.energy_initial_J = mechanicalEnergy(model, *data);
+  data->ws->ed_h = 0;
+}
+
+void setDrumTarget(const Model& model, Data* data, double omega_target_radps) {
+  (void)model;
+  data->omega_target_radps = omega_target_radps;
+}
+
+StepStatus step(const Model& model, Data* data) {
+  const double t_end = model.integrator.type == IntegratorType::kTimeStepping
+                           ? data->t_s + model.integrator.dt_s
+                           : std::numeric_limits<double>::infinity();
+  if (model.integrator.type == IntegratorType::kTimeStepping)
+    return internal::timeSteppingStep(model, data, model.integrator.dt_s);
+  return internal::eventDrivenStep(model, data, t_end);
+}
+
+StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
+  StepStatus worst = StepStatus::kOk;
+  const double h = model.integrator.dt_s;
+  while (true) {
+    const bool ts = model.integrator.type == IntegratorType::kTimeStepping;
+    if (ts ? data->t_s >= t_end_s - 0.5 * h : data->t_s >= t_end_s) break;
+    // Keep the last good state so that a non-finite result can be undone.
+    Workspace& ws = *data->ws;
+    ws.guard_z = data->z;
+    ws.guard_u = data->u;
+    const double t0 = data->t_s, th0 = data->theta_rad, om0 = data->omega_radps;
+    StepStatus s = ts ? internal::timeSteppingStep(model, data, h)
+                      : internal::eventDrivenStep(model, data, t_end_s);
+    if (s == StepStatus::kOk && finiteState(*data)) continue;
+    // Recovery: restore, then cross the same interval with ten small time steps.
+    data->z = ws.guard_z;
+    data->u = ws.guard_u;
+    data->t_s = t0;
+    data->theta_rad = th0;
+    data->omega_radps = om0;
+    ++data->stats.numerical_recoveries;
+    const double h_small = (ts ? h : std::min(1e-7, t_end_s - t0)) / 10.0;
+    bool ok = h_small > 0;
+    for (int i = 0; i < 10 && ok; ++i) {
+      ok = internal::timeSteppingStep(model, data, h_small) == StepStatus::kOk &&
+           finiteState(*data);
+    }
+    if (!ok) {
+      data->z = ws.guard_z;
+      data->u = ws.guard_u;
+      data->t_s = t0;
+      data->theta_rad = th0;
+      data->omega_radps = om0;
+      return StepStatus::kFailed;
+    }
+    worst = StepStatus::kRecovered;
+  }
+  return worst;
+}
+
+Vec2 toothPointWorld(const Model& model, const Data& data, int tooth, double x_m) {
+  const ToothModel& tm = model.teeth[tooth];
+  const double w = toothDeflection(model, data, tooth, x_m);
+  const double wc = toothForeshortening(model, data, tooth, x_m);
+  const Vec2 p_D = tm.p_DR_D + (x_m + wc) * tm.e1_D + w * tm.e2_D;
+  const double c = std::cos(data.theta_rad), s = std::sin(data.theta_rad);
+  return Vec2(c * p_D.x() - s * p_D.y(), s * p_D.x() + c * p_D.y());
+}
+
+double toothDeflection(const Model& model, const Data& data, int tooth, double x_m) {
+  const ToothModel& tm = model.teeth[tooth];
+  if (tm.n_modes == 0) return 0.0;
+  VecX phi, dphi;
+  evaluateModes(tm, x_m, &phi, &dphi);
+  return phi.dot(data.z.segment(tm.dof_offset, tm.n_modes));
+}
+
+double toothForeshortening(const Model& model, const Data& data, int tooth, double x_m) {
+  const ToothModel& tm = model.teeth[tooth];
+  if (tm.n_modes == 0) return 0.0;
+  MatX H;
+  interpolateH(tm, x_m, &H);
+  const auto q = data.z.segment(tm.dof_offset, tm.n_modes);
+  return -0.5 * q.dot(H * q);
+}
+
+}  // namespace threshing_sim

@@ -1,0 +1,251 @@
+// Moreau-Jean time stepping (physics.md section 9): fixed step h, theta-method for the smooth
+// linear part, contact detection at the midpoint, one velocity-level complementarity problem
+// per island with Newton's impact law (rigid) or the Hertz force as a fixed normal (compliant).
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/LU>
+
+#include "internal.h"
+#include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+// (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega changes.
+void updateIterationMatrices(const Model& m, double omega, double h, Workspace* ws) {
+  if (ws->iteration_omega == omega && ws->iteration_inverse.size() == m.teeth.size()) return;
+  const double th = m.integrator.theta;
+  ws->iteration_inverse.resize(m.teeth.size());
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    MatX W = (h * h * th * th) * toothStiffness(tm, omega);
+    W.diagonal().array() += 1.0 + h * th * tm.damping_coeff.array();
+    ws->iteration_inverse[k] = W.inverse();
+  }
+  ws->iteration_omega = omega;
+}
+
+// Largest speed of any material point, to widen the broad phase over one step [m/s].
+double speedBound(const Model& m, const Data& d) {
+  double v = 0.0;
+  for (const ToothModel& tm : m.teeth) {
+    v = std::max(v, std::abs(d.omega_radps) * (m.drum.radius_m + tm.length_m));
+  }
+  for (const KernelModel& k : m.kernels) {
+    v = std::max(v, d.u.segment<2>(k.dof_offset).norm() +
+                        std::abs(d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
+  }
+  return v;
+}
+
+}  // namespace
+
+StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
+  Workspace& ws = *d->ws;
+  const double th = m.integrator.theta;
+  const int T = static_cast<int>(m.teeth.size());
+
+  // Drum over the step: midpoint for forces and contacts, end for the new state.
+  const Drive mid = driveAt(m, *d, 0.5 * h);
+  const Drive end = driveAt(m, *d, h);
+  Drive forcing = mid;
+  forcing.alpha_radps2 = (end.omega_radps - d->omega_radps) / h;
+  updateIterationMatrices(m, mid.omega_radps, h, &ws);
+  const double energy_net_before = energyOf(m, *d, d->z, d->u, d->omega_radps) -
+                                   d->stats.drive_work_J;
+  const double H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+
+  // Contact detection at the midpoint configuration z_M = z + h/2 u.
+  ws.z_mid = d->z + 0.5 * h * d->u;
+  updateStations(m, ws.z_mid, mid.theta_rad, &ws);
+  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws);
+  ws.geoms.resize(ws.candidates.size());
+  for (size_t c = 0; c < ws.candidates.size(); ++c)
+    evaluateContact(m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c]);
+
+  // Free velocity: theta-method on the linear tooth equations, explicit kernel forces.
+  smoothForces(m, *d, ws.z_mid, d->u, forcing, &ws.forces);
+  for (int k = 0; k < T; ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (tm.n_modes == 0) continue;
+    auto f = ws.forces.segment(tm.dof_offset, tm.n_modes);
+    f.noalias() -= h * (th - 0.5) * (toothStiffness(tm, mid.omega_radps) *
+                                      d->u.segment(tm.dof_offset, tm.n_modes));
+  }
+  ws.u_free = d->u;
+  for (int k = 0; k < T; ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (tm.n_modes == 0) continue;
+    ws.u_free.segment(tm.dof_offset, tm.n_modes).noalias() +=
+        h * (ws.iteration_inverse[k] * ws.forces.segment(tm.dof_offset, tm.n_modes));
+  }
+  for (const KernelModel& k : m.kernels) {
+    ws.u_free.segment<2>(k.dof_offset) += h / k.mass_kg * ws.forces.segment<2>(k.dof_offset);
+    ws.u_free[k.dof_offset + 2] += h / k.inertia_kgm2 * ws.forces[k.dof_offset + 2];
+  }
+
+  // Active contacts: closed at the midpoint. Rigid: unknown normal impulse with Newton's law;
+  // compliant: the Hertz-Hunt-Crossley force over the step as a fixed normal impulse.
+  ws.active.clear();
+  ws.rows.clear();
+  for (size_t c = 0; c < ws.geoms.size(); ++c) {
+    const ContactGeom& g = ws.geoms[c];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    if (g.gap_m > 0.0) continue;
+    ContactRow row;
+    row.mu = g.params->friction;
+    if (g.params->law == ContactLaw::kRigid) {
+      row.normal_unknown = true;
+    } else {
+      const double v_in = mem.state == ContactState::kSeparated ? -g.vn : mem.v_in_mps;
+      row.normal_unknown = false;
+      row.lambda_n_fixed = h * compliantNormalForce(g, v_in, m.hc_min_impact_speed_mps);
+    }
+    ws.active.push_back(static_cast<int>(c));
+    ws.rows.push_back(row);
+  }
+  const int k = static_cast<int>(ws.active.size());
+  ws.b.resize(2 * k);
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    double bn = g.wtilde_n, bt = g.wtilde_t;
+    for (const BodyJac& s : g.side) {
+      if (s.body < 0 || s.w_n.size() == 0) continue;
+      const auto uf = ws.u_free.segment(bodyDofOffset(m, s.body), s.w_n.size());
+      bn += s.w_n.dot(uf);
+      bt += s.w_t.dot(uf);
+    }
+    // Newton's law 0 <= P_N _|_ dg_N+ + e dg_N- >= 0; slow approaches are plastic (Zeno).
+    if (ws.rows[i].normal_unknown && g.vn < -m.integrator.zeno_velocity_mps)
+      bn += g.params->restitution * g.vn;
+    ws.b[2 * i] = bn;
+    ws.b[2 * i + 1] = bt;
+  }
+  const bool solved = solveContactIslands(m, &ws.iteration_inverse, &ws);
+
+  // New velocities u+ = u_free + Minv W P, positions by the theta rule.
+  ws.u_old = d->u;
+  d->u = ws.u_free;
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    const double pn = ws.lambda[2 * i], pt = ws.lambda[2 * i + 1];
+    for (const BodyJac& s : g.side) {
+      applyInverseMass(m, &ws.iteration_inverse, s.body, s.w_n, pn, &d->u);
+      applyInverseMass(m, &ws.iteration_inverse, s.body, s.w_t, pt, &d->u);
+    }
+  }
+  d->z += h * (th * d->u + (1.0 - th) * ws.u_old);
+
+  // Drive work: Omega (change of the teeth's angular momentum - contact angular impulse).
+  double contact_angular_impulse = 0.0;
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    if (g.pair.kind != PairKind::kToothKernel) continue;
+    const Vec2& p = g.p0;
+    contact_angular_impulse += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
+                               ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
+  }
+  const double H_after = angularMomentumOf(m, d->z, d->u, end.omega_radps);
+  d->stats.drive_work_J += mid.omega_radps * (H_after - H_before - contact_angular_impulse);
+
+  // Advance time and the drum.
+  d->t_s = end.t_s;
+  d->theta_rad = end.theta_rad;
+  d->omega_radps = end.omega_radps;
+  d->alpha_radps2 = end.alpha_radps2;
+  ++d->steps;
+  const double energy_net_after = energyOf(m, *d, d->z, d->u, d->omega_radps) -
+                                  d->stats.drive_work_J;
+
+  // Contact states, episodes, events and statistics.
+  for (auto& kv : ws.memory) kv.second.seen = false;
+  int ia = 0;
+  for (size_t c = 0; c < ws.geoms.size(); ++c) {
+    const ContactGeom& g = ws.geoms[c];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    mem.seen = true;
+    const bool is_active = ia < k && ws.active[ia] == static_cast<int>(c);
+    const double pn = is_active ? ws.lambda[2 * ia] : 0.0;
+    const double pt = is_active ? ws.lambda[2 * ia + 1] : 0.0;
+    const double vt_after = is_active ? ws.y[2 * ia + 1] : g.vt;
+    if (is_active) ++ia;
+    const bool touching = is_active && pn > 0.0;
+    if (!touching) {
+      if (mem.state != ContactState::kSeparated) {
+        ContactGeom g_end = g;
+        g_end.vn = is_active ? ws.y[2 * (ia - 1)] : g.vn;
+        endEpisode(m, d, &mem, g_end, d->t_s, energy_net_after);
+      }
+      continue;
+    }
+    // Touching: a new episode starts with an impact, then sticks or slips.
+    const ContactState before = mem.state;
+    if (before == ContactState::kSeparated) {
+      mem.v_in_mps = std::max(-g.vn, 0.0);
+      beginEpisode(m, d, &mem, g, d->t_s - h, energy_net_before);
+    }
+    const double mu = g.params->friction;
+    const bool sticking = mu > 0.0 && std::abs(pt) < mu * pn * (1.0 - 1e-9);
+    mem.state = before == ContactState::kSeparated
+                    ? ContactState::kImpact
+                    : (sticking || mu == 0.0 ? ContactState::kStick : ContactState::kSlip);
+    if (mu == 0.0 && std::abs(vt_after) > m.integrator.zeno_velocity_mps)
+      mem.state = ContactState::kSlip;
+    if (before != ContactState::kSeparated && before != mem.state)
+      emitTransition(d, g.pair, before, mem.state, d->t_s, g);
+    // Rigid law: the impulse of the first step is the impact.
+    if (before == ContactState::kSeparated && g.params->law == ContactLaw::kRigid) {
+      ContactEvent ev;
+      ev.t_s = d->t_s;
+      ev.pair = g.pair;
+      ev.from = ContactState::kSeparated;
+      ev.to = ContactState::kImpact;
+      ev.is_impact = true;
+      ev.vn_before_mps = g.vn;
+      ev.vt_before_mps = g.vt;
+      ev.vn_after_mps = ws.y[2 * (ia - 1)];
+      ev.vt_after_mps = vt_after;
+      ev.impulse_normal_Ns = pn;
+      ev.impulse_tangential_Ns = pt;
+      ev.energy_lost_J = energy_net_before - energy_net_after;
+      ev.macro_collision = mem.macro_index;
+      ev.sub_collision = mem.sub_index;
+      d->events.push_back(ev);
+      ++d->stats.impacts;
+      const int kb = g.pair.kind == PairKind::kKernelObstacle ? g.pair.a : g.pair.b;
+      ++d->stats.kernel_impacts[kb];
+      if (g.pair.kind == PairKind::kKernelKernel) ++d->stats.kernel_impacts[g.pair.a];
+      d->stats.max_energy_gain_at_impact_J =
+          std::max(d->stats.max_energy_gain_at_impact_J, -ev.energy_lost_J);
+    }
+    mem.normal_force_N = pn / h;
+    mem.tangential_force_N = pt / h;
+    mem.impulse_n_acc += pn;
+    mem.impulse_t_acc += pt;
+    mem.episode_impulse_n += pn;
+    mem.episode_impulse_t += pt;
+    mem.episode_peak_N = std::max(mem.episode_peak_N, pn / h);
+    d->stats.total_normal_impulse_Ns += pn;
+    recordForce(m, d, g, pn / h, pt / h, d->t_s);
+  }
+  // Pairs that left the broad phase while in contact have separated.
+  for (auto& kv : ws.memory) {
+    PairMemory& mem = kv.second;
+    if (mem.seen || mem.state == ContactState::kSeparated) continue;
+    ContactGeom g_far;
+    g_far.pair = PairId{static_cast<PairKind>(kv.first >> 60),
+                        static_cast<int>((kv.first >> 30) & 0x3fffffff),
+                        static_cast<int>(kv.first & 0x3fffffff)};
+    g_far.params = &m.contact[static_cast<int>(g_far.pair.kind)];
+    endEpisode(m, d, &mem, g_far, d->t_s, energy_net_after);
+  }
+  updatePedicels(m, d);
+  publishContacts(d, &ws);
+  return solved ? StepStatus::kOk : StepStatus::kRecovered;
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

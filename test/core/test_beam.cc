@@ -1,0 +1,489 @@
+// Unit tests of the assumed-mode tooth model (beam.h) and toothFrequenciesHz (simulator.h).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kRpm800_radps = 800 * 2 * kPi / 60;  // 83.776 rad/s
+
+// A measured value with 10 significant digits, for RecordProperty.
+std::string fmt(double value) {
+  std::ostringstream out;
+  out.precision(10);
+  out << value;
+  return out.str();
+}
+
+// A tooth of round section with the given material, compiled on a drum of radius R.
+ToothModel makeTooth(double diameter_m, double youngs_modulus_Pa, double density_kgpm3, int n_modes,
+                     double drum_radius_m = 0.20, double length_m = 0.06) {
+  ToothModel tooth;
+  tooth.length_m = length_m;
+  tooth.diameter_m = diameter_m;
+  tooth.youngs_modulus_Pa = youngs_modulus_Pa;
+  tooth.density_kgpm3 = density_kgpm3;
+  tooth.n_modes = n_modes;
+  compileTooth(drum_radius_m, &tooth);
+  return tooth;
+}
+
+ToothModel makeNylonTooth(int n_modes, double drum_radius_m = 0.20) {
+  return makeTooth(0.010, 3.0e9, 1140, n_modes, drum_radius_m);
+}
+
+// Composite Simpson rule with n_intervals (even) on [a, b]: an integrator independent of the
+// Gauss-Legendre rule inside beam.cc. f(x) returns an Eigen object.
+template <typename F>
+auto simpson(double a, double b, int n_intervals, F f) {
+  const double h = (b - a) / n_intervals;
+  auto sum = (f(a) + f(b)).eval();
+  for (int k = 1; k < n_intervals; ++k) sum += (k % 2 == 1 ? 4.0 : 2.0) * f(a + k * h);
+  return (sum * (h / 3)).eval();
+}
+
+// Simpson with 20000 intervals: for the fastest integrand (phi_12 phi_12, wavenumber
+// 2 beta_12 ~ 72 / L) its error is ~ (72 h / L)^4 / 180 ~ 1e-12 relative, well inside the
+// tolerances below.
+constexpr int kFineIntervals = 20000;
+
+VecX phiAt(const ToothModel& tooth, double x_m) {
+  VecX phi, dphi;
+  evaluateModes(tooth, x_m, &phi, &dphi);
+  return phi;
+}
+
+VecX dphiAt(const ToothModel& tooth, double x_m) {
+  VecX phi, dphi;
+  evaluateModes(tooth, x_m, &phi, &dphi);
+  return dphi;
+}
+
+VecX ddphiAt(const ToothModel& tooth, double x_m) {
+  VecX ddphi;
+  evaluateModeCurvatures(tooth, x_m, &ddphi);
+  return ddphi;
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. Roots of the clamped-free characteristic equation.
+
+TEST(BeamTest, BetaLMatchesTableAndSolvesCharacteristicEquation) {
+  // The table is given to 8 decimals, so it is itself rounded by up to 5e-9.
+  const double table[4] = {1.87510407, 4.69409113, 7.85475744, 10.99554073};
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR(cantileverBetaL(i), table[i], 1e-8) << "mode " << i;
+
+  for (int i = 0; i < 12; ++i) {
+    const double z = cantileverBetaL(i);
+    // 1 + cos z cosh z = 0 scaled by 1 / cosh z (cosh(36) ~ 2e15 would turn a one-ulp error in
+    // z into a residual of ~10): the scaled residual of a full-precision root is ~1e-16.
+    EXPECT_NEAR(std::cos(z) + 1 / std::cosh(z), 0.0, 1e-12) << "mode " << i;
+    // For i >= 4, cos z = -1 / cosh z puts the root 1 / cosh z (~1e-6 for i = 4) from the
+    // asymptote (2i+1) pi / 2; 2 / cosh z bounds it.
+    const double asymptote = (2 * i + 1) * kPi / 2;
+    if (i >= 4) {
+      EXPECT_NEAR(z, asymptote, 2 / std::cosh(asymptote)) << "mode " << i;
+    }
+  }
+  EXPECT_THROW(cantileverBetaL(-1), std::invalid_argument);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. Mode shapes: against the textbook formula, orthonormality and boundary conditions.
+
+TEST(BeamTest, ModeShapesMatchTextbookFormulaForLowModes) {
+  const ToothModel tooth = makeNylonTooth(4);
+  const double L = tooth.length_m;
+  // For beta L <= 11 the textbook form loses at most log10(cosh 11) ~ 4.5 of the 19 digits of
+  // long double, so it is a ~1e-14 reference; 1e-12 of the mode's scale C leaves margin.
+  for (int i = 0; i < 4; ++i) {
+    const long double bL = cantileverBetaL(i);
+    const long double sigma = (std::cosh(bL) + std::cos(bL)) / (std::sinh(bL) + std::sin(bL));
+    const double C = tooth.norm_C[i];
+    for (int k = 0; k <= 20; ++k) {
+      const double x = L * k / 20;
+      const long double z = bL * x / L;
+      const long double phi = std::cosh(z) - std::cos(z) - sigma * (std::sinh(z) - std::sin(z));
+      const long double dphi = std::sinh(z) + std::sin(z) - sigma * (std::cosh(z) - std::cos(z));
+      const long double ddphi = std::cosh(z) + std::cos(z) - sigma * (std::sinh(z) + std::sin(z));
+      const double beta = tooth.beta_per_m[i];
+      EXPECT_NEAR(phiAt(tooth, x)[i], C * static_cast<double>(phi), 1e-12 * C);
+      EXPECT_NEAR(dphiAt(tooth, x)[i], C * beta * static_cast<double>(dphi), 1e-12 * C * beta);
+      EXPECT_NEAR(ddphiAt(tooth, x)[i], C * beta * beta * static_cast<double>(ddphi),
+                  1e-12 * C * beta * beta);
+    }
+  }
+}
+
+TEST(BeamTest, ModesAreMassOrthonormal) {
+  const ToothModel tooth = makeNylonTooth(12);
+  const double rhoA = tooth.mass_per_length_kgpm;
+  const MatX mass = simpson(0.0, tooth.length_m, kFineIntervals, [&](double x) {
+    const VecX phi = phiAt(tooth, x);
+    return (rhoA * phi * phi.transpose()).eval();
+  });
+  // Quadrature error ~1e-12 and round-off ~1e-14: 1e-9 is a loose bound on the shape accuracy.
+  const double error = (mass - MatX::Identity(12, 12)).cwiseAbs().maxCoeff();
+  EXPECT_LT(error, 1e-9);
+  RecordProperty("max_orthonormality_error", fmt(error));
+}
+
+TEST(BeamTest, ModesSatisfyClampedFreeBoundaryConditions) {
+  const ToothModel tooth = makeNylonTooth(12);
+  const double L = tooth.length_m;
+  const VecX phi0 = phiAt(tooth, 0.0), dphi0 = dphiAt(tooth, 0.0), ddphiL = ddphiAt(tooth, L);
+  for (int i = 0; i < 12; ++i) {
+    const double C = tooth.norm_C[i], beta = tooth.beta_per_m[i];
+    // Each value is a sum of O(1) terms times its scale C beta^k, so round-off is ~1e-15 of
+    // that scale; 1e-12 leaves room for the beta L rounding amplified by up to beta L ~ 36.
+    EXPECT_NEAR(phi0[i], 0.0, 1e-12 * C) << "phi(0), mode " << i;
+    EXPECT_NEAR(dphi0[i], 0.0, 1e-12 * C * beta) << "phi'(0), mode " << i;
+    EXPECT_NEAR(ddphiL[i], 0.0, 1e-12 * C * beta * beta) << "phi''(L), mode " << i;
+
+    // phi'''(L) by a second-order one-sided difference of phi'' with step h = 1e-4 / beta:
+    // truncation ~(beta h)^2 / 3 ~ 3e-9 and round-off ~1e-15 / (beta h) ~ 1e-11 of C beta^3.
+    const double h = 1e-4 / beta;
+    const double dddphiL =
+        (3 * ddphiL[i] - 4 * ddphiAt(tooth, L - h)[i] + ddphiAt(tooth, L - 2 * h)[i]) / (2 * h);
+    EXPECT_NEAR(dddphiL, 0.0, 1e-7 * C * beta * beta * beta) << "phi'''(L), mode " << i;
+  }
+}
+
+TEST(BeamTest, DerivativesAreConsistent) {
+  const ToothModel tooth = makeNylonTooth(12);
+  const double L = tooth.length_m;
+  // Central differences with h = 1e-4 / beta_12: truncation ~(beta h)^2 / 6 <= 2e-9 and
+  // round-off ~1e-15 / (beta h) of each derivative's scale C beta^k.
+  const double h = 1e-4 / tooth.beta_per_m[11];
+  for (double x : {0.1 * L, 0.37 * L, 0.5 * L, 0.81 * L, 0.99 * L}) {
+    const VecX dphi_fd = (phiAt(tooth, x + h) - phiAt(tooth, x - h)) / (2 * h);
+    const VecX ddphi_fd = (dphiAt(tooth, x + h) - dphiAt(tooth, x - h)) / (2 * h);
+    const VecX dphi = dphiAt(tooth, x), ddphi = ddphiAt(tooth, x);
+    for (int i = 0; i < 12; ++i) {
+      const double C = tooth.norm_C[i], beta = tooth.beta_per_m[i];
+      EXPECT_NEAR(dphi_fd[i], dphi[i], 1e-7 * C * beta) << "x " << x << ", mode " << i;
+      EXPECT_NEAR(ddphi_fd[i], ddphi[i], 1e-7 * C * beta * beta) << "x " << x << ", mode " << i;
+    }
+  }
+}
+
+TEST(BeamTest, EvaluateModesClampsAndReusesStorage) {
+  const ToothModel tooth = makeNylonTooth(6);
+  VecX phi(6), dphi(6);
+  const double* phi_storage = phi.data();
+  const double* dphi_storage = dphi.data();
+  evaluateModes(tooth, 2 * tooth.length_m, &phi, &dphi);
+  // Right-sized outputs keep their buffers (no allocation on the hot path).
+  EXPECT_EQ(phi.data(), phi_storage);
+  EXPECT_EQ(dphi.data(), dphi_storage);
+  // Beyond the tip the tip values are returned (clamping), exactly.
+  EXPECT_EQ(phi, phiAt(tooth, tooth.length_m));
+  EXPECT_EQ(dphi, dphiAt(tooth, tooth.length_m));
+  EXPECT_EQ(phiAt(tooth, -1.0), phiAt(tooth, 0.0));
+  // Wrongly sized outputs are resized.
+  VecX small(1), small_d;
+  evaluateModes(tooth, 0.03, &small, &small_d);
+  EXPECT_EQ(small.size(), 6);
+  EXPECT_EQ(small_d.size(), 6);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Modal integrals and derived fields.
+
+TEST(BeamTest, DerivedFieldsAndModalIntegrals) {
+  const double R = 0.20;
+  ToothModel tooth;
+  tooth.n_modes = 12;
+  tooth.mount_angle_rad = 0.7;
+  compileTooth(R, &tooth);
+  const double L = tooth.length_m, d = tooth.diameter_m;
+  const double rhoA = tooth.mass_per_length_kgpm;
+
+  // Section and frame: closed forms, to round-off.
+  EXPECT_DOUBLE_EQ(tooth.area_m2, kPi * d * d / 4);
+  EXPECT_DOUBLE_EQ(tooth.second_moment_m4, kPi * std::pow(d, 4) / 64);
+  EXPECT_DOUBLE_EQ(rhoA, tooth.density_kgpm3 * tooth.area_m2);
+  EXPECT_TRUE(tooth.e1_D.isApprox(Vec2(std::cos(0.7), std::sin(0.7)), 1e-15));
+  EXPECT_TRUE(tooth.e2_D.isApprox(Vec2(-std::sin(0.7), std::cos(0.7)), 1e-15));
+  EXPECT_TRUE(tooth.p_DR_D.isApprox(R * tooth.e1_D, 1e-15));
+  EXPECT_NEAR(tooth.damping_coeff[2], 2 * tooth.damping_ratio * std::sqrt(tooth.omega0_sq[2]),
+              1e-12 * tooth.damping_coeff[2]);
+
+  // K_G, p and I0 against the independent Simpson rule (~1e-12 relative, see kFineIntervals);
+  // 1e-10 relative to the largest entry.
+  const MatX K_G = simpson(0.0, L, kFineIntervals, [&](double x) {
+    const VecX dphi = dphiAt(tooth, x);
+    return (rhoA * (R * (L - x) + (L * L - x * x) / 2) * dphi * dphi.transpose()).eval();
+  });
+  const VecX p = simpson(0.0, L, kFineIntervals,
+                         [&](double x) { return (rhoA * (R + x) * phiAt(tooth, x)).eval(); });
+  // Simpson's rule on one interval is exact for the quadratic integrand |p_DR_D + x e1|^2.
+  const auto squared_radius = [&](double x) {
+    return (tooth.p_DR_D + x * tooth.e1_D).squaredNorm();
+  };
+  const double I0 =
+      rhoA * L / 6 * (squared_radius(0) + 4 * squared_radius(L / 2) + squared_radius(L));
+  EXPECT_LT((tooth.K_G - K_G).cwiseAbs().maxCoeff(), 1e-10 * K_G.cwiseAbs().maxCoeff());
+  EXPECT_LT((tooth.p_inertia - p).cwiseAbs().maxCoeff(), 1e-10 * p.cwiseAbs().maxCoeff());
+  EXPECT_NEAR(tooth.I0_kgm2, I0, 1e-13 * I0);
+  EXPECT_TRUE(tooth.K_G.isApprox(tooth.K_G.transpose(), 1e-15));
+
+  // Stations: equally spaced with exact ends, shapes sampled there.
+  ASSERT_EQ(tooth.station_x_m.size(), tooth.n_stations);
+  EXPECT_EQ(tooth.station_x_m[0], 0.0);
+  EXPECT_EQ(tooth.station_x_m[tooth.n_stations - 1], L);
+  EXPECT_NEAR(tooth.station_x_m[3], 3 * L / (tooth.n_stations - 1), 1e-16);
+  EXPECT_EQ(VecX(tooth.phi_s.row(3).transpose()), phiAt(tooth, tooth.station_x_m[3]));
+  EXPECT_EQ(VecX(tooth.dphi_s.row(3).transpose()), dphiAt(tooth, tooth.station_x_m[3]));
+}
+
+TEST(BeamTest, StiffnessMatrixIsLambdaPlusOmegaSquaredKgMinusI) {
+  const ToothModel tooth = makeNylonTooth(4);
+  const MatX K0 = toothStiffness(tooth, 0.0);
+  EXPECT_EQ(MatX(K0), MatX(tooth.omega0_sq.asDiagonal()));
+  const double omega = 50.0;
+  const MatX K = toothStiffness(tooth, omega);
+  const MatX expected =
+      MatX(tooth.omega0_sq.asDiagonal()) + omega * omega * (tooth.K_G - MatX::Identity(4, 4));
+  EXPECT_TRUE(K.isApprox(expected, 1e-15));
+}
+
+// ---------------------------------------------------------------------------------------------
+// 3. Natural frequencies.
+
+TEST(BeamTest, FrequenciesAtRestMatchClosedForm) {
+  const ToothModel tooth = makeNylonTooth(6);
+  const double EI = tooth.youngs_modulus_Pa * tooth.second_moment_m4;
+  const double rhoA = tooth.mass_per_length_kgpm;
+  const double scale = std::sqrt(EI / (rhoA * std::pow(tooth.length_m, 4)));
+  const VecX f_Hz = toothFrequenciesHz(tooth, 0.0);
+  ASSERT_EQ(f_Hz.size(), 6);
+  // At rest the stiffness is diagonal: the eigen-solver returns it to round-off.
+  for (int i = 0; i < 6; ++i) {
+    const double bL = cantileverBetaL(i);
+    EXPECT_NEAR(f_Hz[i], bL * bL / (2 * kPi) * scale, 1e-12 * f_Hz[i]) << "mode " << i;
+  }
+}
+
+TEST(BeamTest, FrequenciesMatchPhysicsMdIllustrations) {
+  // physics.md section 3, L = 60 mm, R = 200 mm, 800 rpm; the stated values have 3 digits,
+  // so they are checked within 1 %. Four modes: the coupling through K_G to modes 5-12 lowers
+  // the rotating rubber frequency by only 3e-4 (34.446 -> 34.435 Hz).
+  const ToothModel rubber = makeTooth(0.010, 1.5e6, 950, 4);
+  const double rubber_rest_Hz = toothFrequenciesHz(rubber, 0.0)[0];
+  const double rubber_rot_Hz = toothFrequenciesHz(rubber, kRpm800_radps)[0];
+  EXPECT_NEAR(rubber_rest_Hz, 15.4, 0.01 * 15.4);
+  EXPECT_NEAR(rubber_rot_Hz, 34.4, 0.01 * 34.4);
+
+  const ToothModel nylon = makeNylonTooth(4);
+  const double nylon_Hz = toothFrequenciesHz(nylon, kRpm800_radps)[0];
+  EXPECT_NEAR(nylon_Hz, 630, 0.01 * 630);
+
+  const ToothModel steel = makeTooth(0.005, 206e9, 7850, 4);
+  const double steel_Hz = toothFrequenciesHz(steel, kRpm800_radps)[0];
+  EXPECT_NEAR(steel_Hz, 995, 0.01 * 995);
+
+  RecordProperty("rubber_rest_Hz", fmt(rubber_rest_Hz));
+  RecordProperty("rubber_800rpm_Hz", fmt(rubber_rot_Hz));
+  RecordProperty("nylon_800rpm_Hz", fmt(nylon_Hz));
+  RecordProperty("steel_800rpm_Hz", fmt(steel_Hz));
+}
+
+TEST(BeamTest, FrequenciesAreAscendingAndSofteningClampsToZero) {
+  const ToothModel rubber = makeTooth(0.010, 1.5e6, 950, 6);
+  const VecX f_Hz = toothFrequenciesHz(rubber, kRpm800_radps);
+  for (int i = 1; i < f_Hz.size(); ++i) EXPECT_LT(f_Hz[i - 1], f_Hz[i]);
+
+  // The zero-order model (K_G dropped) keeps only -Omega^2 I and softens: omega_i^2 - Omega^2.
+  // Above the first rest frequency that eigenvalue is negative and is reported as 0 Hz.
+  ToothModel zero_order = rubber;
+  zero_order.K_G.setZero();
+  const double omega1_radps = std::sqrt(zero_order.omega0_sq[0]);
+  const VecX f_soft_Hz = toothFrequenciesHz(zero_order, 0.5 * omega1_radps);
+  EXPECT_NEAR(f_soft_Hz[0], std::sqrt(0.75) * omega1_radps / (2 * kPi), 1e-12 * f_soft_Hz[0]);
+  const VecX f_unstable_Hz = toothFrequenciesHz(zero_order, 2 * omega1_radps);
+  EXPECT_EQ(f_unstable_Hz[0], 0.0);
+  EXPECT_GT(f_unstable_Hz[1], 0.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 4. Southwell coefficient of the first mode.
+
+TEST(BeamTest, SouthwellCoefficient) {
+  // K_G is linear in R: K_G(R) = K_G(0) + (R / L) dK_G/d(R/L), so the radii 0 and L give the
+  // slope exactly. Reference values 1.1933 and 1.5709 are given to 4 decimals (rounding <= 5e-5).
+  const ToothModel at_axis = makeNylonTooth(4, 0.0);
+  const ToothModel at_L = makeNylonTooth(4, at_axis.length_m);
+  const double k0 = at_axis.K_G(0, 0);
+  const double slope = at_L.K_G(0, 0) - k0;
+  EXPECT_NEAR(k0, 1.1933, 1e-4);
+  EXPECT_NEAR(slope, 1.5709, 1e-4);
+  RecordProperty("K_G11_R0", fmt(k0));
+  RecordProperty("K_G11_slope", fmt(slope));
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Static tip deflection converges to F L^3 / (3 E I).
+
+TEST(BeamTest, StaticTipDeflectionConverges) {
+  const double F_N = 1.0;
+  double previous_error = 1.0;
+  double error_6 = 0, error_12 = 0;
+  for (int n = 1; n <= 12; ++n) {
+    const ToothModel tooth = makeNylonTooth(n);
+    const double L = tooth.length_m;
+    const double exact_m = F_N * L * L * L / (3 * tooth.youngs_modulus_Pa * tooth.second_moment_m4);
+    // Modal statics: q_i = F phi_i(L) / omega_i^2, w(L) = sum phi_i(L) q_i.
+    const VecX phi_L = phiAt(tooth, L);
+    const double w_L = (phi_L.array().square() * F_N / tooth.omega0_sq.array()).sum();
+    const double error = (exact_m - w_L) / exact_m;
+    // Each mode adds a positive term, so the error falls monotonically from above.
+    EXPECT_GT(error, 0.0) << "n " << n;
+    EXPECT_LT(error, previous_error) << "n " << n;
+    previous_error = error;
+    if (n == 6) error_6 = error;
+    if (n == 12) error_12 = error;
+  }
+  // phi_i(L)^2 = 4 / (rho A L) for every mode, so w(L) / exact = 12 sum_{i<=n} (beta_i L)^-4 and
+  // the truncation error 12 sum_{i>n} (beta_i L)^-4 ~ 0.041 / n^3 is 2.4e-5 at n = 12: 1e-4 is
+  // an honest bound.
+  EXPECT_LT(error_12, 1e-4);
+  // The n^-3 rate: doubling n divides the error by ~8 (the asymptote is reached slowly, so the
+  // band is [6, 10]).
+  EXPECT_GT(error_6 / error_12, 6.0);
+  EXPECT_LT(error_6 / error_12, 10.0);
+  RecordProperty("tip_deflection_rel_error_n6", fmt(error_6));
+  RecordProperty("tip_deflection_rel_error_n12", fmt(error_12));
+}
+
+// ---------------------------------------------------------------------------------------------
+// 6. Foreshortening matrix H(x).
+
+TEST(BeamTest, HAtStationsMatchesIndependentQuadrature) {
+  ToothModel tooth;
+  tooth.n_modes = 12;
+  tooth.n_stations = 7;
+  compileTooth(0.2, &tooth);
+  ASSERT_EQ(static_cast<int>(tooth.H_s.size()), 7);
+  EXPECT_EQ(tooth.H_s[0], MatX::Zero(12, 12));
+  for (int s = 1; s < 7; ++s) {
+    const MatX H = simpson(0.0, tooth.station_x_m[s], kFineIntervals, [&](double x) {
+      const VecX dphi = dphiAt(tooth, x);
+      return (dphi * dphi.transpose()).eval();
+    });
+    // Simpson ~1e-12 relative (see kFineIntervals); 1e-10 of the largest entry.
+    EXPECT_LT((tooth.H_s[s] - H).cwiseAbs().maxCoeff(), 1e-10 * H.cwiseAbs().maxCoeff())
+        << "station " << s;
+  }
+}
+
+TEST(BeamTest, InterpolateHIsExactAtStationsAndLinearBetween) {
+  const ToothModel tooth = makeNylonTooth(5);
+  MatX H;
+  for (int s = 0; s < tooth.n_stations; ++s) {
+    interpolateH(tooth, tooth.station_x_m[s], &H);
+    EXPECT_EQ(H, tooth.H_s[s]) << "station " << s;
+  }
+  // Midway: the average of the neighbours (round-off only).
+  const double x_mid = 0.5 * (tooth.station_x_m[2] + tooth.station_x_m[3]);
+  interpolateH(tooth, x_mid, &H);
+  EXPECT_TRUE(H.isApprox(0.5 * (tooth.H_s[2] + tooth.H_s[3]), 1e-14));
+  // Outside [0, L]: clamped to the end stations.
+  interpolateH(tooth, -0.01, &H);
+  EXPECT_EQ(H, tooth.H_s.front());
+  interpolateH(tooth, 1.0, &H);
+  EXPECT_EQ(H, tooth.H_s.back());
+}
+
+// ---------------------------------------------------------------------------------------------
+// 7. Validation.
+
+void expectInvalid(ToothModel tooth, const std::string& field, double drum_radius_m = 0.2) {
+  try {
+    compileTooth(drum_radius_m, &tooth);
+    ADD_FAILURE() << "no exception for " << field;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+  }
+}
+
+TEST(BeamTest, CompileToothRejectsNonPhysicalValues) {
+  ToothModel tooth;
+  tooth.length_m = -0.01;
+  expectInvalid(tooth, "tooth.length");
+  tooth = ToothModel();
+  tooth.diameter_m = 0;
+  expectInvalid(tooth, "tooth.diameter");
+  tooth = ToothModel();
+  tooth.n_modes = -1;
+  expectInvalid(tooth, "tooth.n_modes");
+  tooth.n_modes = 13;
+  expectInvalid(tooth, "tooth.n_modes");
+  tooth = ToothModel();
+  tooth.damping_ratio = 1.5;
+  expectInvalid(tooth, "tooth.damping_ratio");
+  tooth = ToothModel();
+  tooth.youngs_modulus_Pa = std::nan("");
+  expectInvalid(tooth, "tooth.youngs_modulus");
+  tooth = ToothModel();
+  tooth.density_kgpm3 = 0;
+  expectInvalid(tooth, "tooth.density");
+  tooth = ToothModel();
+  tooth.n_stations = 1;
+  expectInvalid(tooth, "tooth.n_stations");
+  tooth = ToothModel();
+  tooth.poisson_ratio = 0.5;
+  expectInvalid(tooth, "tooth.poisson_ratio");
+  expectInvalid(ToothModel(), "drum.radius", -0.1);
+
+  // The message states the rule and the offending value.
+  tooth = ToothModel();
+  tooth.length_m = -0.01;
+  try {
+    compileTooth(0.2, &tooth);
+    ADD_FAILURE() << "no exception for a negative length";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), "tooth.length: must be > 0 (got -0.01)");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 8. Rigid tooth (no modes).
+
+TEST(BeamTest, RigidToothHasEmptyModalData) {
+  const ToothModel tooth = makeNylonTooth(0);
+  EXPECT_EQ(tooth.beta_per_m.size(), 0);
+  EXPECT_EQ(tooth.sigma.size(), 0);
+  EXPECT_EQ(tooth.norm_C.size(), 0);
+  EXPECT_EQ(tooth.omega0_sq.size(), 0);
+  EXPECT_EQ(tooth.damping_coeff.size(), 0);
+  EXPECT_EQ(tooth.K_G.size(), 0);
+  EXPECT_EQ(tooth.p_inertia.size(), 0);
+  EXPECT_GT(tooth.I0_kgm2, 0.0);
+  EXPECT_EQ(tooth.station_x_m.size(), tooth.n_stations);
+  EXPECT_EQ(tooth.phi_s.rows(), tooth.n_stations);
+  EXPECT_EQ(tooth.phi_s.cols(), 0);
+  EXPECT_EQ(tooth.dphi_s.cols(), 0);
+  ASSERT_EQ(static_cast<int>(tooth.H_s.size()), tooth.n_stations);
+  for (const MatX& H : tooth.H_s) EXPECT_EQ(H.size(), 0);
+
+  VecX phi(3), dphi(3);
+  evaluateModes(tooth, 0.03, &phi, &dphi);
+  EXPECT_EQ(phi.size(), 0);
+  MatX H;
+  interpolateH(tooth, 0.03, &H);
+  EXPECT_EQ(H.size(), 0);
+  EXPECT_EQ(toothStiffness(tooth, 80.0).size(), 0);
+  EXPECT_EQ(toothFrequenciesHz(tooth, 80.0).size(), 0);
+}
+
+}  // namespace
+}  // namespace threshing_sim
