@@ -355,10 +355,12 @@ void solveImpact(const Ctx& c, double t, bool force_plastic) {
     }
     const int k = static_cast<int>(ws.active.size());
     ws.b.resize(2 * k);
+    ws.b_offset.resize(k);
     for (int i = 0; i < k; ++i) {
       const ContactGeom& g = ws.geoms[ws.active[i]];
       const bool slow = g.vn > -m.integrator.zeno_velocity_mps;
-      ws.b[2 * i] = g.vn + (plastic || slow ? 0.0 : g.params->restitution * std::min(g.vn, 0.0));
+      ws.b_offset[i] = plastic || slow ? 0.0 : g.params->restitution * std::min(g.vn, 0.0);
+      ws.b[2 * i] = g.vn + ws.b_offset[i];
       ws.b[2 * i + 1] = g.vt;
     }
     const double e_before = energyOf(m, d, d.z, d.u, dr.omega_radps);
@@ -404,7 +406,9 @@ void solveImpact(const Ctx& c, double t, bool force_plastic) {
       ev.is_impact = true;
       ev.vn_before_mps = g.vn;
       ev.vt_before_mps = g.vt;
-      ev.vn_after_mps = ws.y[2 * i];
+      // y_N is dg_N+ + e dg_N-: take the offset back out for the post-impact velocity.
+      const double vn_after = ws.y[2 * i] - ws.b_offset[i];
+      ev.vn_after_mps = vn_after;
       ev.vt_after_mps = ws.y[2 * i + 1];
       ev.impulse_normal_Ns = pn;
       ev.impulse_tangential_Ns = pt;
@@ -423,7 +427,7 @@ void solveImpact(const Ctx& c, double t, bool force_plastic) {
       mem.episode_impulse_n += pn;
       mem.episode_impulse_t += pt;
       // Closed if the contact does not leave after the impact; otherwise it bounced.
-      const bool stays = ws.y[2 * i] <= m.integrator.zeno_velocity_mps;
+      const bool stays = vn_after <= m.integrator.zeno_velocity_mps;
       mem.closed = stays;
       mem.state = ContactState::kImpact;
       mem.slip_sign = 0;

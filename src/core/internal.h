@@ -107,6 +107,7 @@ struct Workspace {
   std::vector<int> active;                 // indices into geoms of contacts in the problem
   MatX G;                                  // Delassus matrix of one island
   VecX b, lambda, y;
+  VecX b_offset;                           // restitution target e dg_N- folded into b [m/s]
   std::vector<ContactRow> rows;
   LcpWorkspace lcp;
   VecX scratch_phi, scratch_dphi;

@@ -109,6 +109,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   }
   const int k = static_cast<int>(ws.active.size());
   ws.b.resize(2 * k);
+  ws.b_offset.setZero(k);
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     double bn = g.wtilde_n, bt = g.wtilde_t;
@@ -120,8 +121,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     }
     // Newton's law 0 <= P_N _|_ dg_N+ + e dg_N- >= 0; slow approaches are plastic (Zeno).
     if (ws.rows[i].normal_unknown && g.vn < -m.integrator.zeno_velocity_mps)
-      bn += g.params->restitution * g.vn;
-    ws.b[2 * i] = bn;
+      ws.b_offset[i] = g.params->restitution * g.vn;
+    ws.b[2 * i] = bn + ws.b_offset[i];
     ws.b[2 * i + 1] = bt;
   }
   const bool solved = solveContactIslands(m, &ws.iteration_inverse, &ws);
@@ -176,7 +177,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     if (!touching) {
       if (mem.state != ContactState::kSeparated) {
         ContactGeom g_end = g;
-        g_end.vn = is_active ? ws.y[2 * (ia - 1)] : g.vn;
+        g_end.vn = is_active ? ws.y[2 * (ia - 1)] - ws.b_offset[ia - 1] : g.vn;
         endEpisode(m, d, &mem, g_end, d->t_s, energy_net_after);
       }
       continue;
@@ -206,7 +207,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
       ev.is_impact = true;
       ev.vn_before_mps = g.vn;
       ev.vt_before_mps = g.vt;
-      ev.vn_after_mps = ws.y[2 * (ia - 1)];
+      ev.vn_after_mps = ws.y[2 * (ia - 1)] - ws.b_offset[ia - 1];
       ev.vt_after_mps = vt_after;
       ev.impulse_normal_Ns = pn;
       ev.impulse_tangential_Ns = pt;
