@@ -87,7 +87,8 @@ void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* 
       double w = 0.0, wc = 0.0;
       if (tm.n_modes > 0) {
         w = tm.phi_s.row(s).dot(q);
-        wc = -0.5 * q.dot(tm.H_s[s] * q);
+        const SmallVec Hq = tm.H_s[s] * q;  // fixed capacity: no heap allocation
+        wc = -0.5 * q.dot(Hq);
       }
       const Vec2 p_D = tm.p_DR_D + (tm.station_x_m[s] + wc) * tm.e1_D + w * tm.e2_D;
       ws->stations_W[ws->station_offset[k] + s] = rotate(theta_rad, p_D);

@@ -33,7 +33,7 @@ double huntCrossleyRestitution(double c) {
   double x = 0.0, v = 1.0;
   auto acc = [c](double xx, double vv) {
     if (xx <= 0.0) return 0.0;
-    const double f = std::pow(xx, 1.5) * (1.0 + c * vv);
+    const double f = xx * std::sqrt(xx) * (1.0 + c * vv);
     return f > 0.0 ? -f : 0.0;
   };
   for (int i = 0; i < 200000; ++i) {

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Sets up (scripts/setup.sh), builds every test and runs them all: gtest unit tests of the core
+# and the scene loader, and the rostest integration tests (each with its own master, one after
+# another). Ends with "N passed, N failed" and exits non-zero on any failure.
+set -uo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+bash "$ROOT/scripts/setup.sh" || { echo "0 passed, 1 failed"; exit 1; }
+
+WS="$ROOT/.build/ws"
+cd "$WS"
+export PATH="/usr/bin:$PATH"
+# shellcheck disable=SC1091
+source "$WS/devel/setup.bash"
+rm -rf "$WS/build/test_results"
+# Build the test targets, then run them; catkin_make run_tests exits 0 even when tests fail,
+# so the verdict comes from the result files below.
+catkin_make -DCMAKE_BUILD_TYPE=Release tests > "$WS/tests_build.log" 2>&1 ||
+  { tail -60 "$WS/tests_build.log"; echo "0 passed, 1 failed"; exit 1; }
+catkin_make run_tests -j1 2>&1 | tee "$WS/run_tests.log" | grep -E "^\[ *(RUN|  OK|  FAILED|  PASSED) |^\[ROSTEST\]|^\[ROSUNIT\]|FAILURE|ERROR" || true
+/usr/bin/python3 "$ROOT/scripts/count_results.py" "$WS/build/test_results"
