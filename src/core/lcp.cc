@@ -20,6 +20,9 @@ constexpr double kTieTol = 1e-9;
 // the magnitude of the terms that make up w (pivoting round-off is far below it, a wrong basis
 // far above it).
 constexpr double kResidualTol = 1e-9;
+// A pivot smaller than this fraction of its column's largest entry triggers a rebuild of the
+// tableau from the data before it is used.
+constexpr double kRefactorTol = 1e-6;
 // Diagonal regularisation of the contact LCP, relative to the largest diagonal entry of G.
 constexpr double kRegularisation = 1e-12;
 
@@ -92,6 +95,57 @@ Index leavingRow(const Tableau& T, Index c, Index z0_row) {
   return best;
 }
 
+// Fills the initial tableau [I, -M, -e, q] of w - M z - e z0 = q (all slacks w basic).
+void fillTableau(Tableau T, const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q) {
+  const Index n = q.size();
+  T.leftCols(n).setIdentity();
+  T.middleCols(n, n) = -M;
+  T.col(2 * n).setConstant(-1);
+  T.col(2 * n + 1) = q;
+}
+
+// Rebuilds the tableau of the current basis from the data by Gauss-Jordan elimination with
+// partial pivoting (basic variable basis[k] ends up in row k, so rows keep their meaning),
+// discarding the round-off that the pivots so far have accumulated. False if B is singular.
+bool refactor(Tableau T, const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q,
+              const std::vector<int>& basis, Eigen::Ref<VecX> col) {
+  const Index n = q.size();
+  fillTableau(T, M, q);
+  for (Index k = 0; k < n; ++k) {
+    const Index v = basis[k];
+    Index r;
+    if (T.col(v).tail(n - k).cwiseAbs().maxCoeff(&r) == 0) return false;
+    T.row(k).swap(T.row(k + r));
+    pivot(T, k, v, col);
+  }
+  return true;
+}
+
+// Reads z from a complementary basis (non-basic variables are zero) and verifies w = M z + q
+// >= 0 and w_i = 0 where z_i > 0, relative to the size of the terms that make up w.
+bool readSolution(const Tableau& T, const Eigen::Ref<const MatX>& M,
+                  const Eigen::Ref<const VecX>& q, const std::vector<int>& basis,
+                  Eigen::Ref<VecX> z, Eigen::Ref<VecX> w) {
+  const Index n = q.size();
+  z.setZero();
+  for (Index i = 0; i < n; ++i) {
+    if (basis[i] >= n && basis[i] < 2 * n) z(basis[i] - n) = std::max(T(i, 2 * n + 1), 0.0);
+  }
+  w.noalias() = M * z;
+  w += q;
+  double scale = 0;
+  for (Index i = 0; i < n; ++i) {
+    double s = std::abs(q(i));
+    for (Index j = 0; j < n; ++j) s += std::abs(M(i, j)) * z(j);
+    scale = std::max(scale, s);
+  }
+  const double tol = kResidualTol * scale;
+  for (Index i = 0; i < n; ++i) {
+    if (w(i) < -tol || (z(i) > 0 && w(i) > tol)) return false;
+  }
+  return true;
+}
+
 // Lemke's algorithm on views, so that the contact solver can pass blocks of its workspace.
 // Variables are numbered w_0..w_{n-1}, z_0..z_{n-1}, z0 = 2n; tableau column j belongs to
 // variable j and column 2n+1 holds the basic values.
@@ -104,17 +158,15 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
   if (n == 0 || q.minCoeff() >= 0) return true;
   if (max_pivots <= 0) max_pivots = static_cast<int>(50 * (n + 1) + 100);
   const Index z0 = 2 * n;
-  const Index rhs = 2 * n + 1;
 
-  // Tableau of w - M z - e z0 = q with all slacks w basic.
+  // Tableau with all slacks w basic.
   growTo(&ws->tableau, n, 2 * n + 2);
   growTo(&ws->v1, n);
+  growTo(&ws->v2, n);
   Tableau T = ws->tableau.topLeftCorner(n, 2 * n + 2);
   auto col = ws->v1.head(n);
-  T.leftCols(n).setIdentity();
-  T.middleCols(n, n) = -M;
-  T.col(z0).setConstant(-1);
-  T.col(rhs) = q;
+  auto w = ws->v2.head(n);
+  fillTableau(T, M, q);
   std::vector<int>& basis = ws->basis;
   basis.resize(n);
   for (Index i = 0; i < n; ++i) basis[i] = static_cast<int>(i);
@@ -134,47 +186,36 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
   int count = 1;
 
   // Complementary pivoting: the complement of the variable that just left enters, until z0
-  // leaves (solution) or no row blocks the entering variable (ray termination).
+  // leaves (solution) or no row blocks the entering variable (ray termination). A ray or a
+  // pivot that is small against its column may be an artefact of accumulated round-off, so
+  // the tableau is then rebuilt from the data once and the step repeated.
+  bool fresh = false;
   while (true) {
-    if (count >= max_pivots) {
-      if (pivots) *pivots = count;
-      return false;
-    }
+    if (count >= max_pivots) break;
     r = leavingRow(T, entering, z0_row);
-    if (r < 0) {
-      if (pivots) *pivots = count;
-      return false;
+    const bool suspicious =
+        r < 0 || std::abs(T(r, entering)) < kRefactorTol * T.col(entering).cwiseAbs().maxCoeff();
+    if (suspicious && !fresh) {
+      if (!refactor(T, M, q, basis, col)) break;
+      fresh = true;
+      continue;
     }
+    if (r < 0) break;
     pivot(T, r, entering, col);
+    fresh = false;
     ++count;
     const Index leaving = basis[r];
     basis[r] = static_cast<int>(entering);
-    if (leaving == z0) break;
+    if (leaving == z0) {
+      if (pivots) *pivots = count;
+      // Accept the solution if it verifies, else once more from a rebuilt tableau.
+      if (readSolution(T, M, q, basis, z, w)) return true;
+      return refactor(T, M, q, basis, col) && readSolution(T, M, q, basis, z, w);
+    }
     entering = leaving < n ? leaving + n : leaving - n;
   }
   if (pivots) *pivots = count;
-
-  // Read z from the complementary basis (non-basic variables are zero).
-  for (Index i = 0; i < n; ++i) {
-    if (basis[i] >= n && basis[i] < z0) z(basis[i] - n) = std::max(T(i, rhs), 0.0);
-  }
-
-  // Verify w = M z + q >= 0 and w_i = 0 where z_i > 0, relative to the size of the terms.
-  growTo(&ws->v2, n);
-  auto w = ws->v2.head(n);
-  w.noalias() = M * z;
-  w += q;
-  double scale = 0;
-  for (Index i = 0; i < n; ++i) {
-    double s = std::abs(q(i));
-    for (Index j = 0; j < n; ++j) s += std::abs(M(i, j)) * z(j);
-    scale = std::max(scale, s);
-  }
-  const double tol = kResidualTol * scale;
-  for (Index i = 0; i < n; ++i) {
-    if (w(i) < -tol || (z(i) > 0 && w(i) > tol)) return false;
-  }
-  return true;
+  return false;
 }
 
 // Tangential force per unit normal force imposed on a contact that slides with a known sign.

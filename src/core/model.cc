@@ -84,12 +84,19 @@ void compileModel(Model* model) {
     fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
 
   // Teeth: modal data, and their modal coordinates first in the generalised vector.
+  // Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff: use modes: 0.
   int offset = 0;
   for (size_t k = 0; k < m.teeth.size(); ++k) {
+    if (m.teeth[k].youngs_modulus_Pa > 1e13)
+      fail("teeth." + std::to_string(k) + ".youngs_modulus",
+           "must be <= 1e13 Pa (use modes: 0 for a rigid tooth)", m.teeth[k].youngs_modulus_Pa);
     try {
       compileTooth(m.drum.radius_m, &m.teeth[k]);
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument("teeth." + std::to_string(k) + "." + e.what());
+      // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
+      std::string what = e.what();
+      if (what.rfind("tooth.", 0) == 0) what = what.substr(6);
+      throw std::invalid_argument("teeth." + std::to_string(k) + "." + what);
     }
     m.teeth[k].dof_offset = offset;
     offset += m.teeth[k].n_modes;

@@ -125,7 +125,25 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     ws.b[2 * i] = bn + ws.b_offset[i];
     ws.b[2 * i + 1] = bt;
   }
-  const bool solved = solveContactIslands(m, &ws.iteration_inverse, &ws);
+  bool solved = solveContactIslands(m, &ws.iteration_inverse, &ws);
+
+  // A compliant force held over a coarse step can throw the bodies apart faster than they
+  // met (energy from nothing). No contact may separate faster than its approach speed
+  // (e <= 1): such a contact is solved again with that bound as a rigid target.
+  bool capped = false;
+  for (int i = 0; i < k; ++i) {
+    if (ws.rows[i].normal_unknown) continue;
+    const PairMemory& mem = ws.memory[pairKey(ws.geoms[ws.active[i]].pair)];
+    const double v_in = mem.state == ContactState::kSeparated ? -ws.geoms[ws.active[i]].vn
+                                                                : mem.v_in_mps;
+    const double v_max = std::max(v_in, m.integrator.zeno_velocity_mps);
+    if (ws.y[2 * i] <= v_max) continue;
+    ws.rows[i].normal_unknown = true;
+    ws.b_offset[i] = -v_max;
+    ws.b[2 * i] -= v_max;
+    capped = true;
+  }
+  if (capped) solved = solveContactIslands(m, &ws.iteration_inverse, &ws) && solved;
 
   // New velocities u+ = u_free + Minv W P, positions by the theta rule.
   ws.u_old = d->u;
@@ -152,8 +170,11 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   const double H_after = angularMomentumOf(m, d->z, d->u, end.omega_radps);
   d->stats.drive_work_J += mid.omega_radps * (H_after - H_before - contact_angular_impulse);
 
-  // Advance time and the drum.
+  // Advance time and the drum; keep time on the grid of the model's step (no round-off drift).
   d->t_s = end.t_s;
+  const double grid = m.integrator.dt_s;
+  const double snapped = std::round(d->t_s / grid) * grid;
+  if (std::abs(snapped - d->t_s) < 1e-6 * grid) d->t_s = snapped;
   d->theta_rad = end.theta_rad;
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;

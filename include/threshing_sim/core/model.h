@@ -76,7 +76,7 @@ struct PedicelModel {
   Vec2 p_KP_K = Vec2::Zero();     // attachment point in the kernel frame [m]
   double stiffness_Npm = 200.0;   // k [N/m]
   double damping_Nspm = 0.002;    // c [N s/m]
-  double rest_length_m = 0.0;     // l0 [m]; < 0 means "initial distance"
+  double rest_length_m = -1.0;    // l0 [m]; < 0 means "the initial distance" (unstretched)
   double detachment_force_N = 1.6; // break threshold on the spring-damper force [N]
 };
 

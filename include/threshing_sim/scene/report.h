@@ -1,0 +1,37 @@
+// threshing_sim result writers: run summary (JSON and prose), state trace and event log (CSV).
+//
+// Numbers in the machine-readable files are printed with %.17g, so two runs that agree bit for
+// bit produce identical files.
+#pragma once
+
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+
+// Summary of a run as one JSON object: status, times, step and impact counts, force peaks,
+// energy balance, warnings and the final state of each kernel. Non-finite numbers are written
+// as null and the status then names them.
+void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
+                      const std::string& status, double wall_time_s, double energy_final_J);
+
+// The same key numbers as one readable paragraph (SI prefixes), then one line per warning.
+void printSummary(std::ostream& out, const Model& model, const Data& data,
+                  const std::string& status, double wall_time_s, double energy_final_J);
+
+// State trace: t_s, theta_rad, omega_radps; per kernel i k{i}_x_m, k{i}_y_m, k{i}_psi_rad,
+// k{i}_vx_mps, k{i}_vy_mps, k{i}_omega_radps; per tooth k tooth{k}_tip_deflection_m and its
+// modal coordinates tooth{k}_q{j}.
+void writeTraceHeader(std::ostream& out, const Model& model);
+void writeTraceRow(std::ostream& out, const Model& model, const Data& data);
+
+// Event log: one row per ContactEvent (t_s, kind, a, b, from, to, is_impact, velocities before
+// and after, impulses, energy lost, peak force, macro- and sub-collision indices).
+void writeEventsHeader(std::ostream& out);
+void writeEventRows(std::ostream& out, const std::vector<ContactEvent>& events);
+
+}  // namespace threshing_sim

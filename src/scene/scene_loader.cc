@@ -1,0 +1,761 @@
+// threshing_sim scene files: YAML -> validated, compiled Model.
+//
+// One schema table lists every key path; the validator reads each section against it (so an
+// unknown key anywhere is refused with a suggestion) and the override walker uses it to decide
+// which missing keys may be created. Every refusal names the full key path and the bad value.
+#include "threshing_sim/scene/scene_loader.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <utility>
+
+#include "threshing_sim/core/geometry.h"
+
+namespace threshing_sim {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// Schema: every key path, list items written as "*".
+
+// kValue: a number, string or [x, y]; kSection: a mapping an override may create when absent;
+// kOptionalSection: a mapping whose presence means something (must be set whole first);
+// kList: a list of mappings.
+enum class KeyKind { kValue, kSection, kOptionalSection, kList };
+
+struct KeySpec {
+  const char* path;
+  KeyKind kind;
+};
+
+const KeySpec kSchema[] = {
+    {"drum", KeyKind::kSection},
+    {"drum.radius", KeyKind::kValue},
+    {"drum.speed", KeyKind::kValue},
+    {"drum.max_acceleration", KeyKind::kValue},
+    {"drum.angle", KeyKind::kValue},
+    {"teeth", KeyKind::kList},
+    {"teeth.*.mount_angle", KeyKind::kValue},
+    {"teeth.*.length", KeyKind::kValue},
+    {"teeth.*.diameter", KeyKind::kValue},
+    {"teeth.*.youngs_modulus", KeyKind::kValue},
+    {"teeth.*.density", KeyKind::kValue},
+    {"teeth.*.modes", KeyKind::kValue},
+    {"teeth.*.damping_ratio", KeyKind::kValue},
+    {"teeth.*.poisson_ratio", KeyKind::kValue},
+    {"teeth.*.stations", KeyKind::kValue},
+    {"kernels", KeyKind::kList},
+    {"kernels.*.position", KeyKind::kValue},
+    {"kernels.*.angle", KeyKind::kValue},
+    {"kernels.*.velocity", KeyKind::kValue},
+    {"kernels.*.angular_velocity", KeyKind::kValue},
+    {"kernels.*.semi_axes", KeyKind::kValue},
+    {"kernels.*.mass", KeyKind::kValue},
+    {"kernels.*.youngs_modulus", KeyKind::kValue},
+    {"kernels.*.poisson_ratio", KeyKind::kValue},
+    {"kernels.*.pedicel", KeyKind::kOptionalSection},
+    {"kernels.*.pedicel.anchor", KeyKind::kValue},
+    {"kernels.*.pedicel.attach_point", KeyKind::kValue},
+    {"kernels.*.pedicel.stiffness", KeyKind::kValue},
+    {"kernels.*.pedicel.damping", KeyKind::kValue},
+    {"kernels.*.pedicel.rest_length", KeyKind::kValue},
+    {"kernels.*.pedicel.detachment_force", KeyKind::kValue},
+    {"obstacles", KeyKind::kList},
+    {"obstacles.*.type", KeyKind::kValue},
+    {"obstacles.*.point", KeyKind::kValue},
+    {"obstacles.*.normal", KeyKind::kValue},
+    {"obstacles.*.point_b", KeyKind::kValue},
+    {"obstacles.*.center", KeyKind::kValue},
+    {"obstacles.*.radius", KeyKind::kValue},
+    {"obstacles.*.youngs_modulus", KeyKind::kValue},
+    {"obstacles.*.poisson_ratio", KeyKind::kValue},
+    {"contact", KeyKind::kSection},
+    {"contact.tooth_kernel", KeyKind::kSection},
+    {"contact.tooth_kernel.law", KeyKind::kValue},
+    {"contact.tooth_kernel.restitution", KeyKind::kValue},
+    {"contact.tooth_kernel.friction", KeyKind::kValue},
+    {"contact.kernel_kernel", KeyKind::kSection},
+    {"contact.kernel_kernel.law", KeyKind::kValue},
+    {"contact.kernel_kernel.restitution", KeyKind::kValue},
+    {"contact.kernel_kernel.friction", KeyKind::kValue},
+    {"contact.kernel_obstacle", KeyKind::kSection},
+    {"contact.kernel_obstacle.law", KeyKind::kValue},
+    {"contact.kernel_obstacle.restitution", KeyKind::kValue},
+    {"contact.kernel_obstacle.friction", KeyKind::kValue},
+    {"contact.hc_min_impact_speed", KeyKind::kValue},
+    {"gravity", KeyKind::kValue},
+    {"integrator", KeyKind::kSection},
+    {"integrator.type", KeyKind::kValue},
+    {"integrator.tolerance", KeyKind::kValue},
+    {"integrator.dt", KeyKind::kValue},
+    {"integrator.theta", KeyKind::kValue},
+    {"integrator.zeno_velocity", KeyKind::kValue},
+    {"integrator.max_step", KeyKind::kValue},
+    {"duration", KeyKind::kValue},
+    {"broadphase_margin", KeyKind::kValue},
+};
+
+// Most bending modes the beam model evaluates accurately (kMaxModes in src/core/beam.cc).
+constexpr int kMaxModes = 12;
+
+// Keys allowed on each obstacle type.
+const std::vector<std::string> kPlaneKeys = {"type", "point", "normal", "youngs_modulus",
+                                             "poisson_ratio"};
+const std::vector<std::string> kCircleKeys = {"type", "center", "radius", "youngs_modulus",
+                                              "poisson_ratio"};
+const std::vector<std::string> kSegmentKeys = {"type",   "point",          "point_b",
+                                               "radius", "youngs_modulus", "poisson_ratio"};
+
+// Names of the contact sections, indexed by PairKind.
+const char* const kPairKeys[3] = {"tooth_kernel", "kernel_kernel", "kernel_obstacle"};
+
+// Contact defaults from physics.md section 10: rice-nylon, rice-rice, wheat-steel.
+const ContactParams kContactDefaults[3] = {
+    {ContactLaw::kCompliant, 0.48, 0.53},
+    {ContactLaw::kRigid, 0.34, 0.66},
+    {ContactLaw::kRigid, 0.47, 0.50},
+};
+
+// The schema entry for a pattern such as "teeth.*.length", or nullptr.
+const KeySpec* findKey(const std::string& pattern) {
+  for (const KeySpec& spec : kSchema) {
+    if (pattern == spec.path) return &spec;
+  }
+  return nullptr;
+}
+
+// The key names directly below a pattern ("" is the top level), in schema order.
+std::vector<std::string> childKeys(const std::string& pattern) {
+  const std::string prefix = pattern.empty() ? "" : pattern + ".";
+  std::vector<std::string> keys;
+  for (const KeySpec& spec : kSchema) {
+    const std::string path = spec.path;
+    if (path.size() <= prefix.size() || path.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string rest = path.substr(prefix.size());
+    if (rest.find('.') == std::string::npos) keys.push_back(rest);
+  }
+  return keys;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Messages.
+
+// Joins a parent path and a key ("" is the top level).
+std::string joinPath(const std::string& parent, const std::string& key) {
+  return parent.empty() ? key : parent + "." + key;
+}
+
+[[noreturn]] void fail(const std::string& path, const std::string& what) {
+  throw SceneError((path.empty() ? std::string("scene") : path) + ": " + what);
+}
+
+// A node as the user wrote it: flow-style YAML, quoted strings in quotes.
+std::string show(const YAML::Node& node) {
+  if (!node.IsDefined() || node.IsNull()) return "null";
+  if (node.IsScalar() && node.Tag() == "!") return "\"" + node.Scalar() + "\"";
+  YAML::Emitter out;
+  out.SetSeqFormat(YAML::Flow);
+  out.SetMapFormat(YAML::Flow);
+  out << node;
+  return out.c_str();
+}
+
+// A computed number or vector for a message.
+std::string show(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.6g", value);
+  return text;
+}
+std::string show(const Vec2& v) { return "[" + show(v.x()) + ", " + show(v.y()) + "]"; }
+
+std::string joinWords(const std::vector<std::string>& words) {
+  std::string out;
+  for (const std::string& w : words) out += (out.empty() ? "" : ", ") + w;
+  return out;
+}
+
+// Levenshtein distance, for "did you mean" suggestions.
+size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+// "unknown key (did you mean 'length'?)", or the list of known keys when nothing is close.
+std::string unknownKey(const std::string& key, const std::vector<std::string>& known,
+                       const std::string& owner) {
+  std::string what = "unknown key" + (owner.empty() ? "" : " for " + owner);
+  const std::string* best = nullptr;
+  size_t best_distance = std::numeric_limits<size_t>::max();
+  for (const std::string& candidate : known) {
+    const size_t d = editDistance(key, candidate);
+    if (d < best_distance) {
+      best_distance = d;
+      best = &candidate;
+    }
+  }
+  if (best != nullptr && best_distance <= std::max<size_t>(2, key.size() / 3)) {
+    return what + " (did you mean '" + *best + "'?)";
+  }
+  return what + " (known keys: " + joinWords(known) + ")";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reading values with their bounds.
+
+// The interval a number must lie in.
+struct Bound {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false;
+  bool hi_open = false;
+
+  bool contains(double x) const {
+    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
+  }
+  std::string text() const {
+    if (std::isinf(hi)) return (lo_open ? "> " : ">= ") + show(lo);
+    return std::string("in ") + (lo_open ? "(" : "[") + show(lo) + ", " + show(hi) +
+           (hi_open ? ")" : "]");
+  }
+};
+
+const Bound kAnyValue{};
+const Bound kPositive{0.0, std::numeric_limits<double>::infinity(), true, false};
+const Bound kNonNegative{0.0, std::numeric_limits<double>::infinity(), false, false};
+const Bound kUnitInterval{0.0, 1.0, false, false};
+const Bound kPoissonRatio{0.0, 0.5, false, true};
+const Bound kDampingRatio{0.0, 1.0, false, true};
+const Bound kTheta{0.5, 1.0, false, false};
+
+// An unquoted scalar that reads as a number (.nan and .inf included).
+bool decodeNumber(const YAML::Node& node, double* value) {
+  return node.IsScalar() && node.Tag() != "!" && YAML::convert<double>::decode(node, *value);
+}
+
+// A finite number; quoted strings, lists, .nan and .inf are refused.
+double toNumber(const YAML::Node& node, const std::string& path) {
+  double value = 0;
+  if (!decodeNumber(node, &value)) fail(path, "expected a number (got " + show(node) + ")");
+  if (!std::isfinite(value)) fail(path, "must be finite (got " + show(node) + ")");
+  return value;
+}
+
+// A mapping read key by key; construction refuses unknown, duplicate and non-string keys. An
+// absent mapping (yaml-cpp's invalid node) is held as null, which reads as empty.
+class Section {
+ public:
+  Section(const YAML::Node& node, std::string path, const std::vector<std::string>& known,
+          const std::string& owner = "")
+      : node_(node.IsDefined() ? node : YAML::Node()), path_(std::move(path)) {
+    if (!node.IsDefined() || node.IsNull()) return;
+    if (!node.IsMap()) fail(path_, "expected a mapping of keys (got " + show(node) + ")");
+    std::vector<std::string> seen;
+    for (const auto& entry : node) {
+      if (!entry.first.IsScalar()) {
+        fail(path_, "expected a key name (got " + show(entry.first) + ")");
+      }
+      const std::string& key = entry.first.Scalar();
+      if (std::find(known.begin(), known.end(), key) == known.end()) {
+        fail(joinPath(path_, key), unknownKey(key, known, owner));
+      }
+      if (std::find(seen.begin(), seen.end(), key) != seen.end()) {
+        fail(joinPath(path_, key), "duplicate key");
+      }
+      seen.push_back(key);
+    }
+  }
+
+  std::string path(const std::string& key) const { return joinPath(path_, key); }
+  bool has(const std::string& key) const { return node_.IsMap() && node_[key].IsDefined(); }
+  YAML::Node node(const std::string& key) const {
+    return node_.IsMap() ? node_[key] : YAML::Node(YAML::NodeType::Undefined);
+  }
+
+  // Refuses a missing required key.
+  void require(const std::string& key) const {
+    if (!has(key)) fail(path(key), "required key is missing");
+  }
+
+  double number(const std::string& key, double fallback, const Bound& bound) const {
+    if (!has(key)) return fallback;
+    const double value = toNumber(node(key), path(key));
+    if (!bound.contains(value)) {
+      fail(path(key), "must be " + bound.text() + " (got " + show(node(key)) + ")");
+    }
+    return value;
+  }
+
+  int integer(const std::string& key, int fallback, int minimum, int maximum) const {
+    if (!has(key)) return fallback;
+    const YAML::Node n = node(key);
+    int value = 0;
+    if (!n.IsScalar() || n.Tag() == "!" || !YAML::convert<int>::decode(n, value)) {
+      fail(path(key), "expected an integer (got " + show(n) + ")");
+    }
+    if (value < minimum || value > maximum) {
+      const std::string range =
+          maximum == std::numeric_limits<int>::max()
+              ? ">= " + std::to_string(minimum)
+              : "in [" + std::to_string(minimum) + ", " + std::to_string(maximum) + "]";
+      fail(path(key), "must be " + range + " (got " + show(n) + ")");
+    }
+    return value;
+  }
+
+  // [x, y] of two finite numbers.
+  Vec2 vec2(const std::string& key, const Vec2& fallback) const {
+    if (!has(key)) return fallback;
+    const YAML::Node n = node(key);
+    if (!n.IsSequence() || n.size() != 2) {
+      fail(path(key), "expected a list of 2 numbers [x, y] (got " + show(n) + ")");
+    }
+    Vec2 v;
+    for (int i = 0; i < 2; ++i) {
+      if (!decodeNumber(n[i], &v[i])) {
+        fail(path(key), "expected a list of 2 numbers [x, y] (got " + show(n) + ")");
+      }
+      if (!std::isfinite(v[i])) fail(path(key), "must be finite (got " + show(n) + ")");
+    }
+    return v;
+  }
+
+  // One of a fixed set of words.
+  std::string word(const std::string& key, const std::string& fallback, const std::string& what,
+                   const std::vector<std::string>& allowed) const {
+    if (!has(key)) return fallback;
+    const YAML::Node n = node(key);
+    if (!n.IsScalar() || std::find(allowed.begin(), allowed.end(), n.Scalar()) == allowed.end()) {
+      const std::string got = n.IsScalar() ? "'" + n.Scalar() + "'" : show(n);
+      fail(path(key),
+           "unknown " + what + " " + got + " (expected one of: " + joinWords(allowed) + ")");
+    }
+    return n.Scalar();
+  }
+
+  // A nested mapping; absent or null reads as empty (all defaults).
+  Section section(const std::string& key, const std::string& pattern) const {
+    return Section(node(key), path(key), childKeys(pattern));
+  }
+
+  // A list of mappings; absent or null reads as empty.
+  std::vector<YAML::Node> list(const std::string& key) const {
+    const YAML::Node n = node(key);
+    std::vector<YAML::Node> items;
+    if (!n.IsDefined() || n.IsNull()) return items;
+    if (!n.IsSequence()) fail(path(key), "expected a list (got " + show(n) + ")");
+    for (const auto& item : n) items.push_back(item);
+    return items;
+  }
+
+ private:
+  YAML::Node node_;
+  std::string path_;
+};
+
+// ---------------------------------------------------------------------------------------------
+// Sections -> Model.
+
+void readDrum(const Section& scene, DrumModel* drum) {
+  const Section s = scene.section("drum", "drum");
+  drum->radius_m = s.number("radius", drum->radius_m, kPositive);
+  drum->initial_speed_radps = s.number("speed", drum->initial_speed_radps, kAnyValue);
+  drum->max_acceleration_radps2 =
+      s.number("max_acceleration", drum->max_acceleration_radps2, kPositive);
+  drum->initial_angle_rad = s.number("angle", drum->initial_angle_rad, kAnyValue);
+}
+
+ToothModel readTooth(const Section& s) {
+  ToothModel t;
+  t.mount_angle_rad = s.number("mount_angle", t.mount_angle_rad, kAnyValue);
+  t.length_m = s.number("length", t.length_m, kPositive);
+  t.diameter_m = s.number("diameter", t.diameter_m, kPositive);
+  t.youngs_modulus_Pa = s.number("youngs_modulus", t.youngs_modulus_Pa, kPositive);
+  t.density_kgpm3 = s.number("density", t.density_kgpm3, kPositive);
+  t.n_modes = s.integer("modes", t.n_modes, 0, kMaxModes);
+  t.damping_ratio = s.number("damping_ratio", t.damping_ratio, kDampingRatio);
+  t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio, kPoissonRatio);
+  t.n_stations = s.integer("stations", t.n_stations, 2, std::numeric_limits<int>::max());
+  return t;
+}
+
+// The optional pedicel; the attachment point must lie inside the kernel.
+PedicelModel readPedicel(const Section& s, const KernelModel& kernel) {
+  PedicelModel p;
+  p.present = true;
+  s.require("anchor");
+  p.p_WA_W = s.vec2("anchor", p.p_WA_W);
+  p.p_KP_K = s.vec2("attach_point", p.p_KP_K);
+  const double ellipse_norm = std::pow(p.p_KP_K.x() / kernel.semi_axis_a_m, 2) +
+                              std::pow(p.p_KP_K.y() / kernel.semi_axis_b_m, 2);
+  if (ellipse_norm > 1.0) {
+    fail(s.path("attach_point"), "must lie inside the kernel, (x/a)^2 + (y/b)^2 <= 1 (got " +
+                                     show(s.node("attach_point")) + " with semi-axes " +
+                                     show(Vec2(kernel.semi_axis_a_m, kernel.semi_axis_b_m)) + ")");
+  }
+  p.stiffness_Npm = s.number("stiffness", p.stiffness_Npm, kPositive);
+  p.damping_Nspm = s.number("damping", p.damping_Nspm, kNonNegative);
+  p.rest_length_m = s.number("rest_length", p.rest_length_m, kAnyValue);
+  p.detachment_force_N = s.number("detachment_force", p.detachment_force_N, kPositive);
+  return p;
+}
+
+KernelModel readKernel(const Section& s) {
+  KernelModel k;
+  s.require("position");
+  k.initial_position_m = s.vec2("position", k.initial_position_m);
+  k.initial_angle_rad = s.number("angle", k.initial_angle_rad, kAnyValue);
+  k.initial_velocity_mps = s.vec2("velocity", k.initial_velocity_mps);
+  k.initial_angular_velocity_radps =
+      s.number("angular_velocity", k.initial_angular_velocity_radps, kAnyValue);
+  // Semi-axes: both positive, the first the larger.
+  const Vec2 axes = s.vec2("semi_axes", Vec2(k.semi_axis_a_m, k.semi_axis_b_m));
+  if (axes.minCoeff() <= 0) {
+    fail(s.path("semi_axes"), "must be > 0 (got " + show(s.node("semi_axes")) + ")");
+  }
+  if (axes.x() < axes.y()) {
+    fail(s.path("semi_axes"), "a must be >= b (got " + show(s.node("semi_axes")) + ")");
+  }
+  k.semi_axis_a_m = axes.x();
+  k.semi_axis_b_m = axes.y();
+  k.mass_kg = s.number("mass", k.mass_kg, kPositive);
+  k.youngs_modulus_Pa = s.number("youngs_modulus", k.youngs_modulus_Pa, kPositive);
+  k.poisson_ratio = s.number("poisson_ratio", k.poisson_ratio, kPoissonRatio);
+  const YAML::Node pedicel = s.node("pedicel");
+  if (pedicel.IsDefined() && !pedicel.IsNull()) {
+    k.pedicel = readPedicel(s.section("pedicel", "kernels.*.pedicel"), k);
+  }
+  return k;
+}
+
+// The type decides which keys are allowed; geometry keys are required.
+ObstacleModel readObstacle(const YAML::Node& node, const std::string& path) {
+  const Section any(node, path, childKeys("obstacles.*"));
+  any.require("type");
+  const std::string type = any.word("type", "", "obstacle type", {"plane", "circle", "segment"});
+  ObstacleModel o;
+  if (type == "plane") {
+    const Section s(node, path, kPlaneKeys, "a plane obstacle");
+    o.type = ObstacleType::kPlane;
+    s.require("point");
+    s.require("normal");
+    o.point_m = s.vec2("point", o.point_m);
+    const Vec2 normal = s.vec2("normal", o.normal);
+    if (normal.norm() == 0) {
+      fail(s.path("normal"), "must not be zero (got " + show(s.node("normal")) + ")");
+    }
+    o.normal = normal.normalized();
+  } else if (type == "circle") {
+    const Section s(node, path, kCircleKeys, "a circle obstacle");
+    o.type = ObstacleType::kCircle;
+    s.require("center");
+    o.center_m = s.vec2("center", o.center_m);
+    o.radius_m = s.number("radius", o.radius_m, kPositive);
+  } else {
+    const Section s(node, path, kSegmentKeys, "a segment obstacle");
+    o.type = ObstacleType::kSegment;
+    s.require("point");
+    s.require("point_b");
+    o.point_m = s.vec2("point", o.point_m);
+    o.point_b_m = s.vec2("point_b", o.point_b_m);
+    if (o.point_b_m == o.point_m) {
+      fail(s.path("point_b"), "must differ from point (got " + show(s.node("point_b")) + ")");
+    }
+    o.radius_m = s.number("radius", o.radius_m, kNonNegative);
+  }
+  o.youngs_modulus_Pa = any.number("youngs_modulus", o.youngs_modulus_Pa, kPositive);
+  o.poisson_ratio = any.number("poisson_ratio", o.poisson_ratio, kPoissonRatio);
+  return o;
+}
+
+void readContact(const Section& scene, Model* model) {
+  const Section s = scene.section("contact", "contact");
+  for (int kind = 0; kind < 3; ++kind) {
+    const std::string key = kPairKeys[kind];
+    const Section pair = s.section(key, "contact." + key);
+    ContactParams p = kContactDefaults[kind];
+    const std::string law = pair.word("law", p.law == ContactLaw::kRigid ? "rigid" : "compliant",
+                                      "contact law", {"compliant", "rigid"});
+    p.law = law == "rigid" ? ContactLaw::kRigid : ContactLaw::kCompliant;
+    p.restitution = pair.number("restitution", p.restitution, kUnitInterval);
+    p.friction = pair.number("friction", p.friction, kNonNegative);
+    model->contact[kind] = p;
+  }
+  model->hc_min_impact_speed_mps =
+      s.number("hc_min_impact_speed", model->hc_min_impact_speed_mps, kPositive);
+}
+
+void readIntegrator(const Section& scene, IntegratorParams* integrator) {
+  const Section s = scene.section("integrator", "integrator");
+  const std::string type = s.word(
+      "type", integrator->type == IntegratorType::kTimeStepping ? "time_stepping" : "event_driven",
+      "integrator type", {"event_driven", "time_stepping"});
+  integrator->type =
+      type == "time_stepping" ? IntegratorType::kTimeStepping : IntegratorType::kEventDriven;
+  integrator->tolerance = s.number("tolerance", integrator->tolerance, kPositive);
+  integrator->dt_s = s.number("dt", integrator->dt_s, kPositive);
+  integrator->theta = s.number("theta", integrator->theta, kTheta);
+  integrator->zeno_velocity_mps =
+      s.number("zeno_velocity", integrator->zeno_velocity_mps, kPositive);
+  integrator->max_step_s = s.number("max_step", integrator->max_step_s, kPositive);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bodies overlapping at the start.
+
+Ellipse kernelEllipse(const KernelModel& k) {
+  Ellipse e;
+  e.center = k.initial_position_m;
+  e.angle_rad = k.initial_angle_rad;
+  e.a_m = k.semi_axis_a_m;
+  e.b_m = k.semi_axis_b_m;
+  return e;
+}
+
+// Refuses kernel i when the signed distance to `other` is negative.
+void checkClear(double distance_m, size_t i, const KernelModel& k, const std::string& other) {
+  if (distance_m >= 0) return;
+  fail("kernels." + std::to_string(i) + ".position", "kernel overlaps " + other + " at start by " +
+                                                         show(-distance_m) + " m (got " +
+                                                         show(k.initial_position_m) + ")");
+}
+
+// Every kernel against the earlier kernels, the undeformed teeth at the initial drum angle
+// (capsules of radius d/2 from root to tip) and the obstacles.
+void checkInitialOverlaps(const Model& model) {
+  const Eigen::Matrix2d A_WD = Eigen::Rotation2Dd(model.drum.initial_angle_rad).toRotationMatrix();
+  for (size_t i = 0; i < model.kernels.size(); ++i) {
+    const KernelModel& k = model.kernels[i];
+    const Ellipse e = kernelEllipse(k);
+    for (size_t j = 0; j < i; ++j) {
+      checkClear(ellipseEllipse(kernelEllipse(model.kernels[j]), e).distance_m, i, k,
+                 "kernels." + std::to_string(j));
+    }
+    for (size_t t = 0; t < model.teeth.size(); ++t) {
+      const ToothModel& tooth = model.teeth[t];
+      const Vec2 axis_W =
+          A_WD * Vec2(std::cos(tooth.mount_angle_rad), std::sin(tooth.mount_angle_rad));
+      const Vec2 root_W = model.drum.radius_m * axis_W;
+      const Vec2 tip_W = root_W + tooth.length_m * axis_W;
+      checkClear(segmentEllipse(root_W, tip_W, e).distance_m - tooth.diameter_m / 2, i, k,
+                 "teeth." + std::to_string(t));
+    }
+    for (size_t o = 0; o < model.obstacles.size(); ++o) {
+      const ObstacleModel& ob = model.obstacles[o];
+      double distance_m = 0;
+      switch (ob.type) {
+        case ObstacleType::kPlane:
+          distance_m = planeEllipse(ob.point_m, ob.normal, e).distance_m;
+          break;
+        case ObstacleType::kCircle:
+          distance_m = circleEllipse(ob.center_m, ob.radius_m, e).distance_m;
+          break;
+        case ObstacleType::kSegment:
+          distance_m = segmentEllipse(ob.point_m, ob.point_b_m, e).distance_m - ob.radius_m;
+          break;
+      }
+      checkClear(distance_m, i, k, "obstacles." + std::to_string(o));
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Overrides.
+
+std::string trim(const std::string& s) {
+  const size_t first = s.find_first_not_of(" \t");
+  if (first == std::string::npos) return "";
+  return s.substr(first, s.find_last_not_of(" \t") - first + 1);
+}
+
+bool isIndex(const std::string& s) {
+  return !s.empty() && std::all_of(s.begin(), s.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+std::string entries(size_t n) { return std::to_string(n) + (n == 1 ? " entry" : " entries"); }
+
+[[noreturn]] void refuseOverride(const std::string& assignment, const std::string& path,
+                                 const std::string& what) {
+  throw SceneError((path.empty() ? "" : path + ": ") + what + " in override '" + assignment + "'");
+}
+
+// "a.b.0.c" -> {"a", "b", "0", "c"}; empty components are refused.
+std::vector<std::string> splitKeyPath(const std::string& assignment, const std::string& key_path) {
+  std::vector<std::string> parts;
+  for (size_t start = 0;;) {
+    const size_t dot = key_path.find('.', start);
+    parts.push_back(key_path.substr(start, dot - start));
+    if (parts.back().empty()) refuseOverride(assignment, key_path, "empty key path component");
+    if (dot == std::string::npos) return parts;
+    start = dot + 1;
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Public API.
+
+YAML::Node loadSceneYaml(const std::string& path) {
+  try {
+    return YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw SceneError(path + ": cannot open scene file");
+  } catch (const YAML::ParserException& e) {
+    throw SceneError(path + ":" + std::to_string(e.mark.line + 1) + ":" +
+                     std::to_string(e.mark.column + 1) + ": YAML syntax error: " + e.msg);
+  }
+}
+
+// Walks the path from the root on a copy of the tree: list components must be in range, map
+// components must be schema keys; a missing section is created, a missing list item or optional
+// section is not. The copy replaces the tree only when the whole assignment succeeded.
+void applyOverride(YAML::Node* root, const std::string& assignment) {
+  const auto refuse = [&](const std::string& path, const std::string& what) {
+    refuseOverride(assignment, path, what);
+  };
+  const size_t equals = assignment.find('=');
+  if (equals == std::string::npos) refuse("", "expected key.path=value");
+  const std::string key_path = trim(assignment.substr(0, equals));
+  const std::string value_text = trim(assignment.substr(equals + 1));
+  if (key_path.empty()) refuse("", "empty key path");
+  if (value_text.empty()) refuse(key_path, "empty value");
+
+  // The value is YAML, so lists and mappings work.
+  YAML::Node value;
+  try {
+    value = YAML::Load(value_text);
+  } catch (const YAML::ParserException& e) {
+    refuse(key_path, "value is not valid YAML (" + e.msg + ")");
+  }
+
+  // Walk the copy.
+  const std::vector<std::string> parts = splitKeyPath(assignment, key_path);
+  YAML::Node tree =
+      (root->IsDefined() && !root->IsNull()) ? YAML::Clone(*root) : YAML::Node(YAML::NodeType::Map);
+  YAML::Node node = tree;
+  std::string path;     // as written, e.g. "teeth.0"
+  std::string pattern;  // schema form, e.g. "teeth.*"
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const std::string& part = parts[i];
+    const bool last = i + 1 == parts.size();
+    const std::string parent = path;
+    path = joinPath(path, part);
+
+    // A list item: the index must exist.
+    if (node.IsSequence()) {
+      if (!isIndex(part)) refuse(parent, "is a list; expected an index, got '" + part + "'");
+      const size_t index = part.size() < 10 ? std::stoul(part) : node.size();
+      if (index >= node.size()) {
+        refuse(path, "index out of range (" + parent + " has " + entries(node.size()) + ")");
+      }
+      pattern += ".*";
+      if (last) {
+        node[index] = value;
+      } else {
+        node.reset(node[index]);
+      }
+      continue;
+    }
+
+    // A key of a mapping: it must be in the schema.
+    if (!node.IsMap()) refuse(parent, "is a value, not a section (got " + show(node) + ")");
+    const std::string key_pattern = joinPath(pattern, part);
+    const KeySpec* spec = findKey(key_pattern);
+    if (spec == nullptr) refuse(path, unknownKey(part, childKeys(pattern), ""));
+    pattern = key_pattern;
+    if (last) {
+      node[part] = value;
+      continue;
+    }
+
+    // Descend; a missing section is created, other missing containers are refused.
+    const YAML::Node& current = node;
+    const YAML::Node child = current[part];
+    const bool absent = !child.IsDefined() || child.IsNull();
+    if (spec->kind == KeyKind::kValue) refuse(path, "is a value, not a section");
+    if (absent && spec->kind == KeyKind::kList) {
+      refuse(joinPath(path, parts[i + 1]), "index out of range (" + path + " has no entries)");
+    }
+    if (absent && spec->kind == KeyKind::kOptionalSection) {
+      refuse(path,
+             "is absent; set the whole " + part + " first (e.g. " + path + "={anchor: [x, y]})");
+    }
+    if (absent) node[part] = YAML::Node(YAML::NodeType::Map);
+    node.reset(node[part]);
+  }
+  root->reset(tree);
+}
+
+Model modelFromYaml(const YAML::Node& root) {
+  if (!root.IsMap()) {
+    fail("", "expected a mapping of sections at the top level (got " + show(root) + ")");
+  }
+  const Section scene(root, "", childKeys(""));
+  Model model;
+
+  // Drum and teeth.
+  readDrum(scene, &model.drum);
+  const std::vector<YAML::Node> teeth = scene.list("teeth");
+  for (size_t i = 0; i < teeth.size(); ++i) {
+    model.teeth.push_back(
+        readTooth(Section(teeth[i], "teeth." + std::to_string(i), childKeys("teeth.*"))));
+  }
+
+  // Kernels and obstacles.
+  const std::vector<YAML::Node> kernels = scene.list("kernels");
+  for (size_t i = 0; i < kernels.size(); ++i) {
+    model.kernels.push_back(
+        readKernel(Section(kernels[i], "kernels." + std::to_string(i), childKeys("kernels.*"))));
+  }
+  const std::vector<YAML::Node> obstacles = scene.list("obstacles");
+  for (size_t i = 0; i < obstacles.size(); ++i) {
+    model.obstacles.push_back(readObstacle(obstacles[i], "obstacles." + std::to_string(i)));
+  }
+
+  // Contact laws, gravity, integrator and run settings.
+  readContact(scene, &model);
+  model.gravity_mps2 = scene.vec2("gravity", model.gravity_mps2);
+  readIntegrator(scene, &model.integrator);
+  model.duration_s = scene.number("duration", model.duration_s, kPositive);
+  model.broadphase_margin_m =
+      scene.number("broadphase_margin", model.broadphase_margin_m, kNonNegative);
+
+  // Start configuration, then the core's own checks and derived quantities.
+  checkInitialOverlaps(model);
+  try {
+    compileModel(&model);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(e.what());
+  }
+  return model;
+}
+
+Model loadScene(const std::string& path, const std::vector<std::string>& overrides) {
+  YAML::Node root = loadSceneYaml(path);
+  for (const std::string& assignment : overrides) applyOverride(&root, assignment);
+  try {
+    return modelFromYaml(root);
+  } catch (const SceneError& e) {
+    throw SceneError(path + ": " + e.what());
+  }
+}
+
+std::vector<std::string> sceneKeyPaths() {
+  std::vector<std::string> paths;
+  for (const KeySpec& spec : kSchema) paths.push_back(spec.path);
+  return paths;
+}
+
+}  // namespace threshing_sim
