@@ -9,8 +9,13 @@ bash "$ROOT/scripts/setup.sh" || { echo "0 passed, 1 failed"; exit 1; }
 WS="$ROOT/.build/ws"
 cd "$WS"
 export PATH="/usr/bin:$PATH"
+# A fresh machine may not resolve its own hostname: keep ROS on the loopback interface.
+export ROS_HOSTNAME="${ROS_HOSTNAME:-localhost}"
+export ROS_MASTER_URI="${ROS_MASTER_URI:-http://localhost:11311}"
+set +u
 # shellcheck disable=SC1091
 source "$WS/devel/setup.bash"
+set -u
 rm -rf "$WS/build/test_results"
 # Build the test targets, then run them; catkin_make run_tests exits 0 even when tests fail,
 # so the verdict comes from the result files below.
