@@ -161,8 +161,9 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
 }
 
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
-                     const PairId& pair, Workspace* ws, ContactGeom* g) {
+                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m) {
   g->pair = pair;
+  g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
   g->wtilde_n = g->wtilde_t = 0.0;
   g->side[0].body = -1;
@@ -180,7 +181,27 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     Proximity best;
     best.distance_m = std::numeric_limits<double>::infinity();
     int best_seg = 0;
-    for (int s = 0; s + 1 < tm.n_stations; ++s) {
+    // Segments are visited nearest first by a cheap lower bound (distance to the ellipse's
+    // centre minus a); once the bound passes the best distance the rest cannot win.
+    const int n_seg = tm.n_stations - 1;
+    double lower[64];
+    int order[64];
+    for (int s = 0; s < n_seg; ++s) {
+      const Vec2& a = ws->stations_W[s0 + s];
+      const Vec2 ab = ws->stations_W[s0 + s + 1] - a;
+      const double f = std::clamp((e.center - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+      lower[s] = (e.center - (a + f * ab)).norm() - e.a_m;
+      order[s] = s;
+    }
+    std::sort(order, order + n_seg, [&](int i, int j) { return lower[i] < lower[j]; });
+    if (lower[order[0]] - 0.5 * tm.diameter_m > far_m) {
+      g->gap_m = lower[order[0]] - 0.5 * tm.diameter_m;
+      g->far = true;
+      return;
+    }
+    for (int o = 0; o < n_seg; ++o) {
+      const int s = order[o];
+      if (lower[s] > best.distance_m) break;
       const Proximity p = segmentEllipse(ws->stations_W[s0 + s], ws->stations_W[s0 + s + 1], e);
       if (p.distance_m < best.distance_m) {
         best = p;
@@ -231,6 +252,12 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     // Ellipse a against ellipse b; normal from a to b.
     const KernelModel& ka = m.kernels[pair.a];
     const Ellipse ea = kernelEllipse(m, z, pair.a);
+    const double bound = (e.center - ea.center).norm() - e.a_m - ea.a_m;
+    if (bound > far_m) {
+      g->gap_m = bound;
+      g->far = true;
+      return;
+    }
     const Proximity p = ellipseEllipse(ea, e);
     g->gap_m = p.distance_m;
     g->n = p.normal;
@@ -249,6 +276,21 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   } else {
     // Fixed obstacle against the kernel; normal from the obstacle to the kernel.
     const ObstacleModel& o = m.obstacles[pair.b];
+    double bound = 0.0;
+    if (o.type == ObstacleType::kPlane) {
+      bound = o.normal.dot(e.center - o.point_m) - e.a_m;
+    } else if (o.type == ObstacleType::kCircle) {
+      bound = (e.center - o.center_m).norm() - o.radius_m - e.a_m;
+    } else {
+      const Vec2 ab = o.point_b_m - o.point_m;
+      const double f = std::clamp((e.center - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+      bound = (e.center - (o.point_m + f * ab)).norm() - o.radius_m - e.a_m;
+    }
+    if (bound > far_m) {
+      g->gap_m = bound;
+      g->far = true;
+      return;
+    }
     Proximity p;
     double r_obst = std::numeric_limits<double>::infinity();
     if (o.type == ObstacleType::kPlane) {

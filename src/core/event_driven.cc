@@ -49,12 +49,18 @@ bool isActive(const PairMemory& mem) { return mem.state != ContactState::kSepara
 // Drum state at absolute time t (the target is fixed within a step).
 Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 
-// Evaluates every candidate pair at (z, u, t) into ws.geoms.
+// Evaluates every candidate pair at (z, u, t) into ws.geoms. Separated pairs whose gap is
+// surely above a quarter of the broad-phase margin get only that bound (their event function
+// needs just its sign).
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr) {
   updateStations(c.m, z, dr.theta_rad, &c.ws);
   c.ws.geoms.resize(c.ws.candidates.size());
-  for (size_t i = 0; i < c.ws.candidates.size(); ++i)
-    evaluateContact(c.m, z, u, dr, c.ws.candidates[i], &c.ws, &c.ws.geoms[i]);
+  const double far_m = 0.25 * c.m.broadphase_margin_m;
+  for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
+    const PairId& p = c.ws.candidates[i];
+    const bool separated = c.ws.memory[pairKey(p)].state == ContactState::kSeparated;
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &c.ws.geoms[i], separated ? far_m : kInf);
+  }
 }
 
 // Relative velocity derivative along the motion with u frozen: (d/dt W)^T u + d(wtilde)/dt,

@@ -60,8 +60,9 @@ double curvatureRadiusForNormal(double a_m, double b_m, const Vec2& m_E) {
 // the query point: g < 0 inside, g > 0 outside. F is convex and decreasing for u > 0.
 double eberlyRoot(double n0, double z1, double d, double g) {
   if (g == 0) return 1.0;
-  // Bracket: F(z1) >= 0 and F(1) = g; outside, F(|(n0, z1)|) <= 0.
-  double u_lo = g < 0 ? z1 : 1.0;
+  // Bracket: each term of F is at most 1 at the root, so u >= max(z1, n0 - d) where F >= 0;
+  // F(1) = g; outside, F(|(n0, z1)|) <= 0.
+  double u_lo = std::fmax(std::fmax(z1, n0 - d), g < 0 ? 0.0 : 1.0);
   double u_hi = g < 0 ? 1.0 : std::sqrt(n0 * n0 + z1 * z1);
   double f_lo = 0, df_lo = 0;
   const auto evaluate = [&](double u, double* f, double* df) {
@@ -75,10 +76,12 @@ double eberlyRoot(double n0, double z1, double d, double g) {
     // Newton from the lower end: below the root of a convex decreasing F it never overshoots.
     double u = u_lo - f_lo / df_lo;
     if (u - u_lo <= kRootRelTol * u_lo) return u;
-    if (!(u < u_hi)) u = 0.5 * (u_lo + u_hi);
+    const bool is_newton = u < u_hi;
+    if (!is_newton) u = 0.5 * (u_lo + u_hi);
     double f = 0, df = 0;
     evaluate(u, &f, &df);
-    if (f == 0) return u;
+    // In exact arithmetic a Newton point has F >= 0: F <= 0 means it is the root to rounding.
+    if (f == 0 || (f < 0 && is_newton)) return u;
     if (f > 0) {
       u_lo = u, f_lo = f, df_lo = df;
     } else {

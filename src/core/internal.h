@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <unordered_map>
 #include <vector>
 
@@ -58,6 +59,7 @@ struct ContactGeom {
   double vt = 0;                  // dg_T/dt [m/s]
   double hertz_K = 0;             // Hertz constant K in F = K delta^{3/2} [N/m^{3/2}]
   const ContactParams* params = nullptr;
+  bool far = false;               // only a lower bound of the gap was computed (no Jacobians)
 };
 
 // Per-pair memory carried across steps (state, episode bookkeeping for events and stats).
@@ -139,9 +141,11 @@ Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
 
 // Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
-// Requires updateStations for z first.
+// Requires updateStations for z first. If a cheap lower bound of the gap exceeds far_m, only
+// that bound is stored (g->far = true): enough for the sign of a separated pair's gap.
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
-                     const PairId& pair, Workspace* ws, ContactGeom* g);
+                     const PairId& pair, Workspace* ws, ContactGeom* g,
+                     double far_m = std::numeric_limits<double>::infinity());
 
 // Adds w * scale to the generalised vector f for each side of the contact.
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f);

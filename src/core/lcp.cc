@@ -23,8 +23,6 @@ constexpr double kResidualTol = 1e-9;
 // A pivot smaller than this fraction of its column's largest entry triggers a rebuild of the
 // tableau from the data before it is used.
 constexpr double kRefactorTol = 1e-6;
-// Diagonal regularisation of the contact LCP, relative to the largest diagonal entry of G.
-constexpr double kRegularisation = 1e-12;
 
 // Grows (never shrinks) scratch storage so that a later smaller problem reuses the memory.
 void growTo(MatX* m, Index rows, Index cols) {
@@ -269,7 +267,6 @@ bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<Contact
   double g = 0;
   for (Index i = 0; i < 2 * k; ++i) g = std::max(g, std::abs(G(i, i)));
   if (!(g > 0)) g = 1;
-  const double eps = kRegularisation * g;
 
   growTo(&ws->M, m, m);
   growTo(&ws->q, m);
@@ -313,20 +310,15 @@ bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<Contact
     }
   }
   // Per contact: the slip-rate terms, the friction-cone row g (mu lambda_N - lambda_T+ -
-  // lambda_T-) and the free values. A tiny diagonal regularisation of the normal and
-  // tangential unknowns makes the solution unique for redundant contacts (singular G) and
-  // forbids lambda_T+ and lambda_T- from being positive together; it shifts y by eps*lambda.
+  // lambda_T-) and the free values. No diagonal regularisation is added: the LCP is solvable
+  // as it stands (Anitescu-Potra; b in the range of W^T for a singular G), and an epsilon on
+  // the diagonal would create pivots below any safe pivot tolerance.
   for (Index i = 0; i < k; ++i) {
     const int ni = idx[2 * i];
     const int ti = idx[2 * i + 1];
-    if (ni >= 0) {
-      M(ni, ni) += eps;
-      q(ni) = ybar(2 * i);
-    }
+    if (ni >= 0) q(ni) = ybar(2 * i);
     if (ti < 0) continue;
     const double mu = rows[i].mu;
-    M(ti, ti) += eps;
-    M(ti + 1, ti + 1) += eps;
     M(ti, ti + 2) = g;
     M(ti + 1, ti + 2) = g;
     M(ti + 2, ti) = -g;
@@ -340,14 +332,17 @@ bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<Contact
   // Solve (nothing to solve leaves only the constant part of lambda).
   if (m > 0 && !lemke(M, q, x, ws, 0, nullptr)) return false;
 
-  // Map the unknowns back to lambda and evaluate y = G lambda + b.
+  // Map the unknowns back to lambda (lambda_T+ and lambda_T- may both be positive; only their
+  // difference matters), clip round-off outside the friction cone, and evaluate y = G lambda + b.
   lambda->resize(2 * k);
   for (Index i = 0; i < k; ++i) {
     const int ni = idx[2 * i];
     const int ti = idx[2 * i + 1];
     const double ln = ni >= 0 ? x(ni) : rows[i].lambda_n_fixed;
+    double lt = slipCoefficient(rows[i]) * ln;
+    if (ti >= 0) lt = std::clamp(x(ti) - x(ti + 1), -rows[i].mu * ln, rows[i].mu * ln);
     (*lambda)(2 * i) = ln;
-    (*lambda)(2 * i + 1) = (ti >= 0 ? x(ti) - x(ti + 1) : 0.0) + slipCoefficient(rows[i]) * ln;
+    (*lambda)(2 * i + 1) = lt;
   }
   y->resize(2 * k);
   y->noalias() = G * (*lambda);

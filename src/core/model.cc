@@ -87,6 +87,8 @@ void compileModel(Model* model) {
   // Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff: use modes: 0.
   int offset = 0;
   for (size_t k = 0; k < m.teeth.size(); ++k) {
+    if (m.teeth[k].n_stations > 65)
+      fail("teeth." + std::to_string(k) + ".stations", "must be <= 65", m.teeth[k].n_stations);
     if (m.teeth[k].youngs_modulus_Pa > 1e13)
       fail("teeth." + std::to_string(k) + ".youngs_modulus",
            "must be <= 1e13 Pa (use modes: 0 for a rigid tooth)", m.teeth[k].youngs_modulus_Pa);

@@ -159,11 +159,15 @@ void endEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, 
 }
 
 void publishContacts(Data* d, Workspace* ws) {
-  d->contacts.resize(ws->geoms.size());
-  for (size_t i = 0; i < ws->geoms.size(); ++i) {
-    const ContactGeom& g = ws->geoms[i];
+  // Pairs near enough to have exact geometry (not "far" bounds).
+  size_t n = 0;
+  for (const ContactGeom& g : ws->geoms) n += g.far ? 0 : 1;
+  d->contacts.resize(n);
+  size_t i_out = 0;
+  for (const ContactGeom& g : ws->geoms) {
+    if (g.far) continue;
     const PairMemory& mem = ws->memory[pairKey(g.pair)];
-    ContactInfo& c = d->contacts[i];
+    ContactInfo& c = d->contacts[i_out++];
     c.pair = g.pair;
     c.state = mem.state;
     c.gap_m = g.gap_m;

@@ -3,6 +3,7 @@
 // per island with Newton's impact law (rigid) or the Hertz force as a fixed normal (compliant).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/LU>
 
@@ -63,8 +64,14 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   updateStations(m, ws.z_mid, mid.theta_rad, &ws);
   broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws);
   ws.geoms.resize(ws.candidates.size());
-  for (size_t c = 0; c < ws.candidates.size(); ++c)
-    evaluateContact(m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c]);
+  // Separated pairs surely farther than a quarter margin get only a gap bound: inactive.
+  for (size_t c = 0; c < ws.candidates.size(); ++c) {
+    const bool separated =
+        ws.memory[pairKey(ws.candidates[c])].state == ContactState::kSeparated;
+    evaluateContact(m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c],
+                    separated ? 0.25 * m.broadphase_margin_m
+                              : std::numeric_limits<double>::infinity());
+  }
 
   // Free velocity: theta-method on the linear tooth equations, explicit kernel forces.
   smoothForces(m, *d, ws.z_mid, d->u, forcing, &ws.forces);

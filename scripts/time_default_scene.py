@@ -1,0 +1,49 @@
+#!/usr/bin/env python3
+"""Median wall time of `simulate` on a scene for both integrators (the README's figures).
+
+Runs each integrator REPEAT times one after another on one core, reads wall_time_s from the
+summary JSON (stepping loop only) and prints the median and the real-time factor.
+Usage: scripts/time_default_scene.py [--scene FILE] [--repeat N] [--simulate PATH]
+"""
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run(simulate, scene, extra, summary):
+    subprocess.run([simulate, scene, "--quiet", "--summary", summary] + extra, check=True)
+    with open(summary) as f:
+        return json.load(f)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--scene", default=os.path.join(ROOT, "config", "default_scene.yaml"))
+    ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--simulate",
+                    default=os.path.join(ROOT, ".build/ws/devel/lib/threshing_sim/simulate"))
+    args = ap.parse_args()
+    settings = [("event_driven, tolerance 1e-6", ["--integrator", "event_driven", "--tolerance", "1e-6"]),
+                ("time_stepping, dt 1e-6", ["--integrator", "time_stepping", "--dt", "1e-6"])]
+    print(f"scene {os.path.relpath(args.scene, ROOT)}, median of {args.repeat} runs")
+    print("| integrator | sim time [s] | steps | wall time [ms] | real-time factor | kernel exit speed [m/s] | peak normal force [N] |")
+    print("|---|---|---|---|---|---|---|")
+    with tempfile.TemporaryDirectory() as tmp:
+        summary = os.path.join(tmp, "s.json")
+        for name, extra in settings:
+            runs = [run(args.simulate, args.scene, extra, summary) for _ in range(args.repeat)]
+            wall = statistics.median(r["wall_time_s"] for r in runs)
+            r = runs[0]
+            v = r["kernels"][0]["velocity_mps"] if r["kernels"] else [0, 0]
+            print(f"| {name} | {r['sim_time_s']:.4g} | {r['steps']} | {1e3 * wall:.1f} | "
+                  f"{r['sim_time_s'] / wall:.3g} | {(v[0] ** 2 + v[1] ** 2) ** 0.5:.4f} | "
+                  f"{r['peak_normal_force_N']:.2f} |")
+
+
+if __name__ == "__main__":
+    main()
