@@ -188,8 +188,7 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
   // pivot that is small against its column may be an artefact of accumulated round-off, so
   // the tableau is then rebuilt from the data once and the step repeated.
   bool fresh = false;
-  while (true) {
-    if (count >= max_pivots) break;
+  while (count < max_pivots) {
     r = leavingRow(T, entering, z0_row);
     const bool suspicious =
         r < 0 || std::abs(T(r, entering)) < kRefactorTol * T.col(entering).cwiseAbs().maxCoeff();
