@@ -42,6 +42,17 @@ void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, S
   (*w)[2] = sign * cross(p_W - c_W, dir);
 }
 
+// Deformed centreline point at material coordinate x in world: A(theta) [b + (x + w_c) e1 + w e2].
+Vec2 centrelinePoint(const ToothModel& tm, const Eigen::Ref<const VecX>& q, double theta_rad,
+                     double x_m, Workspace* ws) {
+  evaluateModes(tm, x_m, &ws->scratch_phi, &ws->scratch_dphi);
+  interpolateH(tm, x_m, &ws->scratch_H);
+  const double w = ws->scratch_phi.dot(q);
+  const SmallVec Hq = ws->scratch_H * q;
+  const double wc = -0.5 * q.dot(Hq);
+  return rotate(theta_rad, tm.p_DR_D + (x_m + wc) * tm.e1_D + w * tm.e2_D);
+}
+
 }  // namespace
 
 int bodyDofOffset(const Model& m, int body) {
@@ -120,9 +131,7 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
   // Kernels against kernels: sweep and prune along x over bounding circles.
   ws->sort_index.resize(K);
   for (int i = 0; i < K; ++i) ws->sort_index[i] = i;
-  auto xmin = [&](int i) {
-    return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m;
-  };
+  auto xmin = [&](int i) { return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m; };
   std::sort(ws->sort_index.begin(), ws->sort_index.end(),
             [&](int a, int b) { return xmin(a) < xmin(b) || (xmin(a) == xmin(b) && a < b); });
   for (int ia = 0; ia < K; ++ia) {
@@ -209,13 +218,42 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       }
     }
     const double r_t = 0.5 * tm.diameter_m;
+    const double x0 = tm.station_x_m[best_seg], x1 = tm.station_x_m[best_seg + 1];
+    g->tooth_x_m = x0 + best.param * (x1 - x0);
+    if (tm.n_modes > 0) {
+      // Refine on the exact deformed centreline (the polyline only brackets it), so that the
+      // gap and the modal Jacobian below describe the same curve: golden-section search of
+      // the point-ellipse distance over one station spacing either side.
+      const auto q = z.segment(tm.dof_offset, tm.n_modes);
+      auto distanceAt = [&](double x) {
+        return pointEllipse(centrelinePoint(tm, q, drive.theta_rad, x, ws), e);
+      };
+      const double spacing = x1 - x0;
+      double lo = std::max(0.0, g->tooth_x_m - spacing);
+      double hi = std::min(tm.length_m, g->tooth_x_m + spacing);
+      const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+      double xa = hi - ratio * (hi - lo), xb = lo + ratio * (hi - lo);
+      double fa = distanceAt(xa).distance_m, fb = distanceAt(xb).distance_m;
+      for (int it = 0; it < 40 && hi - lo > 1e-12 * tm.length_m; ++it) {
+        if (fa <= fb) {
+          hi = xb, xb = xa, fb = fa;
+          xa = hi - ratio * (hi - lo);
+          fa = distanceAt(xa).distance_m;
+        } else {
+          lo = xa, xa = xb, fa = fb;
+          xb = lo + ratio * (hi - lo);
+          fb = distanceAt(xb).distance_m;
+        }
+      }
+      g->tooth_x_m = fa <= fb ? xa : xb;
+      best = distanceAt(g->tooth_x_m);
+      best.point1 = centrelinePoint(tm, q, drive.theta_rad, g->tooth_x_m, ws);
+    }
     g->gap_m = best.distance_m - r_t;
     g->n = best.normal;
     g->t = perp(g->n);
     g->p0 = best.point1 + r_t * g->n;
     g->p1 = best.point2;
-    const double x0 = tm.station_x_m[best_seg], x1 = tm.station_x_m[best_seg + 1];
-    g->tooth_x_m = x0 + best.param * (x1 - x0);
 
     // Tooth side: velocity of the surface point = Omega J p0 + Jq qdot, with
     // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) phi'^T.
@@ -242,7 +280,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     g->wtilde_n = -drive.omega_radps * cross(g->p0, g->n);
     g->wtilde_t = -drive.omega_radps * cross(g->p0, g->t);
     // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
-    const bool at_tip = best_seg == tm.n_stations - 2 && best.param >= 1.0 - 1e-12;
+    const bool at_tip = g->tooth_x_m >= tm.length_m * (1.0 - 1e-9);
     r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
                         ellipseCurvatureRadius(e, g->p1));
     r_out = seriesRadius(r_t, kern.semi_axis_b_m);
@@ -338,12 +376,12 @@ void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, 
   }
 }
 
-double compliantNormalForce(const ContactGeom& g, double v_in_mps, double v_floor_mps) {
+double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps) {
   const double delta = -g.gap_m;
   if (delta <= 0.0) return 0.0;
   // F = K delta^{3/2} (1 + chi d(delta)/dt), chi = c* / v_in, clamped: no adhesion.
   const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
-  const double f = g.hertz_K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
+  const double f = K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
   return std::max(f, 0.0);
 }
 
@@ -363,8 +401,8 @@ Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_W
   return -tension * dir;
 }
 
-void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u,
-                  const Drive& drive, VecX* f) {
+void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, const Drive& drive,
+                  VecX* f) {
   f->setZero(m.n_dof);
   // Teeth: -D qdot - [Lambda + Omega^2 (K_G - I)] q - dOmega/dt p.
   const double w2 = drive.omega_radps * drive.omega_radps;
@@ -376,7 +414,8 @@ void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u,
     auto out = f->segment(tm.dof_offset, n);
     out.noalias() = -w2 * (tm.K_G * q);
     out.array() += -(tm.omega0_sq.array() - w2) * q.array() -
-                   tm.damping_coeff.array() * qd.array() - drive.alpha_radps2 * tm.p_inertia.array();
+                   tm.damping_coeff.array() * qd.array() -
+                   drive.alpha_radps2 * tm.p_inertia.array();
   }
   // Kernels: gravity, and the pedicel while it holds.
   for (size_t i = 0; i < m.kernels.size(); ++i) {
@@ -390,7 +429,6 @@ void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u,
     }
   }
 }
-
 
 void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                       const SmallVec& v, double scale, VecX* out) {
@@ -411,9 +449,6 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
   }
 }
 
-namespace {
-
-// w1^T Minv_body w2 for two Jacobian rows on the same body.
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2) {
   const int T = static_cast<int>(m.teeth.size());
@@ -421,6 +456,8 @@ double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body
   const KernelModel& k = m.kernels[body - T];
   return (w1[0] * w2[0] + w1[1] * w2[1]) / k.mass_kg + w1[2] * w2[2] / k.inertia_kgm2;
 }
+
+namespace {
 
 int findRoot(std::vector<int>* parent, int i) {
   while ((*parent)[i] != i) i = (*parent)[i] = (*parent)[(*parent)[i]];
@@ -499,8 +536,8 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
     for (int i = 0; i < ki; ++i) {
       const int ci = ws->island_contacts[begin + i];
       ws->lambda.segment<2>(2 * ci) = ok ? Vec2(ws->lambda_island.segment<2>(2 * i)) : Vec2::Zero();
-      ws->y.segment<2>(2 * ci) = ok ? Vec2(ws->y_island.segment<2>(2 * i))
-                                    : Vec2(ws->b_island.segment<2>(2 * i));
+      ws->y.segment<2>(2 * ci) =
+          ok ? Vec2(ws->y_island.segment<2>(2 * i)) : Vec2(ws->b_island.segment<2>(2 * i));
     }
     begin = end;
   }

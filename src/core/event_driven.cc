@@ -9,10 +9,9 @@
 // step length), the state is advanced to just past it, and the index sets are switched:
 // impacts are solved as a velocity-level complementarity problem, stick/slip/separation as
 // an acceleration-level one. Impacts slower than zeno_velocity are plastic (Zeno rule).
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
-
-#include <Eigen/LU>
 #include <limits>
 
 #include "internal.h"
@@ -34,8 +33,8 @@ constexpr double kA[7][6] = {{0},
                              {19372. / 6561, -25360. / 2187, 64448. / 6561, -212. / 729},
                              {9017. / 3168, -355. / 33, 46732. / 5247, 49. / 176, -5103. / 18656},
                              {35. / 384, 0, 500. / 1113, 125. / 192, -2187. / 6784, 11. / 84}};
-constexpr double kE[7] = {71. / 57600,      0, -71. / 16695, 71. / 1920, -17253. / 339200,
-                          22. / 525,        -1. / 40};
+constexpr double kE[7] = {71. / 57600,      0,         -71. / 16695, 71. / 1920,
+                          -17253. / 339200, 22. / 525, -1. / 40};
 
 // Per-step context: the data at the step start (drum state) and the candidate pairs.
 struct Ctx {
@@ -102,7 +101,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     row.slip_sign = mem.slip_sign;
     if (g.params->law == ContactLaw::kCompliant) {
       row.normal_unknown = false;
-      row.lambda_n_fixed = compliantNormalForce(g, mem.v_in_mps, m.hc_min_impact_speed_mps);
+      row.lambda_n_fixed =
+          compliantNormalForce(g, mem.hertz_K, mem.v_in_mps, m.hc_min_impact_speed_mps);
     }
     ws.active.push_back(static_cast<int>(i));
     ws.rows.push_back(row);
@@ -266,10 +266,10 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
       // Compliant: the bodies part, or the damped force would pull.
       v[0] = -g.gap_m;
       const double delta = std::max(-g.gap_m, 0.0);
-      v[1] = g.hertz_K * delta * std::sqrt(delta) *
-             (1.0 - g.params->hc_damping_factor / std::max(mem.v_in_mps, m.hc_min_impact_speed_mps) *
-                        g.vn) /
-             std::max(1.0, g.hertz_K * 1e-9);
+      v[1] = mem.hertz_K * delta * std::sqrt(delta) *
+             (1.0 - g.params->hc_damping_factor /
+                        std::max(mem.v_in_mps, m.hc_min_impact_speed_mps) * g.vn) /
+             std::max(1.0, mem.hertz_K * 1e-9);
     } else {
       // Rigid: the normal multiplier falls to zero.
       v[0] = fn;
@@ -479,13 +479,14 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
     row.mu = g.params->friction;
     if (g.params->law == ContactLaw::kCompliant) {
       row.normal_unknown = false;
-      row.lambda_n_fixed = compliantNormalForce(g, mem.v_in_mps, m.hc_min_impact_speed_mps);
+      row.lambda_n_fixed =
+          compliantNormalForce(g, mem.hertz_K, mem.v_in_mps, m.hc_min_impact_speed_mps);
     } else if (!mem.closed) {
       continue;
     }
     // Sliding contacts keep their direction; slow ones may stick.
-    const bool forced = std::find(forced_slip.begin(), forced_slip.end(), static_cast<int>(i)) !=
-                        forced_slip.end();
+    const bool forced =
+        std::find(forced_slip.begin(), forced_slip.end(), static_cast<int>(i)) != forced_slip.end();
     if (forced) {
       row.slip_sign = mem.slip_sign;
     } else {
@@ -521,7 +522,8 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
     const ContactState before = mem.state;
     if (row.normal_unknown && fn <= 0.0 && ws.y[2 * i] > 0.0) {
       // The normal multiplier vanished with a separating acceleration: the contact opens.
-      endEpisode(m, &d, &mem, g, t, energyOf(m, d, d.z, d.u, dr.omega_radps) - d.stats.drive_work_J);
+      endEpisode(m, &d, &mem, g, t,
+                 energyOf(m, d, d.z, d.u, dr.omega_radps) - d.stats.drive_work_J);
       continue;
     }
     if (row.mu == 0.0) {
@@ -545,33 +547,32 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
 }
 
 // Projects the state back onto closed rigid contacts (g = 0, dg/dt = 0) and sticking tangents
-// (dg_T/dt = 0) after a step, so that constraint drift never accumulates.
+// (dg_T/dt = 0) after a step, so that constraint drift never accumulates. Gauss-Seidel: each
+// contact is re-evaluated after the previous one's correction.
 void projectConstraints(const Ctx& c, double t) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   Data& d = c.d;
   const Drive dr = driveAtTime(c, t);
-  for (int pass = 0; pass < 2; ++pass) {
-    evaluateAll(c, d.z, d.u, dr);
-    for (size_t i = 0; i < ws.geoms.size(); ++i) {
-      const ContactGeom& g = ws.geoms[i];
-      const PairMemory& mem = ws.memory[pairKey(g.pair)];
+  for (int pass = 0; pass < 3; ++pass) {
+    for (size_t i = 0; i < ws.candidates.size(); ++i) {
+      const PairMemory& mem = ws.memory[pairKey(ws.candidates[i])];
       if (!isActive(mem)) continue;
-      const bool normal = g.params->law == ContactLaw::kRigid && mem.closed;
-      const bool tangent = mem.slip_sign == 0 && g.params->friction > 0 &&
-                           mem.state == ContactState::kStick;
-      // One contact at a time (Gauss-Seidel): minimal mass-weighted correction.
+      const ContactParams& cp = m.contact[static_cast<int>(ws.candidates[i].kind)];
+      const bool normal = cp.law == ContactLaw::kRigid && mem.closed;
+      const bool tangent =
+          mem.slip_sign == 0 && cp.friction > 0 && mem.state == ContactState::kStick;
+      if (!normal && !tangent) continue;
+      // This contact at the current (already corrected) state.
+      ContactGeom g;
+      updateStations(m, d.z, dr.theta_rad, &ws);
+      evaluateContact(m, d.z, d.u, dr, ws.candidates[i], &ws, &g);
+      // Minimal mass-weighted correction of this contact alone.
       double gnn = 0, gtt = 0;
       for (const BodyJac& s : g.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
-        SmallVec tmp = SmallVec::Zero(s.w_n.size());
-        VecX acc = VecX::Zero(m.n_dof);
-        applyInverseMass(m, nullptr, s.body, s.w_n, 1.0, &acc);
-        gnn += s.w_n.dot(acc.segment(bodyDofOffset(m, s.body), s.w_n.size()));
-        acc.setZero();
-        applyInverseMass(m, nullptr, s.body, s.w_t, 1.0, &acc);
-        gtt += s.w_t.dot(acc.segment(bodyDofOffset(m, s.body), s.w_t.size()));
-        (void)tmp;
+        gnn += weightedDot(m, nullptr, s.body, s.w_n, s.w_n);
+        gtt += weightedDot(m, nullptr, s.body, s.w_t, s.w_t);
       }
       if (normal && gnn > 0) {
         for (const BodyJac& s : g.side) {
@@ -591,9 +592,9 @@ void projectConstraints(const Ctx& c, double t) {
 double motionBound(const Ctx& c) {
   double v = 1e-6;
   for (const ToothModel& tm : c.m.teeth)
-    v = std::max(v, std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) +
-                        (tm.n_modes > 0 ? 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm()
-                                        : 0.0));
+    v = std::max(
+        v, std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) +
+               (tm.n_modes > 0 ? 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm() : 0.0));
   for (const KernelModel& k : c.m.kernels)
     v = std::max(v, c.d.u.segment<2>(k.dof_offset).norm() +
                         std::abs(c.d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
@@ -625,6 +626,37 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
                     static_cast<int>(kv.first & 0x3fffffff)};
     g.params = &m.contact[static_cast<int>(g.pair.kind)];
     endEpisode(m, d, &mem, g, d->t_s, mechanicalEnergy(m, *d) - d->stats.drive_work_J);
+  }
+
+  // Pairs that are touching at the start of the step without being in contact (a scene that
+  // starts at rest on a plate, a reset, a contact closed by the previous event): an initial
+  // contact now, unless they are separating.
+  {
+    const Drive dr0 = driveAtTime(c, d->t_s);
+    evaluateAll(c, d->z, d->u, dr0);
+    bool rigid_touch = false, any_touch = false;
+    const double e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
+    for (size_t i = 0; i < ws.geoms.size(); ++i) {
+      const ContactGeom& g = ws.geoms[i];
+      PairMemory& mem = ws.memory[pairKey(g.pair)];
+      if (isActive(mem) || g.far || g.gap_m > 0.0 || g.vn > 0.0) continue;
+      any_touch = true;
+      if (g.params->law == ContactLaw::kRigid) {
+        rigid_touch = true;
+      } else {
+        mem.v_in_mps = -g.vn;
+        mem.hertz_K = g.hertz_K;
+        beginEpisode(m, d, &mem, g, d->t_s, e_net);
+        mem.state = ContactState::kImpact;
+        mem.slip_sign = 0;
+        emitTransition(d, g.pair, ContactState::kSeparated, ContactState::kImpact, d->t_s, g);
+      }
+    }
+    if (rigid_touch) solveImpact(c, d->t_s, false);
+    if (any_touch && !updateModes(c, d->t_s, {})) {
+      solveImpact(c, d->t_s, true);
+      if (!updateModes(c, d->t_s, {})) ++d->stats.numerical_recoveries;
+    }
   }
 
   // Trial step size.
@@ -731,6 +763,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
         } else {
           // Compliant: the contact opens with its approach speed fixing the damping.
           mem.v_in_mps = -g.vn;
+          mem.hertz_K = g.hertz_K;
           beginEpisode(m, d, &mem, g, t, e_net);
           mem.state = ContactState::kImpact;
           mem.slip_sign = 0;

@@ -2,6 +2,12 @@
 //
 // Frames: W is world; E is an ellipse's own frame (origin at its centre, x along its a-axis).
 // All queries are allocation-free and have bounded iteration counts.
+//
+// Overlap depth of two ellipses: the translational penetration depth, i.e. the length of the
+// shortest translation of e2 that separates the pair, with the normal along that translation.
+// It is the maximum over directions n of the gap between the supporting lines with normal n, the
+// same formula that gives the true distance of a separated pair, so the signed distance is
+// continuous through contact and symmetric under swapping the bodies.
 #include "threshing_sim/core/geometry.h"
 
 #include <cmath>
@@ -14,7 +20,8 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 constexpr double kGoldenFraction = 0.38196601125010515;  // (3 - sqrt(5)) / 2
 
-// Eberly root: relative tolerance on u and iteration cap (each iteration halves the bracket).
+// Eberly root: relative tolerance on u and iteration cap (each iteration a Newton step or a
+// bisection).
 constexpr double kRootRelTol = 8.0 * kEpsilon;
 constexpr int kMaxRootIterations = 80;
 
@@ -57,50 +64,35 @@ double curvatureRadiusForNormal(double a_m, double b_m, const Vec2& m_E) {
 
 // Root u > 0 of Eberly's F(u) = (n0 / (u + d))^2 + (z1 / u)^2 - 1, written in u = 1 + t / e1^2
 // so that the root is found to a relative tolerance. g = F(1) is the implicit ellipse function of
-// the query point: g < 0 inside, g > 0 outside. F is convex and decreasing for u > 0.
+// the query point: g < 0 inside, g > 0 outside. Eberly bisects F; here the same bracket drives a
+// Newton iteration on phi^(-1/2) = 1 with phi = F + 1, which is increasing and concave in u
+// (phi phi'' >= 3/2 phi'^2 by Cauchy-Schwarz) and nearly linear (exactly so for a circle).
 double eberlyRoot(double n0, double z1, double d, double g) {
   if (g == 0) return 1.0;
   // Bracket: each term of F is at most 1 at the root, so u >= max(z1, n0 - d) where F >= 0;
   // F(1) = g; outside, F(|(n0, z1)|) <= 0.
   double u_lo = std::fmax(std::fmax(z1, n0 - d), g < 0 ? 0.0 : 1.0);
   double u_hi = g < 0 ? 1.0 : std::sqrt(n0 * n0 + z1 * z1);
-  double f_lo = 0, df_lo = 0;
-  const auto evaluate = [&](double u, double* f, double* df) {
-    const double ratio0 = n0 / (u + d), ratio1 = z1 / u;
-    *f = ratio0 * ratio0 + ratio1 * ratio1 - 1.0;
-    *df = -2.0 * (ratio0 * ratio0 / (u + d) + ratio1 * ratio1 / u);
-  };
-  evaluate(u_lo, &f_lo, &df_lo);
+  // Start at the lower end: Newton on a concave increasing function then climbs monotonically.
+  double u = u_lo;
   for (int i = 0; i < kMaxRootIterations; ++i) {
-    const double width = u_hi - u_lo;
-    // Newton from the lower end: below the root of a convex decreasing F it never overshoots.
-    double u = u_lo - f_lo / df_lo;
-    if (u - u_lo <= kRootRelTol * u_lo) return u;
-    const bool is_newton = u < u_hi;
-    if (!is_newton) u = 0.5 * (u_lo + u_hi);
-    double f = 0, df = 0;
-    evaluate(u, &f, &df);
-    // In exact arithmetic a Newton point has F >= 0: F <= 0 means it is the root to rounding.
-    if (f == 0 || (f < 0 && is_newton)) return u;
-    if (f > 0) {
-      u_lo = u, f_lo = f, df_lo = df;
-    } else {
-      u_hi = u;
+    // phi and its slope; the sign of phi - 1 tightens the bracket.
+    const double inv0 = 1.0 / (u + d), inv1 = 1.0 / u;
+    const double ratio0_sq = n0 * n0 * inv0 * inv0, ratio1_sq = z1 * z1 * inv1 * inv1;
+    const double phi = ratio0_sq + ratio1_sq;
+    const double dphi = -2.0 * (ratio0_sq * inv0 + ratio1_sq * inv1);
+    if (phi == 1.0) return u;
+    (phi > 1.0 ? u_lo : u_hi) = u;
+    if (u_hi - u_lo <= kRootRelTol * u) return u;
+    // Newton step; done when it is below the tolerance or below the rounding of phi (a few eps)
+    // over its slope; should rounding push it out of the bracket, a geometric bisection instead.
+    const double u_newton = u + 2.0 * phi * (1.0 - std::sqrt(phi)) / dphi;
+    if (std::abs(u_newton - u) <= kRootRelTol * u + 8.0 * kEpsilon / std::abs(dphi)) {
+      return u_newton;
     }
-    // Far from the root Newton crawls; a geometric bisection then keeps the bracket halving.
-    if (u_hi - u_lo > 0.5 * width) {
-      u = std::sqrt(u_lo * u_hi);
-      evaluate(u, &f, &df);
-      if (f == 0) return u;
-      if (f > 0) {
-        u_lo = u, f_lo = f, df_lo = df;
-      } else {
-        u_hi = u;
-      }
-    }
-    if (u_hi - u_lo <= kRootRelTol * u_lo) break;
+    u = u_newton > u_lo && u_newton < u_hi ? u_newton : std::sqrt(u_lo * u_hi);
   }
-  return u_lo;
+  return u;
 }
 
 // Closest boundary point of the ellipse (x0/e0)^2 + (x1/e1)^2 = 1 (e0 >= e1) to a point y_E in
@@ -141,53 +133,73 @@ QuadrantProjection projectInFirstQuadrant(double e0_m, double e1_m, const Vec2& 
   return {Vec2(e0_m, 0.0), Vec2(1.0, 0.0), y0 - e0_m};
 }
 
-// Shape matrix M = R diag(a^2, b^2) R^T of an ellipse in world; its support function is
-// h(n) = sqrt(n^T M n) about the centre.
-Eigen::Matrix2d shapeMatrix(const Ellipse& e) {
-  const Rotation rot(e.angle_rad);
-  const double a2 = e.a_m * e.a_m, b2 = e.b_m * e.b_m;
-  Eigen::Matrix2d m_m2;
-  m_m2 << a2 * rot.c * rot.c + b2 * rot.s * rot.s, (a2 - b2) * rot.c * rot.s,
-      (a2 - b2) * rot.c * rot.s, a2 * rot.s * rot.s + b2 * rot.c * rot.c;
-  return m_m2;
-}
+// Shape of an ellipse in world: the quadratic form x^T M y of M = R diag(a^2, b^2) R^T, summed
+// along the axes so that it keeps full relative accuracy for eccentric ellipses (the entries of
+// M are ~a^2 while n^T M n may be ~b^2). Its support function is h(n) = sqrt(n^T M n).
+struct EllipseShape {
+  explicit EllipseShape(const Ellipse& e)
+      : axis_a(std::cos(e.angle_rad), std::sin(e.angle_rad)),
+        a_sq_m2(e.a_m * e.a_m),
+        b_sq_m2(e.b_m * e.b_m) {}
+  // x^T M y.
+  double form(const Vec2& x, const Vec2& y) const {
+    const Vec2 axis_b(-axis_a.y(), axis_a.x());
+    return a_sq_m2 * x.dot(axis_a) * y.dot(axis_a) + b_sq_m2 * x.dot(axis_b) * y.dot(axis_b);
+  }
+  // M n; the support point along n is the centre plus M n / h(n).
+  Vec2 apply(const Vec2& n) const {
+    const Vec2 axis_b(-axis_a.y(), axis_a.x());
+    return a_sq_m2 * n.dot(axis_a) * axis_a + b_sq_m2 * n.dot(axis_b) * axis_b;
+  }
+  Vec2 axis_a;              // unit a-axis in world [-]
+  double a_sq_m2, b_sq_m2;  // a^2, b^2 [m^2]
+};
 
 // Gap of an ellipse pair along the direction n(theta) = (cos theta, sin theta):
 // psi(theta) = n.(c2 - c1) - h1(n) - h2(-n), the width of the empty strip between the two
 // supporting lines with normal n (negative: the overlap along n). Its maximum over theta is the
 // signed distance (the translational penetration depth when negative).
 struct GapFunction {
-  Eigen::Matrix2d m1_m2, m2_m2;  // shape matrices of e1 and e2 in world [m^2]
-  Vec2 dc_m;                     // c2 - c1 in world [m]
+  EllipseShape shape1, shape2;
+  Vec2 dc_m;  // c2 - c1 in world [m]
 
-  double value(const Vec2& n) const {
-    return n.dot(dc_m) - std::sqrt(n.dot(m1_m2 * n)) - std::sqrt(n.dot(m2_m2 * n));
+  // h1(n) + h2(-n), the same for n and -n.
+  double support(const Vec2& n) const {
+    return std::sqrt(shape1.form(n, n)) + std::sqrt(shape2.form(n, n));
   }
 
-  // psi and its first two derivatives in theta.
+  // psi [m] and its first two derivatives in theta [m/rad, m/rad^2], and the rounding error of
+  // the value [m].
   struct Derivatives {
-    double value, slope, curvature;
+    double value, slope, curvature, rounding;
   };
   Derivatives derivatives(double theta_rad) const {
     const Vec2 n(std::cos(theta_rad), std::sin(theta_rad)), t(-n.y(), n.x());
-    Derivatives out{n.dot(dc_m), t.dot(dc_m), -n.dot(dc_m)};
-    for (const Eigen::Matrix2d* m : {&m1_m2, &m2_m2}) {
+    Derivatives out{n.dot(dc_m), t.dot(dc_m), -n.dot(dc_m), std::abs(n.dot(dc_m))};
+    for (const EllipseShape* shape : {&shape1, &shape2}) {
       // h = sqrt(q), q = n^T M n; h' = t^T M n / h; h'' = (t^T M t - q) / h - (t^T M n)^2 / h^3.
-      const double q = n.dot(*m * n), tmn = t.dot(*m * n), tmt = t.dot(*m * t);
+      const double q = shape->form(n, n), tmn = shape->form(t, n), tmt = shape->form(t, t);
       const double h = std::sqrt(q);
       out.value -= h;
       out.slope -= tmn / h;
       out.curvature -= (tmt - q) / h - tmn * tmn / (h * h * h);
+      out.rounding += h;
     }
+    out.rounding *= 16.0 * kEpsilon;
     return out;
   }
+};
+
+// A local maximum of the gap: its direction and value.
+struct GapMaximum {
+  double theta_rad, value_m;
 };
 
 // Local maximum of psi in [lo, hi] starting from theta with psi(theta) >= psi(lo), psi(hi):
 // Newton steps where psi is concave and the step stays in the nearer half of the bracket (so a
 // rejected Newton step is not retried), golden-section steps uphill otherwise; the best point so
 // far always stays bracketed, so the iteration cannot escape to another local maximum.
-double maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, double hi_rad) {
+GapMaximum maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, double hi_rad) {
   GapFunction::Derivatives at = gap.derivatives(theta_rad);
   for (int i = 0; i < kMaxRefineIterations; ++i) {
     const double uphill_rad = (at.slope > 0 ? hi_rad : lo_rad) - theta_rad;
@@ -196,11 +208,15 @@ double maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, doub
       const double newton_rad = -at.slope / at.curvature;
       if (std::abs(newton_rad) < 0.5 * std::abs(uphill_rad)) step_rad = newton_rad;
     }
-    if (std::abs(step_rad) <= kAngleTol_rad) return theta_rad + step_rad;
-    // Accept an uphill step and shrink the bracket behind it; otherwise shrink it to the step.
+    // Converged: the next step is below the angular tolerance.
+    if (std::abs(step_rad) <= kAngleTol_rad) return {theta_rad + step_rad, at.value};
+    // Accept an uphill step, or a level one (within rounding, where only the slope still steers)
+    // that flattens the slope, and shrink the bracket behind it; otherwise shrink it to the step.
     const double trial_rad = theta_rad + step_rad;
     const GapFunction::Derivatives at_trial = gap.derivatives(trial_rad);
-    if (at_trial.value >= at.value) {
+    const bool level = std::abs(at_trial.value - at.value) <= at.rounding;
+    if (at_trial.value > at.value + at.rounding ||
+        (level && std::abs(at_trial.slope) <= std::abs(at.slope))) {
       (step_rad > 0 ? lo_rad : hi_rad) = theta_rad;
       theta_rad = trial_rad;
       at = at_trial;
@@ -208,10 +224,43 @@ double maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, doub
       (step_rad > 0 ? hi_rad : lo_rad) = trial_rad;
     }
   }
-  return theta_rad;
+  return {theta_rad, at.value};
 }
 
-// Ellipse pair where e1 is a circle: the disc of radius r1 against e2.
+// Point query against a circle: radial projection; the centre projects onto the a-axis vertex.
+Proximity projectOntoCircle(const Vec2& p, const Ellipse& e) {
+  Proximity out;
+  out.point1 = p;
+  const Vec2 v_W = p - e.center;
+  const double r_m = v_W.norm();
+  const Vec2 outward_W =
+      r_m > 0 ? Vec2(v_W / r_m) : Vec2(std::cos(e.angle_rad), std::sin(e.angle_rad));
+  out.point2 = e.center + e.a_m * outward_W;
+  out.distance_m = r_m - e.a_m;
+  out.normal = -outward_W;
+  out.radius2_m = e.a_m;
+  return out;
+}
+
+// Point query against a proper ellipse whose rotation is given.
+Proximity projectOntoEllipse(const Vec2& p, const Ellipse& e, const Rotation& rot) {
+  // Reflect p into the first quadrant of the ellipse frame, project there and reflect back.
+  const Vec2 p_E = rot.toEllipse(p - e.center);
+  const Vec2 sign(p_E.x() < 0 ? -1.0 : 1.0, p_E.y() < 0 ? -1.0 : 1.0);
+  const QuadrantProjection proj = projectInFirstQuadrant(e.a_m, e.b_m, p_E.cwiseAbs());
+  const Vec2 outward_E = proj.outward_E.cwiseProduct(sign);
+  Proximity out;
+  out.point1 = p;
+  out.point2 = e.center + rot.toWorld(proj.x_E.cwiseProduct(sign));
+  out.distance_m = proj.distance_m;
+  // The normal from p towards the ellipse is minus the outward normal, inside or outside.
+  out.normal = -rot.toWorld(outward_E);
+  out.radius2_m = curvatureRadiusForNormal(e.a_m, e.b_m, outward_E);
+  return out;
+}
+
+// Disc of radius r at c against the ellipse: the point query of c offset by r, exact also when
+// overlapping (growing a convex set by a disc moves each boundary point by r along its normal).
 Proximity discEllipse(const Vec2& c, double r_m, const Ellipse& e) {
   Proximity out = pointEllipse(c, e);
   out.distance_m -= r_m;
@@ -222,74 +271,83 @@ Proximity discEllipse(const Vec2& c, double r_m, const Ellipse& e) {
 }  // namespace
 
 Proximity pointEllipse(const Vec2& p, const Ellipse& e) {
-  Proximity out;
-  out.point1 = p;
-  // Circle: radial projection; the centre projects onto the a-axis vertex.
-  if (e.a_m == e.b_m) {
-    const Vec2 v_W = p - e.center;
-    const double r_m = v_W.norm();
-    const Vec2 outward_W =
-        r_m > 0 ? Vec2(v_W / r_m) : Vec2(std::cos(e.angle_rad), std::sin(e.angle_rad));
-    out.point2 = e.center + e.a_m * outward_W;
-    out.distance_m = r_m - e.a_m;
-    out.normal = -outward_W;
-    out.radius2_m = e.a_m;
-    return out;
-  }
-  // Reflect p into the first quadrant of the ellipse frame, project there and reflect back.
-  const Rotation rot(e.angle_rad);
-  const Vec2 p_E = rot.toEllipse(p - e.center);
-  const Vec2 sign(p_E.x() < 0 ? -1.0 : 1.0, p_E.y() < 0 ? -1.0 : 1.0);
-  const QuadrantProjection proj = projectInFirstQuadrant(e.a_m, e.b_m, p_E.cwiseAbs());
-  const Vec2 outward_E = proj.outward_E.cwiseProduct(sign);
-  out.point2 = e.center + rot.toWorld(proj.x_E.cwiseProduct(sign));
-  out.distance_m = proj.distance_m;
-  // The normal from p towards the ellipse is minus the outward normal, inside or outside.
-  out.normal = -rot.toWorld(outward_E);
-  out.radius2_m = curvatureRadiusForNormal(e.a_m, e.b_m, outward_E);
-  return out;
+  if (e.a_m == e.b_m) return projectOntoCircle(p, e);
+  return projectOntoEllipse(p, e, Rotation(e.angle_rad));
 }
 
 Proximity segmentEllipse(const Vec2& p0, const Vec2& p1, const Ellipse& e) {
+  const Vec2 d_m = p1 - p0;
+  const double length_sq_m2 = d_m.squaredNorm();
+  // Circle: the closest (or deepest) point is the segment point closest to the centre.
+  if (e.a_m == e.b_m) {
+    const double s = length_sq_m2 > 0
+                         ? std::fmin(1.0, std::fmax(0.0, (e.center - p0).dot(d_m) / length_sq_m2))
+                         : 0.0;
+    Proximity out = projectOntoCircle(p0 + s * d_m, e);
+    out.param = s;
+    return out;
+  }
+  const Rotation rot(e.angle_rad);
+  const auto at = [&](double s) {
+    Proximity out = projectOntoEllipse(p0 + s * d_m, e, rot);
+    out.param = s;
+    return out;
+  };
   // The signed distance f(s) of p0 + s d is convex; its slope f'(s) = outward . d = -normal . d is
   // monotone, so the minimum is at an end unless the slope changes sign inside.
-  const Vec2 d_m = p1 - p0;
-  Proximity lo = pointEllipse(p0, e);
-  lo.param = 0.0;
-  if (d_m.squaredNorm() == 0) return lo;
-  double slope_lo = -lo.normal.dot(d_m);
-  if (slope_lo >= 0) return lo;
-  Proximity hi = pointEllipse(p1, e);
-  hi.param = 1.0;
-  double slope_hi = -hi.normal.dot(d_m);
-  if (slope_hi <= 0) return hi;
+  const auto slope = [&](const Proximity& r) { return -r.normal.dot(d_m); };
+  Proximity lo = at(0.0);
+  if (length_sq_m2 == 0 || slope(lo) >= 0) return lo;
+  Proximity hi = at(1.0);
+  if (slope(hi) <= 0) return hi;
 
-  // Bracketed root of the slope: Illinois regula falsi, with a bisection whenever two steps did
-  // not halve the bracket (the slope jumps where the segment crosses the ellipse's medial axis).
-  double width_before_last = 2.0, width_last = 2.0;
-  int kept_side = 0;  // -1: the lower end was moved last, +1: the upper end
+  // The slope jumps where the segment crosses the medial axis (the major axis between the
+  // centres of curvature of the a-vertices): there the closest point flips to its mirror image
+  // across the major axis. Split the bracket at the crossing, which is the minimum itself when
+  // the one-sided slopes straddle zero.
+  const Vec2 p0_E = rot.toEllipse(p0 - e.center), d_E = rot.toEllipse(d_m);
+  const double s_axis = -p0_E.y() / d_E.y();
+  const double medial_half_length_m = (e.a_m - e.b_m) * (e.a_m + e.b_m) / e.a_m;
+  if (s_axis > 0 && s_axis < 1 && std::abs(p0_E.x() + s_axis * d_E.x()) < medial_half_length_m) {
+    Proximity axis = at(s_axis);
+    const Vec2 outward_E = rot.toEllipse(-axis.normal);
+    const double along_m = outward_E.x() * d_E.x(), across_m = std::abs(outward_E.y() * d_E.y());
+    const double slope_before_m = along_m - across_m, slope_after_m = along_m + across_m;
+    if (slope_before_m <= 0 && slope_after_m >= 0) return axis;
+    // Keep the side holding the minimum, its closest point mirrored onto that side if needed.
+    const bool after = slope_after_m < 0;
+    const double side_y = after == (d_E.y() > 0) ? 1.0 : -1.0;
+    const Vec2 point2_E = rot.toEllipse(axis.point2 - e.center);
+    if (point2_E.y() * side_y < 0) {
+      axis.point2 = e.center + rot.toWorld(Vec2(point2_E.x(), -point2_E.y()));
+      axis.normal = -rot.toWorld(Vec2(outward_E.x(), -outward_E.y()));
+    }
+    (after ? lo : hi) = axis;
+  }
+
+  // Bracketed Newton on the slope from the end with the smaller slope, with f''(s) =
+  // (tangent . d)^2 / (rho + f), the Hessian of the distance to a curve of curvature radius rho.
+  // Bisect when Newton leaves the bracket or its steps stop halving (near the evolute, where that
+  // Hessian blows up); step at least the tolerance, so that a converged Newton iterate closes the
+  // bracket.
+  Proximity current = -slope(lo) <= slope(hi) ? lo : hi;
+  double step_before_last = 1.0, step_last = 1.0;
   for (int i = 0; i < kMaxSegmentIterations && hi.param - lo.param > kSegmentParamTol; ++i) {
-    const double width = hi.param - lo.param;
-    double s = (lo.param * slope_hi - hi.param * slope_lo) / (slope_hi - slope_lo);
-    if (width > 0.5 * width_before_last || !(s > lo.param && s < hi.param)) {
+    const double tangential_m = current.normal.x() * d_m.y() - current.normal.y() * d_m.x();
+    const double curvature_m =
+        tangential_m * tangential_m / (current.radius2_m + current.distance_m);
+    double step = -slope(current) / curvature_m;
+    if (std::abs(step) < kSegmentParamTol) step = std::copysign(kSegmentParamTol, step);
+    double s = current.param + step;
+    if (!(s > lo.param && s < hi.param) || std::abs(step) > 0.5 * step_before_last) {
       s = 0.5 * (lo.param + hi.param);
     }
-    width_before_last = width_last;
-    width_last = width;
-    Proximity at = pointEllipse(p0 + s * d_m, e);
-    at.param = s;
-    const double slope = -at.normal.dot(d_m);
-    if (slope == 0) return at;
-    // Move the end with the same slope sign; halve the stale end's slope if it stays twice.
-    if (slope < 0) {
-      lo = at, slope_lo = slope;
-      if (kept_side == -1) slope_hi *= 0.5;
-      kept_side = -1;
-    } else {
-      hi = at, slope_hi = slope;
-      if (kept_side == 1) slope_lo *= 0.5;
-      kept_side = 1;
-    }
+    step_before_last = step_last;
+    step_last = std::abs(s - current.param);
+    current = at(s);
+    const double slope_s = slope(current);
+    if (slope_s == 0) return current;
+    (slope_s < 0 ? lo : hi) = current;
   }
   return lo.distance_m <= hi.distance_m ? lo : hi;
 }
@@ -309,60 +367,64 @@ Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
   }
 
   // General pair: maximise the gap psi(theta) over directions (see GapFunction).
-  const GapFunction gap{shapeMatrix(e1), shapeMatrix(e2), e2.center - e1.center};
+  const GapFunction gap{EllipseShape(e1), EllipseShape(e2), e2.center - e1.center};
 
-  // Sample psi on a uniform ring of directions, fine enough for the flattest side, and keep the
-  // best few discrete local maxima as candidates (by rotating n, no trigonometry per sample).
+  // Sample psi on a uniform ring of an even number of directions, fine enough for the flattest
+  // side. Opposite directions share the support term, so each pair costs one evaluation of it;
+  // n is rotated from sample to sample rather than recomputed by trigonometry.
   const double aspect = std::fmax(e1.a_m / e1.b_m, e2.a_m / e2.b_m);
-  const int n_samples = static_cast<int>(
-      std::fmin(kMaxDirectionSamples, std::fmax(kMinDirectionSamples, kSamplesPerAspect * aspect)));
+  const int n_pairs = static_cast<int>(
+      std::fmin(kMaxDirectionSamples / 2,
+                std::fmax(kMinDirectionSamples / 2, kSamplesPerAspect * aspect / 2)));
+  const int n_samples = 2 * n_pairs;
   const double step_rad = 2.0 * kPi / n_samples;
   const double step_c = std::cos(step_rad), step_s = std::sin(step_rad);
+  double psi_m[kMaxDirectionSamples];
+  Vec2 n(1.0, 0.0);
+  for (int k = 0; k < n_pairs; ++k) {
+    const double support_m = gap.support(n), along_m = n.dot(gap.dc_m);
+    psi_m[k] = along_m - support_m;
+    psi_m[k + n_pairs] = -along_m - support_m;
+    n = Vec2(step_c * n.x() - step_s * n.y(), step_s * n.x() + step_c * n.y());
+  }
+
+  // Candidates: the best few discrete local maxima around the ring, sorted by decreasing value.
   struct Candidate {
-    double value;
+    double value_m;
     int index;
   };
   Candidate candidates[kMaxCandidates];
   int n_candidates = 0;
-  const double first = gap.value(Vec2(1.0, 0.0));
-  double previous = gap.value(Vec2(step_c, -step_s));  // sample n_samples - 1
-  double current = first;
-  Vec2 n(1.0, 0.0);
   for (int k = 0; k < n_samples; ++k) {
-    n = Vec2(step_c * n.x() - step_s * n.y(), step_s * n.x() + step_c * n.y());
-    const double next = k + 1 < n_samples ? gap.value(n) : first;
-    if (current >= previous && current > next) {
-      // Insert into the candidate list, sorted by decreasing value, dropping the worst.
-      int slot = n_candidates < kMaxCandidates ? n_candidates++ : kMaxCandidates;
-      while (slot > 0 && candidates[slot - 1].value < current) {
-        if (slot < kMaxCandidates) candidates[slot] = candidates[slot - 1];
-        --slot;
-      }
-      if (slot < kMaxCandidates) candidates[slot] = {current, k};
+    const double value_m = psi_m[k];
+    if (value_m < psi_m[(k + n_samples - 1) % n_samples] || value_m <= psi_m[(k + 1) % n_samples]) {
+      continue;
     }
-    previous = current;
-    current = next;
+    int slot = n_candidates < kMaxCandidates ? n_candidates++ : kMaxCandidates;
+    while (slot > 0 && candidates[slot - 1].value_m < value_m) {
+      if (slot < kMaxCandidates) candidates[slot] = candidates[slot - 1];
+      --slot;
+    }
+    if (slot < kMaxCandidates) candidates[slot] = {value_m, k};
   }
 
   // Refine every candidate inside its neighbours' bracket and keep the best (psi constant over
   // all directions has no strict local maximum: then any direction, here theta = 0, is optimal).
-  double best_theta_rad = 0.0;
-  double best_value = -std::numeric_limits<double>::infinity();
+  GapMaximum best{0.0, -std::numeric_limits<double>::infinity()};
   for (int i = 0; i < n_candidates; ++i) {
     const double theta_rad = candidates[i].index * step_rad;
-    const double refined_rad =
+    const GapMaximum refined =
         maximiseGap(gap, theta_rad - step_rad, theta_rad, theta_rad + step_rad);
-    const double value = gap.value(Vec2(std::cos(refined_rad), std::sin(refined_rad)));
-    if (value > best_value) best_value = value, best_theta_rad = refined_rad;
+    if (refined.value_m > best.value_m) best = refined;
   }
 
   // Witness points: e1's support point along n and e2's along -n; point2 - point1 = psi n.
   Proximity out;
-  out.normal = Vec2(std::cos(best_theta_rad), std::sin(best_theta_rad));
-  const Vec2 m1n_m2 = gap.m1_m2 * out.normal, m2n_m2 = gap.m2_m2 * out.normal;
-  const double h1_m = std::sqrt(out.normal.dot(m1n_m2)), h2_m = std::sqrt(out.normal.dot(m2n_m2));
-  out.point1 = e1.center + m1n_m2 / h1_m;
-  out.point2 = e2.center - m2n_m2 / h2_m;
+  out.normal = Vec2(std::cos(best.theta_rad), std::sin(best.theta_rad));
+  const double h1_m = std::sqrt(gap.shape1.form(out.normal, out.normal));
+  const double h2_m = std::sqrt(gap.shape2.form(out.normal, out.normal));
+  out.point1 = e1.center + gap.shape1.apply(out.normal) / h1_m;
+  out.point2 = e2.center - gap.shape2.apply(out.normal) / h2_m;
   out.distance_m = out.normal.dot(gap.dc_m) - h1_m - h2_m;
   out.radius2_m = e2.a_m * e2.a_m * e2.b_m * e2.b_m / (h2_m * h2_m * h2_m);
   return out;

@@ -21,105 +21,104 @@ using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1>;
 
 // Rheonomic drum state at one instant.
 struct Drive {
-  double t_s = 0;          // time [s]
-  double theta_rad = 0;    // drum angle [rad]
-  double omega_radps = 0;  // drum speed [rad/s]
-  double alpha_radps2 = 0; // drum acceleration [rad/s^2]
+  double t_s = 0;           // time [s]
+  double theta_rad = 0;     // drum angle [rad]
+  double omega_radps = 0;   // drum speed [rad/s]
+  double alpha_radps2 = 0;  // drum acceleration [rad/s^2]
 };
 
 // Bodies are numbered teeth first (0..T-1), then kernels (T..T+K-1); -1 is the fixed world.
 inline int toothBody(int k) { return k; }
 inline int kernelBody(const Model& m, int i) { return static_cast<int>(m.teeth.size()) + i; }
-inline int numBodies(const Model& m) {
-  return static_cast<int>(m.teeth.size() + m.kernels.size());
-}
+inline int numBodies(const Model& m) { return static_cast<int>(m.teeth.size() + m.kernels.size()); }
 int bodyDofOffset(const Model& m, int body);
 int bodyDofCount(const Model& m, int body);
 
 // One body's share of a contact's Jacobians: dg/dt = w_n . u_body (+ the other body + rheonomic).
 struct BodyJac {
-  int body = -1;   // body index, -1 = fixed
-  SmallVec w_n;    // d(dg_N/dt)/d(u_body)
-  SmallVec w_t;    // d(dg_T/dt)/d(u_body)
+  int body = -1;  // body index, -1 = fixed
+  SmallVec w_n;   // d(dg_N/dt)/d(u_body)
+  SmallVec w_t;   // d(dg_T/dt)/d(u_body)
 };
 
 // Everything known about one contact pair at one configuration.
 struct ContactGeom {
   PairId pair;
-  double gap_m = 0;               // signed gap [m]
-  Vec2 n = Vec2::UnitY();         // unit normal towards the kernel (body 1) [-]
-  Vec2 t = Vec2::UnitX();         // unit tangent J n [-]
-  Vec2 p0 = Vec2::Zero();         // contact point on body 0's surface [m]
-  Vec2 p1 = Vec2::Zero();         // contact point on body 1's (the kernel's) surface [m]
-  double tooth_x_m = 0;           // tooth contacts: material coordinate [m]
-  BodyJac side[2];                // side 0: tooth / kernel a / fixed; side 1: the kernel b
-  double wtilde_n = 0;            // rheonomic part of dg_N/dt [m/s]
-  double wtilde_t = 0;            // rheonomic part of dg_T/dt [m/s]
-  double vn = 0;                  // dg_N/dt [m/s]
-  double vt = 0;                  // dg_T/dt [m/s]
-  double hertz_K = 0;             // Hertz constant K in F = K delta^{3/2} [N/m^{3/2}]
+  double gap_m = 0;        // signed gap [m]
+  Vec2 n = Vec2::UnitY();  // unit normal towards the kernel (body 1) [-]
+  Vec2 t = Vec2::UnitX();  // unit tangent J n [-]
+  Vec2 p0 = Vec2::Zero();  // contact point on body 0's surface [m]
+  Vec2 p1 = Vec2::Zero();  // contact point on body 1's (the kernel's) surface [m]
+  double tooth_x_m = 0;    // tooth contacts: material coordinate [m]
+  BodyJac side[2];         // side 0: tooth / kernel a / fixed; side 1: the kernel b
+  double wtilde_n = 0;     // rheonomic part of dg_N/dt [m/s]
+  double wtilde_t = 0;     // rheonomic part of dg_T/dt [m/s]
+  double vn = 0;           // dg_N/dt [m/s]
+  double vt = 0;           // dg_T/dt [m/s]
+  double hertz_K = 0;      // Hertz constant K in F = K delta^{3/2} [N/m^{3/2}]
   const ContactParams* params = nullptr;
-  bool far = false;               // only a lower bound of the gap was computed (no Jacobians)
+  bool far = false;  // only a lower bound of the gap was computed (no Jacobians)
 };
 
 // Per-pair memory carried across steps (state, episode bookkeeping for events and stats).
 struct PairMemory {
   ContactState state = ContactState::kSeparated;
-  bool closed = false;            // rigid law: normal constraint active
-  int slip_sign = 0;              // slip direction while sliding (sign of dg_T/dt)
-  double v_in_mps = 0;            // compliant: approach speed at first touch [m/s]
-  double episode_start_s = -1;    // time of first touch of the current episode [s]
-  double episode_peak_N = 0;      // peak normal force within the episode [N]
-  double episode_impulse_n = 0;   // normal impulse within the episode [N s]
-  double episode_impulse_t = 0;   // tangential impulse within the episode [N s]
+  bool closed = false;           // rigid law: normal constraint active
+  int slip_sign = 0;             // slip direction while sliding (sign of dg_T/dt)
+  double v_in_mps = 0;           // compliant: approach speed at first touch [m/s]
+  double hertz_K = 0;            // compliant: Hertz constant frozen at first touch, so that the
+                                 // force of one episode derives from a potential [N/m^{3/2}]
+  double episode_start_s = -1;   // time of first touch of the current episode [s]
+  double episode_peak_N = 0;     // peak normal force within the episode [N]
+  double episode_impulse_n = 0;  // normal impulse within the episode [N s]
+  double episode_impulse_t = 0;  // tangential impulse within the episode [N s]
   double vn_before = 0, vt_before = 0;  // velocities at the start of the episode [m/s]
-  double energy_before_J = 0;     // energy minus drive work at the start of the episode [J]
-  double last_contact_end_s = -1; // end of the previous episode [s]
-  int macro_index = -1;           // macro-collision counter of this pair
-  int sub_index = -1;             // sub-collision index within the macro-collision
-  double normal_force_N = 0;      // last force values (for ContactInfo) [N]
+  double energy_before_J = 0;           // energy minus drive work at the start of the episode [J]
+  double last_contact_end_s = -1;       // end of the previous episode [s]
+  int macro_index = -1;                 // macro-collision counter of this pair
+  int sub_index = -1;                   // sub-collision index within the macro-collision
+  double normal_force_N = 0;            // last force values (for ContactInfo) [N]
   double tangential_force_N = 0;
-  double impulse_n_acc = 0;       // impulses since the last clearImpulseAccumulators [N s]
+  double impulse_n_acc = 0;  // impulses since the last clearImpulseAccumulators [N s]
   double impulse_t_acc = 0;
-  bool seen = false;              // touched by the broad phase in the current step
+  bool seen = false;  // touched by the broad phase in the current step
 };
 
 std::uint64_t pairKey(const PairId& p);
-
 
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
 struct Workspace {
-  std::vector<PairId> candidates;          // broad-phase survivors
-  std::vector<internal::ContactGeom> geoms;          // narrow-phase results for candidates
+  std::vector<PairId> candidates;            // broad-phase survivors
+  std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   std::unordered_map<std::uint64_t, internal::PairMemory> memory;
-  std::vector<int> sort_index;             // sweep-and-prune order
-  std::vector<Vec2> stations_W;            // deformed tooth centrelines, all teeth [m]
-  std::vector<int> station_offset;         // first station of each tooth in stations_W
-  VecX forces;                             // generalised forces [N or sqrt(kg) m/s^2]
+  std::vector<int> sort_index;      // sweep-and-prune order
+  std::vector<Vec2> stations_W;     // deformed tooth centrelines, all teeth [m]
+  std::vector<int> station_offset;  // first station of each tooth in stations_W
+  VecX forces;                      // generalised forces [N or sqrt(kg) m/s^2]
   VecX u_free, z_mid, u_old, z_old, du;
-  VecX guard_z, guard_u;                   // last good state for the non-finite guard
-  std::vector<MatX> iteration_inverse;     // time stepping: (I + h theta D + h^2 theta^2 K)^-1
-  double iteration_omega = -1;             // drum speed the matrices above were built at
+  VecX guard_z, guard_u;                // last good state for the non-finite guard
+  std::vector<MatX> iteration_inverse;  // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  double iteration_omega = -1;          // drum speed the matrices above were built at
   std::vector<int> island_of_body, island_contacts, island_start, island_parent;
   MatX G_island;
   VecX b_island, lambda_island, y_island;
   std::vector<ContactRow> rows_island;
-  std::vector<int> active;                 // indices into geoms of contacts in the problem
-  MatX G;                                  // Delassus matrix of one island
+  std::vector<int> active;  // indices into geoms of contacts in the problem
+  MatX G;                   // Delassus matrix of one island
   VecX b, lambda, y;
-  VecX b_offset;                           // restitution target e dg_N- folded into b [m/s]
+  VecX b_offset;  // restitution target e dg_N- folded into b [m/s]
   std::vector<ContactRow> rows;
   LcpWorkspace lcp;
   VecX scratch_phi, scratch_dphi;
   MatX scratch_H;
   // Event-driven integrator state.
   VecX rk_k[7], rk_y0, rk_y1, rk_err, rk_tmp, dense_a, dense_b;
-  double ed_h = 0;                          // last accepted step size [s]
-  VecX ed_fn, ed_ft;                        // contact forces per geom at the last rhs [N]
-  VecX ed_imp_n, ed_imp_t;                  // their integrals over the last trial step [N s]
-  double ed_torque_impulse = 0;             // integral of the drum contact torque [N m s]
+  double ed_h = 0;               // last accepted step size [s]
+  VecX ed_fn, ed_ft;             // contact forces per geom at the last rhs [N]
+  VecX ed_imp_n, ed_imp_t;       // their integrals over the last trial step [N s]
+  double ed_torque_impulse = 0;  // integral of the drum contact torque [N m s]
 };
 
 namespace internal {
@@ -156,19 +155,23 @@ void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, 
 void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                       const SmallVec& v, double scale, VecX* out);
 
+// w1^T Minv_body w2 for two Jacobian rows of the same body (Minv as in applyInverseMass).
+double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
+                   const SmallVec& w1, const SmallVec& w2);
+
 // Solves one frictional contact problem per island (bodies coupled through contacts) for the
 // contacts ws->active (indices into ws->geoms), with ws->rows and ws->b (2 per active contact,
 // [N, T]) already filled. Fills ws->lambda and ws->y (same layout). Returns false if any
 // island's LCP failed (its lambda is then zero).
 bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Workspace* ws);
 
-// Compliant normal force (Hertz with Hunt-Crossley damping), >= 0 [N].
-double compliantNormalForce(const ContactGeom& g, double v_in_mps, double v_floor_mps);
+// Compliant normal force (Hertz constant K with Hunt-Crossley damping), >= 0 [N].
+double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps);
 
 // Smooth generalised forces without contacts: tooth damping, stiffness and drum-acceleration
 // load; kernel gravity and pedicels.
-void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u,
-                  const Drive& drive, VecX* f);
+void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, const Drive& drive,
+                  VecX* f);
 // Pedicel spring-damper force on kernel i (world, at its attachment point) [N] and that point.
 Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_WP);
 

@@ -152,8 +152,9 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
   const Index n = q.size();
   if (pivots) *pivots = 0;
   z.setZero();
-  // Trivial solution: q >= 0 is solved by z = 0.
-  if (n == 0 || q.minCoeff() >= 0) return true;
+  // Trivial solution: q >= 0 is solved by z = 0. A q that is negative only within the tie
+  // tolerance counts as zero too: pivoting on it would make the basis infeasible by round-off.
+  if (n == 0 || q.minCoeff() >= -kTieTol * q.cwiseAbs().maxCoeff()) return true;
   if (max_pivots <= 0) max_pivots = static_cast<int>(50 * (n + 1) + 100);
   const Index z0 = 2 * n;
 

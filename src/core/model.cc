@@ -1,11 +1,12 @@
 // Model compilation: validation, generalised-coordinate layout, derived constants.
+#include "threshing_sim/core/model.h"
+
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 
 #include "threshing_sim/core/beam.h"
-#include "threshing_sim/core/model.h"
 
 namespace threshing_sim {
 namespace {
@@ -75,7 +76,8 @@ void compileModel(Model* model) {
   requireFinite("gravity.x", m.gravity_mps2.x());
   requireFinite("gravity.y", m.gravity_mps2.y());
   requirePositive("duration", m.duration_s);
-  if (!(m.broadphase_margin_m >= 0.0)) fail("broadphase_margin", "must be >= 0", m.broadphase_margin_m);
+  if (!(m.broadphase_margin_m >= 0.0))
+    fail("broadphase_margin", "must be >= 0", m.broadphase_margin_m);
   requirePositive("integrator.tolerance", m.integrator.tolerance);
   requirePositive("integrator.dt", m.integrator.dt_s);
   requirePositive("integrator.max_step", m.integrator.max_step_s);
@@ -109,6 +111,12 @@ void compileModel(Model* model) {
     KernelModel& k = m.kernels[i];
     const std::string f = "kernels." + std::to_string(i) + ".";
     requirePositive(f + "mass", k.mass_kg);
+    requireFinite(f + "position[0]", k.initial_position_m.x());
+    requireFinite(f + "position[1]", k.initial_position_m.y());
+    requireFinite(f + "angle", k.initial_angle_rad);
+    requireFinite(f + "velocity[0]", k.initial_velocity_mps.x());
+    requireFinite(f + "velocity[1]", k.initial_velocity_mps.y());
+    requireFinite(f + "angular_velocity", k.initial_angular_velocity_radps);
     requirePositive(f + "semi_axes[0]", k.semi_axis_a_m);
     requirePositive(f + "semi_axes[1]", k.semi_axis_b_m);
     if (k.semi_axis_b_m > k.semi_axis_a_m)
@@ -124,14 +132,16 @@ void compileModel(Model* model) {
       // A negative rest length means "the distance at the start".
       if (k.pedicel.rest_length_m < 0.0) {
         const double c = std::cos(k.initial_angle_rad), s = std::sin(k.initial_angle_rad);
-        const Vec2 p_WP = k.initial_position_m +
-                          Vec2(c * k.pedicel.p_KP_K.x() - s * k.pedicel.p_KP_K.y(),
-                               s * k.pedicel.p_KP_K.x() + c * k.pedicel.p_KP_K.y());
+        const Vec2 p_WP =
+            k.initial_position_m + Vec2(c * k.pedicel.p_KP_K.x() - s * k.pedicel.p_KP_K.y(),
+                                        s * k.pedicel.p_KP_K.x() + c * k.pedicel.p_KP_K.y());
         k.pedicel.rest_length_m = (p_WP - k.pedicel.p_WA_W).norm();
       }
     }
-    k.inertia_kgm2 = k.mass_kg * (k.semi_axis_a_m * k.semi_axis_a_m +
-                                  k.semi_axis_b_m * k.semi_axis_b_m) / 4.0;
+    k.inertia_kgm2 =
+        k.mass_kg * (k.semi_axis_a_m * k.semi_axis_a_m + k.semi_axis_b_m * k.semi_axis_b_m) / 4.0;
+    if (!(k.inertia_kgm2 > 0.0))
+      fail(f + "mass", "gives a polar inertia that underflows to 0; mass", k.mass_kg);
     k.dof_offset = offset;
     offset += 3;
   }

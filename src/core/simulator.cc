@@ -14,19 +14,26 @@ namespace threshing_sim {
 
 const char* toString(ContactState s) {
   switch (s) {
-    case ContactState::kSeparated: return "separated";
-    case ContactState::kImpact: return "impact";
-    case ContactState::kStick: return "stick";
-    case ContactState::kSlip: return "slip";
+    case ContactState::kSeparated:
+      return "separated";
+    case ContactState::kImpact:
+      return "impact";
+    case ContactState::kStick:
+      return "stick";
+    case ContactState::kSlip:
+      return "slip";
   }
   return "?";
 }
 
 const char* toString(PairKind k) {
   switch (k) {
-    case PairKind::kToothKernel: return "tooth_kernel";
-    case PairKind::kKernelKernel: return "kernel_kernel";
-    case PairKind::kKernelObstacle: return "kernel_obstacle";
+    case PairKind::kToothKernel:
+      return "tooth_kernel";
+    case PairKind::kKernelKernel:
+      return "kernel_kernel";
+    case PairKind::kKernelObstacle:
+      return "kernel_obstacle";
   }
   return "?";
 }
@@ -274,6 +281,7 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
     ws.guard_z = data->z;
     ws.guard_u = data->u;
     const double t0 = data->t_s, th0 = data->theta_rad, om0 = data->omega_radps;
+    const long steps0 = data->steps;
     StepStatus s = ts ? internal::timeSteppingStep(model, data, h)
                       : internal::eventDrivenStep(model, data, t_end_s);
     if (s == StepStatus::kOk && finiteState(*data)) continue;
@@ -287,12 +295,13 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
     const double h_small = (ts ? h : std::min(1e-7, t_end_s - t0)) / 10.0;
     bool ok = h_small > 0;
     for (int i = 0; i < 10 && ok; ++i) {
-      ok = internal::timeSteppingStep(model, data, h_small) == StepStatus::kOk &&
-           finiteState(*data);
+      ok =
+          internal::timeSteppingStep(model, data, h_small) == StepStatus::kOk && finiteState(*data);
     }
     if (!ok) {
       data->z = ws.guard_z;
       data->u = ws.guard_u;
+      data->steps = steps0;
       data->t_s = t0;
       data->theta_rad = th0;
       data->omega_radps = om0;

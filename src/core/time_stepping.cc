@@ -1,11 +1,10 @@
 // Moreau-Jean time stepping (physics.md section 9): fixed step h, theta-method for the smooth
 // linear part, contact detection at the midpoint, one velocity-level complementarity problem
 // per island with Newton's impact law (rigid) or the Hertz force as a fixed normal (compliant).
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <Eigen/LU>
 
 #include "internal.h"
 #include "threshing_sim/core/beam.h"
@@ -36,8 +35,8 @@ double speedBound(const Model& m, const Data& d) {
     v = std::max(v, std::abs(d.omega_radps) * (m.drum.radius_m + tm.length_m));
   }
   for (const KernelModel& k : m.kernels) {
-    v = std::max(v, d.u.segment<2>(k.dof_offset).norm() +
-                        std::abs(d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
+    v = std::max(
+        v, d.u.segment<2>(k.dof_offset).norm() + std::abs(d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
   }
   return v;
 }
@@ -55,8 +54,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   Drive forcing = mid;
   forcing.alpha_radps2 = (end.omega_radps - d->omega_radps) / h;
   updateIterationMatrices(m, mid.omega_radps, h, &ws);
-  const double energy_net_before = energyOf(m, *d, d->z, d->u, d->omega_radps) -
-                                   d->stats.drive_work_J;
+  const double energy_net_before =
+      energyOf(m, *d, d->z, d->u, d->omega_radps) - d->stats.drive_work_J;
   const double H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
 
   // Contact detection at the midpoint configuration z_M = z + h/2 u.
@@ -66,11 +65,10 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   ws.geoms.resize(ws.candidates.size());
   // Separated pairs surely farther than a quarter margin get only a gap bound: inactive.
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
-    const bool separated =
-        ws.memory[pairKey(ws.candidates[c])].state == ContactState::kSeparated;
-    evaluateContact(m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c],
-                    separated ? 0.25 * m.broadphase_margin_m
-                              : std::numeric_limits<double>::infinity());
+    const bool separated = ws.memory[pairKey(ws.candidates[c])].state == ContactState::kSeparated;
+    evaluateContact(
+        m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c],
+        separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity());
   }
 
   // Free velocity: theta-method on the linear tooth equations, explicit kernel forces.
@@ -79,8 +77,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
     auto f = ws.forces.segment(tm.dof_offset, tm.n_modes);
-    f.noalias() -= h * (th - 0.5) * (toothStiffness(tm, mid.omega_radps) *
-                                      d->u.segment(tm.dof_offset, tm.n_modes));
+    f.noalias() -= h * (th - 0.5) *
+                   (toothStiffness(tm, mid.omega_radps) * d->u.segment(tm.dof_offset, tm.n_modes));
   }
   ws.u_free = d->u;
   for (int k = 0; k < T; ++k) {
@@ -107,9 +105,11 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     if (g.params->law == ContactLaw::kRigid) {
       row.normal_unknown = true;
     } else {
-      const double v_in = mem.state == ContactState::kSeparated ? -g.vn : mem.v_in_mps;
+      const bool first = mem.state == ContactState::kSeparated;
+      const double v_in = first ? -g.vn : mem.v_in_mps;
+      const double K = first ? g.hertz_K : mem.hertz_K;
       row.normal_unknown = false;
-      row.lambda_n_fixed = h * compliantNormalForce(g, v_in, m.hc_min_impact_speed_mps);
+      row.lambda_n_fixed = h * compliantNormalForce(g, K, v_in, m.hc_min_impact_speed_mps);
     }
     ws.active.push_back(static_cast<int>(c));
     ws.rows.push_back(row);
@@ -141,9 +141,10 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   for (int i = 0; i < k; ++i) {
     if (ws.rows[i].normal_unknown) continue;
     const PairMemory& mem = ws.memory[pairKey(ws.geoms[ws.active[i]].pair)];
-    const double v_in = mem.state == ContactState::kSeparated ? -ws.geoms[ws.active[i]].vn
-                                                                : mem.v_in_mps;
-    const double v_max = std::max(v_in, m.integrator.zeno_velocity_mps);
+    const double v_in =
+        mem.state == ContactState::kSeparated ? -ws.geoms[ws.active[i]].vn : mem.v_in_mps;
+    // 1 % above the approach speed is the discretisation noise of an elastic (e = 1) contact.
+    const double v_max = 1.01 * std::max(v_in, m.integrator.zeno_velocity_mps);
     if (ws.y[2 * i] <= v_max) continue;
     ws.rows[i].normal_unknown = true;
     ws.b_offset[i] = -v_max;
@@ -151,6 +152,24 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     capped = true;
   }
   if (capped) solved = solveContactIslands(m, &ws.iteration_inverse, &ws) && solved;
+
+  // Newton's law with friction can create energy. The impulses' work relative to the free
+  // motion is P.dg+ - 1/2 P.G P = P.(y - offset) - 1/2 P.(y - b); if it is positive, the
+  // step's impacts are redone plastically (no restitution), which cannot gain energy.
+  double work = 0.0, restitution = 0.0;
+  for (int i = 0; i < 2 * k; ++i) {
+    const double off = (i % 2 == 0) ? ws.b_offset[i / 2] : 0.0;
+    work += ws.lambda[i] * (ws.y[i] - off) - 0.5 * ws.lambda[i] * (ws.y[i] - ws.b[i]);
+    if (i % 2 == 0 && ws.rows[i / 2].normal_unknown) restitution += std::abs(off);
+  }
+  if (restitution > 0.0 && work > 1e-15) {
+    for (int i = 0; i < k; ++i) {
+      if (!ws.rows[i].normal_unknown || ws.b_offset[i] >= 0.0) continue;
+      ws.b[2 * i] -= ws.b_offset[i];
+      ws.b_offset[i] = 0.0;
+    }
+    solved = solveContactIslands(m, &ws.iteration_inverse, &ws) && solved;
+  }
 
   // New velocities u+ = u_free + Minv W P, positions by the theta rule.
   ws.u_old = d->u;
@@ -186,8 +205,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  const double energy_net_after = energyOf(m, *d, d->z, d->u, d->omega_radps) -
-                                  d->stats.drive_work_J;
+  const double energy_net_after =
+      energyOf(m, *d, d->z, d->u, d->omega_radps) - d->stats.drive_work_J;
 
   // Contact states, episodes, events and statistics.
   for (auto& kv : ws.memory) kv.second.seen = false;
@@ -214,6 +233,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     const ContactState before = mem.state;
     if (before == ContactState::kSeparated) {
       mem.v_in_mps = std::max(-g.vn, 0.0);
+      mem.hertz_K = g.hertz_K;
       beginEpisode(m, d, &mem, g, d->t_s - h, energy_net_before);
     }
     const double mu = g.params->friction;

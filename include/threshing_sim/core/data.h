@@ -36,53 +36,54 @@ struct PairId {
 struct ContactInfo {
   PairId pair;
   ContactState state = ContactState::kSeparated;
-  double gap_m = 0;             // signed gap g_N; negative = penetration [m]
-  Vec2 p_W = Vec2::Zero();      // contact point (midway between the closest points), world [m]
-  Vec2 n_W = Vec2::UnitY();     // unit normal towards the kernel b (from the tooth, the kernel a
-                                // or the obstacle), world [-]
-  double tooth_x_m = 0;         // tooth contacts: material coordinate of the contact [m]
-  double normal_velocity_mps = 0;   // dg_N/dt (positive = separating) [m/s]
-  double slip_velocity_mps = 0;     // dg_T/dt along t = J n [m/s]
-  double normal_force_N = 0;        // lambda_N on the kernel (impulse / h under time stepping) [N]
-  double tangential_force_N = 0;    // lambda_T on the kernel along t = J n [N]
-  double impulse_normal_Ns = 0;     // normal impulse accumulated since clearImpulseAccumulators [N s]
-  double impulse_tangential_Ns = 0; // tangential impulse accumulated likewise [N s]
+  double gap_m = 0;                // signed gap g_N; negative = penetration [m]
+  Vec2 p_W = Vec2::Zero();         // contact point (midway between the closest points), world [m]
+  Vec2 n_W = Vec2::UnitY();        // unit normal towards the kernel b (from the tooth, the kernel a
+                                   // or the obstacle), world [-]
+  double tooth_x_m = 0;            // tooth contacts: material coordinate of the contact [m]
+  double normal_velocity_mps = 0;  // dg_N/dt (positive = separating) [m/s]
+  double slip_velocity_mps = 0;    // dg_T/dt along t = J n [m/s]
+  double normal_force_N = 0;       // lambda_N on the kernel (impulse / h under time stepping) [N]
+  double tangential_force_N = 0;   // lambda_T on the kernel along t = J n [N]
+  double impulse_normal_Ns = 0;  // normal impulse accumulated since clearImpulseAccumulators [N s]
+  double impulse_tangential_Ns = 0;  // tangential impulse accumulated likewise [N s]
 };
 
 // One impact (initial contact) or state transition of a pair.
 struct ContactEvent {
-  double t_s = 0;                 // simulation time [s]
+  double t_s = 0;  // simulation time [s]
   PairId pair;
   ContactState from = ContactState::kSeparated;
   ContactState to = ContactState::kImpact;
-  bool is_impact = false;         // true for a completed impact (rigid: the jump; compliant: the episode)
-  double vn_before_mps = 0;       // normal relative velocity before [m/s] (negative = approaching)
-  double vn_after_mps = 0;        // after [m/s]
-  double vt_before_mps = 0;       // tangential relative velocity before [m/s]
-  double vt_after_mps = 0;        // after [m/s]
-  double impulse_normal_Ns = 0;   // normal impulse of the impact [N s]
+  bool is_impact = false;  // true for a completed impact (rigid: the jump; compliant: the episode)
+  double vn_before_mps = 0;      // normal relative velocity before [m/s] (negative = approaching)
+  double vn_after_mps = 0;       // after [m/s]
+  double vt_before_mps = 0;      // tangential relative velocity before [m/s]
+  double vt_after_mps = 0;       // after [m/s]
+  double impulse_normal_Ns = 0;  // normal impulse of the impact [N s]
   double impulse_tangential_Ns = 0;  // tangential impulse [N s]
-  double energy_lost_J = 0;       // kinetic energy lost net of drive work (>= 0 when dissipative) [J]
-  double peak_normal_force_N = 0; // compliant episodes: peak normal force [N]
-  int macro_collision = -1;       // index of the macro-collision of this pair (0-based)
-  int sub_collision = -1;         // index of this impact within its macro-collision (0-based)
+  double energy_lost_J = 0;  // kinetic energy lost net of drive work (>= 0 when dissipative) [J]
+  double peak_normal_force_N = 0;  // compliant episodes: peak normal force [N]
+  int macro_collision = -1;        // index of the macro-collision of this pair (0-based)
+  int sub_collision = -1;          // index of this impact within its macro-collision (0-based)
 };
 
 // Running statistics over a run (reset by resetData).
 struct RunStats {
-  long impacts = 0;                     // completed impacts, all pairs
-  long contact_episodes = 0;            // separated -> contact transitions
-  double peak_normal_force_N = 0;       // max normal force seen, any pair [N]
-  double peak_tangential_force_N = 0;   // max |tangential force| [N]
-  double time_of_peak_normal_s = 0;     // [s]
-  double time_of_peak_tangential_s = 0; // [s]
-  double total_normal_impulse_Ns = 0;   // integral of all normal forces plus impulses [N s]
-  double max_penetration_m = 0;         // max of -g_N over closed contacts [m]
-  double max_energy_gain_at_impact_J = 0;  // largest energy rise across one impact (should be ~0) [J]
-  double drive_work_J = 0;              // work done by the drum drive [J]
-  double energy_initial_J = 0;          // mechanical energy at reset [J]
-  long numerical_recoveries = 0;        // steps redone after a non-finite result
-  long rejected_steps = 0;              // event-driven: rejected trial steps
+  long impacts = 0;                      // completed impacts, all pairs
+  long contact_episodes = 0;             // separated -> contact transitions
+  double peak_normal_force_N = 0;        // max normal force seen, any pair [N]
+  double peak_tangential_force_N = 0;    // max |tangential force| [N]
+  double time_of_peak_normal_s = 0;      // [s]
+  double time_of_peak_tangential_s = 0;  // [s]
+  double total_normal_impulse_Ns = 0;    // integral of all normal forces plus impulses [N s]
+  double max_penetration_m = 0;          // max of -g_N over closed contacts [m]
+  double max_energy_gain_at_impact_J =
+      0;                          // largest energy rise across one impact (should be ~0) [J]
+  double drive_work_J = 0;        // work done by the drum drive [J]
+  double energy_initial_J = 0;    // mechanical energy at reset [J]
+  long numerical_recoveries = 0;  // steps redone after a non-finite result
+  long rejected_steps = 0;        // event-driven: rejected trial steps
   std::vector<double> kernel_peak_normal_force_N;  // per kernel [N]
   std::vector<long> kernel_impacts;                // per kernel
   std::vector<double> kernel_detach_time_s;        // per kernel; < 0 = still attached [s]
@@ -92,14 +93,14 @@ struct RunStats {
 struct Workspace;  // integrator scratch memory, opaque
 
 struct Data {
-  double t_s = 0;                  // simulation time [s]
-  long steps = 0;                  // accepted integrator steps
-  double theta_rad = 0;            // drum angle [rad]
-  double omega_radps = 0;          // drum speed Omega [rad/s]
-  double omega_target_radps = 0;   // commanded drum speed [rad/s]
-  double alpha_radps2 = 0;         // current drum acceleration dOmega/dt [rad/s^2]
-  VecX z;                          // generalised positions (see file comment)
-  VecX u;                          // generalised velocities
+  double t_s = 0;                             // simulation time [s]
+  long steps = 0;                             // accepted integrator steps
+  double theta_rad = 0;                       // drum angle [rad]
+  double omega_radps = 0;                     // drum speed Omega [rad/s]
+  double omega_target_radps = 0;              // commanded drum speed [rad/s]
+  double alpha_radps2 = 0;                    // current drum acceleration dOmega/dt [rad/s^2]
+  VecX z;                                     // generalised positions (see file comment)
+  VecX u;                                     // generalised velocities
   std::vector<std::uint8_t> kernel_attached;  // 1 while the pedicel holds [-]
   std::vector<ContactInfo> contacts;          // pairs examined in the last step
   std::vector<ContactEvent> events;           // appended by step(); the caller may clear it

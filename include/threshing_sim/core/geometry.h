@@ -17,12 +17,12 @@ struct Ellipse {
 
 // Result of a distance query between body 1 and body 2.
 struct Proximity {
-  double distance_m = 0;         // signed distance (negative = overlap depth) [m]
-  Vec2 point1 = Vec2::Zero();    // closest (or deepest) point on body 1's surface [m]
-  Vec2 point2 = Vec2::Zero();    // closest (or deepest) point on body 2's surface [m]
-  Vec2 normal = Vec2::UnitX();   // unit normal from body 1 towards body 2 [-]
-  double param = 0;              // segment queries: parameter s in [0, 1] of point on the segment
-  double radius2_m = 0;          // radius of curvature of body 2's surface at point2 [m] (inf: flat)
+  double distance_m = 0;        // signed distance (negative = overlap depth) [m]
+  Vec2 point1 = Vec2::Zero();   // closest (or deepest) point on body 1's surface [m]
+  Vec2 point2 = Vec2::Zero();   // closest (or deepest) point on body 2's surface [m]
+  Vec2 normal = Vec2::UnitX();  // unit normal from body 1 towards body 2 [-]
+  double param = 0;             // segment queries: parameter s in [0, 1] of point on the segment
+  double radius2_m = 0;         // radius of curvature of body 2's surface at point2 [m] (inf: flat)
 };
 
 // Closest point on the ellipse boundary to p (Eberly's robust bisection).

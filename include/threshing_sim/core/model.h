@@ -36,53 +36,53 @@ struct DrumModel {
 // One flexible tooth: an Euler-Bernoulli cantilever of round section on the drum.
 struct ToothModel {
   // --- scene parameters ---
-  double mount_angle_rad = 0.0;   // alpha: angle of the root and tooth axis in the drum frame [rad]
-  double length_m = 0.06;         // L [m]
-  double diameter_m = 0.010;      // d (capsule radius is d/2) [m]
-  double youngs_modulus_Pa = 3e9; // E [Pa]
-  double poisson_ratio = 0.35;    // nu, used by the Hertz law [-]
-  double density_kgpm3 = 1140.0;  // rho [kg/m^3]
-  int n_modes = 4;                // n retained bending modes; 0 = rigid tooth
-  double damping_ratio = 0.02;    // zeta, same for every mode [-]
-  int n_stations = 9;             // centreline sample points used for contact (>= 2)
+  double mount_angle_rad = 0.0;  // alpha: angle of the root and tooth axis in the drum frame [rad]
+  double length_m = 0.06;        // L [m]
+  double diameter_m = 0.010;     // d (capsule radius is d/2) [m]
+  double youngs_modulus_Pa = 3e9;  // E [Pa]
+  double poisson_ratio = 0.35;     // nu, used by the Hertz law [-]
+  double density_kgpm3 = 1140.0;   // rho [kg/m^3]
+  int n_modes = 4;                 // n retained bending modes; 0 = rigid tooth
+  double damping_ratio = 0.02;     // zeta, same for every mode [-]
+  int n_stations = 9;              // centreline sample points used for contact (>= 2)
 
   // --- derived by compileModel() ---
-  double area_m2 = 0;              // A = pi d^2 / 4 [m^2]
-  double second_moment_m4 = 0;     // I = pi d^4 / 64 [m^4]
-  double mass_per_length_kgpm = 0; // rho A [kg/m]
-  Vec2 p_DR_D = Vec2::Zero();      // root position in the drum frame [m]
-  Vec2 e1_D = Vec2::UnitX();       // tooth axis in the drum frame [-]
-  Vec2 e2_D = Vec2::UnitY();       // transverse axis J e1 in the drum frame [-]
-  VecX beta_per_m;                 // beta_i [1/m], size n
-  VecX sigma;                      // sigma_i [-], size n
-  VecX norm_C;                     // C_i so that int rho A phi_i^2 = 1 [1/sqrt(kg)], size n
-  VecX omega0_sq;                  // Lambda = diag(omega_i^2) at rest [1/s^2], size n
-  VecX damping_coeff;              // D = diag(2 zeta omega_i) at rest [1/s], size n
-  MatX K_G;                        // centrifugal stiffening integral (n x n) [-]; times Omega^2
-  VecX p_inertia;                  // p_i = int rho A (R + x) phi_i dx [sqrt(kg) m]; load -dOmega p
-  double I0_kgm2 = 0;              // int rho A |p_D(x)|^2 dx, undeformed [kg m^2]
-  VecX station_x_m;                // x_s of the sampled stations [m], size n_stations
-  MatX phi_s;                      // phi_i(x_s), n_stations x n [1/sqrt(kg)]
-  MatX dphi_s;                     // phi_i'(x_s), n_stations x n [1/(sqrt(kg) m)]
-  std::vector<MatX> H_s;           // H(x_s) = int_0^x phi' phi'^T, n x n each [1/(kg m)]
-  int dof_offset = 0;              // first index of this tooth's q in the generalised vector
+  double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
+  double second_moment_m4 = 0;      // I = pi d^4 / 64 [m^4]
+  double mass_per_length_kgpm = 0;  // rho A [kg/m]
+  Vec2 p_DR_D = Vec2::Zero();       // root position in the drum frame [m]
+  Vec2 e1_D = Vec2::UnitX();        // tooth axis in the drum frame [-]
+  Vec2 e2_D = Vec2::UnitY();        // transverse axis J e1 in the drum frame [-]
+  VecX beta_per_m;                  // beta_i [1/m], size n
+  VecX sigma;                       // sigma_i [-], size n
+  VecX norm_C;                      // C_i so that int rho A phi_i^2 = 1 [1/sqrt(kg)], size n
+  VecX omega0_sq;                   // Lambda = diag(omega_i^2) at rest [1/s^2], size n
+  VecX damping_coeff;               // D = diag(2 zeta omega_i) at rest [1/s], size n
+  MatX K_G;                         // centrifugal stiffening integral (n x n) [-]; times Omega^2
+  VecX p_inertia;                   // p_i = int rho A (R + x) phi_i dx [sqrt(kg) m]; load -dOmega p
+  double I0_kgm2 = 0;               // int rho A |p_D(x)|^2 dx, undeformed [kg m^2]
+  VecX station_x_m;                 // x_s of the sampled stations [m], size n_stations
+  MatX phi_s;                       // phi_i(x_s), n_stations x n [1/sqrt(kg)]
+  MatX dphi_s;                      // phi_i'(x_s), n_stations x n [1/(sqrt(kg) m)]
+  std::vector<MatX> H_s;            // H(x_s) = int_0^x phi' phi'^T, n x n each [1/(kg m)]
+  int dof_offset = 0;               // first index of this tooth's q in the generalised vector
 };
 
 // Optional pedicel: a linear spring-damper from a fixed anchor in the world to a point on the
 // kernel; it breaks for good when its tension exceeds the detachment force.
 struct PedicelModel {
   bool present = false;
-  Vec2 p_WA_W = Vec2::Zero();     // anchor in world [m]
-  Vec2 p_KP_K = Vec2::Zero();     // attachment point in the kernel frame [m]
-  double stiffness_Npm = 200.0;   // k [N/m]
-  double damping_Nspm = 0.002;    // c [N s/m]
-  double rest_length_m = -1.0;    // l0 [m]; < 0 means "the initial distance" (unstretched)
-  double detachment_force_N = 1.6; // break threshold on the spring-damper force [N]
+  Vec2 p_WA_W = Vec2::Zero();       // anchor in world [m]
+  Vec2 p_KP_K = Vec2::Zero();       // attachment point in the kernel frame [m]
+  double stiffness_Npm = 200.0;     // k [N/m]
+  double damping_Nspm = 0.002;      // c [N s/m]
+  double rest_length_m = -1.0;      // l0 [m]; < 0 means "the initial distance" (unstretched)
+  double detachment_force_N = 1.6;  // break threshold on the spring-damper force [N]
 };
 
 // A rigid elliptic kernel moving in the drum plane.
 struct KernelModel {
-  Vec2 initial_position_m = Vec2::Zero();      // c(0) [m]
+  Vec2 initial_position_m = Vec2::Zero();       // c(0) [m]
   double initial_angle_rad = 0.0;               // psi(0) [rad]
   Vec2 initial_velocity_mps = Vec2::Zero();     // dc/dt(0) [m/s]
   double initial_angular_velocity_radps = 0.0;  // dpsi/dt(0) [rad/s]
@@ -100,11 +100,11 @@ struct KernelModel {
 // A fixed obstacle: concave bar (circle), plate (half-plane or segment).
 struct ObstacleModel {
   ObstacleType type = ObstacleType::kPlane;
-  Vec2 point_m = Vec2::Zero();    // plane: a point on it; segment: end A [m]
-  Vec2 normal = Vec2::UnitY();    // plane: outward unit normal (free side) [-]
-  Vec2 point_b_m = Vec2::Zero();  // segment: end B [m]
-  Vec2 center_m = Vec2::Zero();   // circle centre [m]
-  double radius_m = 0.005;        // circle radius; segment half-thickness [m]
+  Vec2 point_m = Vec2::Zero();         // plane: a point on it; segment: end A [m]
+  Vec2 normal = Vec2::UnitY();         // plane: outward unit normal (free side) [-]
+  Vec2 point_b_m = Vec2::Zero();       // segment: end B [m]
+  Vec2 center_m = Vec2::Zero();        // circle centre [m]
+  double radius_m = 0.005;             // circle radius; segment half-thickness [m]
   double youngs_modulus_Pa = 2.06e11;  // E (default spring steel) [Pa]
   double poisson_ratio = 0.3;          // nu [-]
 };
@@ -120,11 +120,12 @@ struct ContactParams {
 
 struct IntegratorParams {
   IntegratorType type = IntegratorType::kEventDriven;
-  double tolerance = 1e-9;        // event-driven: local error and event-location tolerance [-]
-  double dt_s = 1e-6;             // time stepping: fixed step h [s]
-  double theta = 0.5;             // Moreau-Jean theta in [0.5, 1] [-]
-  double zeno_velocity_mps = 1e-3; // event-driven: impacts slower than this close the contact [m/s]
-  double max_step_s = 1e-4;       // event-driven: largest smooth step [s]
+  double tolerance = 1e-9;  // event-driven: local error and event-location tolerance [-]
+  double dt_s = 1e-6;       // time stepping: fixed step h [s]
+  double theta = 0.5;       // Moreau-Jean theta in [0.5, 1] [-]
+  double zeno_velocity_mps =
+      1e-3;                  // event-driven: impacts slower than this close the contact [m/s]
+  double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
 };
 
 struct Model {
@@ -132,11 +133,11 @@ struct Model {
   std::vector<ToothModel> teeth;
   std::vector<KernelModel> kernels;
   std::vector<ObstacleModel> obstacles;
-  ContactParams contact[3];  // indexed by PairKind
+  ContactParams contact[3];       // indexed by PairKind
   Vec2 gravity_mps2{0.0, -9.81};  // g in world [m/s^2]
   IntegratorParams integrator;
-  double duration_s = 0.03;       // default run length [s]
-  double broadphase_margin_m = 2e-3;  // pairs farther apart than this are not examined [m]
+  double duration_s = 0.03;               // default run length [s]
+  double broadphase_margin_m = 2e-3;      // pairs farther apart than this are not examined [m]
   double hc_min_impact_speed_mps = 1e-2;  // floor on v_in in chi = c*/v_in [m/s]
   double macro_collision_gap_s = 2e-3;    // contacts of one pair closer than this in time belong
                                           // to the same macro-collision [s]
