@@ -1,10 +1,17 @@
 // simulate: the headless command-line simulator.
 //
 // Loads a scene (with --set overrides), runs it to its duration in chunks of simulation time,
-// and writes a JSON summary, a state trace and an event log on request. Exit status: 0 on
-// success, 1 when the integrator failed, 2 for a bad scene or command line.
+// and writes a JSON summary, a state trace, an event log, per-kernel outcomes and contact force
+// samples on request. Exit status: 0 on success, 1 when the integrator failed, 2 for a bad scene
+// or command line.
+//
+// Sampling: the state trace is written every kChunk_s (times --trace-every). Contacts are
+// sampled for the outcomes and --forces after every advanceTo(): every --sample-interval while
+// some pair is within the broad-phase margin or in contact, otherwise at least every time the
+// fastest body could cover the margin (and at every trace chunk).
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -24,11 +31,16 @@ namespace {
 
 const char kUsage[] =
     "usage: simulate SCENE.yaml [--duration S] [--integrator event_driven|time_stepping] "
-    "[--dt S] [--tolerance X] [--set key.path=value]... [--summary FILE.json] "
-    "[--trace FILE.csv] [--trace-every N] [--events FILE.csv] [--modes] [--quiet]";
+    "[--dt S] [--tolerance X] [--set-file FILE.yaml]... [--set key.path=value]... "
+    "[--summary FILE.json] [--trace FILE.csv] [--trace-every N] [--events FILE.csv] "
+    "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--modes] [--quiet]";
 
 // Simulation time between two trace samples / progress checks [s].
 constexpr double kChunk_s = 1e-4;
+
+// Default contact sampling interval near contacts [s]: a few percent of a Hertz contact time
+// (32-43 us for a paddy kernel, physics.md section 9a).
+constexpr double kSampleInterval_s = 1e-6;
 
 // Revolutions per minute in one rad/s.
 constexpr double kRpmPerRadps = 30.0 / 3.14159265358979323846;
@@ -45,10 +57,14 @@ class UsageError : public OptionError {
 
 struct Options {
   std::string scene_path;
+  std::vector<std::string> set_files;  // override files, applied before every --set
   std::vector<std::string> overrides;  // --set ones first, then the sugar options
   std::string summary_path;
   std::string trace_path;
   std::string events_path;
+  std::string outcomes_path;
+  std::string forces_path;
+  double sample_interval_s = kSampleInterval_s;
   int trace_every = 1;
   bool modes = false;
   bool quiet = false;
@@ -91,12 +107,30 @@ Options parseOptions(int argc, char** argv) {
       tolerance = value();
     } else if (arg == "--set") {
       options.overrides.push_back(value());
+    } else if (arg == "--set-file") {
+      options.set_files.push_back(value());
     } else if (arg == "--summary") {
       options.summary_path = value();
     } else if (arg == "--trace") {
       options.trace_path = value();
     } else if (arg == "--events") {
       options.events_path = value();
+    } else if (arg == "--outcomes") {
+      options.outcomes_path = value();
+    } else if (arg == "--forces") {
+      options.forces_path = value();
+    } else if (arg == "--sample-interval") {
+      const std::string text = value();
+      size_t used = 0;
+      try {
+        options.sample_interval_s = std::stod(text, &used);
+      } catch (const std::logic_error&) {
+        used = 0;
+      }
+      if (used != text.size() || !(options.sample_interval_s > 0) ||
+          !std::isfinite(options.sample_interval_s)) {
+        throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
+      }
     } else if (arg == "--trace-every") {
       const std::string text = value();
       size_t used = 0;
@@ -210,14 +244,33 @@ void checkWritten(const std::string& path, std::ofstream* out) {
   if (out->fail()) throw std::runtime_error("error writing '" + path + "'");
 }
 
-// Steps to the duration chunk by chunk, writing trace rows and draining events as it goes.
-// Returns the exit status.
-int run(const Model& model, const Options& options) {
+// Whether contacts must be sampled finely: some pair is within the broad-phase margin.
+bool nearContact(const Data& data) { return !data.contacts.empty(); }
+
+// Longest coarse sampling interval: the time the fastest tooth tip or kernel needs to cover the
+// broad-phase margin, so that no contact starts between two looks at data.contacts [s].
+double coarseInterval(const Model& model, const Data& data) {
+  double speed_mps = 1e-9;
+  for (const ToothModel& tooth : model.teeth) {
+    speed_mps = std::max(speed_mps, std::abs(data.omega_radps) *
+                                        (model.drum.radius_m + tooth.length_m + tooth.diameter_m));
+  }
+  for (const KernelModel& kernel : model.kernels) {
+    speed_mps = std::max(speed_mps, data.u.segment<2>(kernel.dof_offset).norm());
+  }
+  return std::max(model.broadphase_margin_m, 1e-6) / speed_mps;
+}
+
+// Steps to the duration chunk by chunk, writing trace rows, draining events and sampling
+// contacts as it goes. Returns the exit status.
+int run(const Model& model, const DamageThresholds& damage, const Options& options) {
   // Outputs first, so that a bad path fails before the run.
-  std::ofstream summary, trace, events;
+  std::ofstream summary, trace, events, outcomes_csv, forces;
   openOutput(options.summary_path, "--summary", &summary);
   openOutput(options.trace_path, "--trace", &trace);
   openOutput(options.events_path, "--events", &events);
+  openOutput(options.outcomes_path, "--outcomes", &outcomes_csv);
+  openOutput(options.forces_path, "--forces", &forces);
 
   // Initial state and file headers.
   Data data;
@@ -227,6 +280,12 @@ int run(const Model& model, const Options& options) {
     writeTraceRow(trace, model, data);
   }
   if (events.is_open()) writeEventsHeader(events);
+  if (forces.is_open()) writeForcesHeader(forces);
+  OutcomeTracker tracker(model, damage);
+  // Time stepping lands on whole steps: never sample more finely than one step.
+  const double min_interval_s =
+      model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s : 0.0;
+  const double sample_interval_s = std::max(options.sample_interval_s, min_interval_s);
 
   // Chunks of kChunk_s; the last one lands exactly on the duration. Wall time counts only the
   // time spent inside advanceTo.
@@ -235,23 +294,35 @@ int run(const Model& model, const Options& options) {
   Progress progress(options.quiet);
   std::string status = "ok";
   bool failed = false;
-  for (long chunk = 1; chunk <= n_chunks; ++chunk) {
-    const double t_next_s = chunk == n_chunks ? model.duration_s : chunk * kChunk_s;
-    const auto started = std::chrono::steady_clock::now();
-    const StepStatus step_status = advanceTo(model, &data, t_next_s);
-    stepping_time += std::chrono::steady_clock::now() - started;
+  for (long chunk = 1; chunk <= n_chunks && !failed; ++chunk) {
+    const double t_chunk_s = chunk == n_chunks ? model.duration_s : chunk * kChunk_s;
+    // Sampling intervals within the chunk; the last one lands on the chunk's end.
+    for (bool last = false; !last && !failed;) {
+      const double interval_s = nearContact(data)
+                                    ? sample_interval_s
+                                    : std::max(coarseInterval(model, data), min_interval_s);
+      const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
+      last = t_next_s >= t_chunk_s;
+      const auto started = std::chrono::steady_clock::now();
+      const StepStatus step_status = advanceTo(model, &data, t_next_s);
+      stepping_time += std::chrono::steady_clock::now() - started;
 
-    // Outputs for this chunk.
-    if (events.is_open()) writeEventRows(events, data.events);
-    data.events.clear();
-    if (step_status == StepStatus::kFailed) {
-      char text[96];
-      std::snprintf(text, sizeof(text), "failed: non-finite state at t = %.9g s, not recovered",
-                    data.t_s);
-      status = text;
-      failed = true;
-      break;
+      // Events and contact samples of this interval.
+      if (events.is_open()) writeEventRows(events, data.events);
+      tracker.addEvents(data.events);
+      data.events.clear();
+      if (step_status == StepStatus::kFailed) {
+        char text[96];
+        std::snprintf(text, sizeof(text), "failed: non-finite state at t = %.9g s, not recovered",
+                      data.t_s);
+        status = text;
+        failed = true;
+        break;
+      }
+      tracker.sample(data);
+      if (forces.is_open()) writeForceRows(forces, data);
     }
+    if (failed) break;
     if (trace.is_open() && (chunk % options.trace_every == 0 || chunk == n_chunks)) {
       writeTraceRow(trace, model, data);
     }
@@ -259,16 +330,25 @@ int run(const Model& model, const Options& options) {
   }
   progress.finish();
 
-  // Summary.
+  // Summary and outcomes.
   const double wall_time_s = std::chrono::duration<double>(stepping_time).count();
   const double energy_final_J = mechanicalEnergy(model, data);
+  OutcomeReport report;
+  report.kernels = tracker.outcomes(data);
+  report.thresholds = damage;
+  report.sample_interval_s = sample_interval_s;
   if (summary.is_open()) {
-    writeSummaryJson(summary, model, data, status, wall_time_s, energy_final_J);
+    writeSummaryJson(summary, model, data, status, wall_time_s, energy_final_J, &report);
   }
-  if (!options.quiet) printSummary(std::cout, model, data, status, wall_time_s, energy_final_J);
+  if (outcomes_csv.is_open()) writeOutcomesCsv(outcomes_csv, report.kernels);
+  if (!options.quiet) {
+    printSummary(std::cout, model, data, status, wall_time_s, energy_final_J, &report);
+  }
   checkWritten(options.summary_path, &summary);
   checkWritten(options.trace_path, &trace);
   checkWritten(options.events_path, &events);
+  checkWritten(options.outcomes_path, &outcomes_csv);
+  checkWritten(options.forces_path, &forces);
   return failed ? 1 : 0;
 }
 
@@ -283,12 +363,20 @@ int main(int argc, char** argv) {
       std::cout << kUsage << "\n";
       return 0;
     }
-    const Model model = loadScene(options.scene_path, options.overrides);
+    // Override files first, so that --set wins over them.
+    std::vector<std::string> overrides;
+    for (const std::string& path : options.set_files) {
+      const std::vector<std::string> from_file = overridesFromFile(path);
+      overrides.insert(overrides.end(), from_file.begin(), from_file.end());
+    }
+    overrides.insert(overrides.end(), options.overrides.begin(), options.overrides.end());
+    DamageThresholds damage;
+    const Model model = loadScene(options.scene_path, overrides, &damage);
     if (options.modes) {
       printModes(model);
       return 0;
     }
-    return run(model, options);
+    return run(model, damage, options);
   } catch (const UsageError& e) {
     std::cerr << "simulate: error: " << e.what() << "\n" << kUsage << "\n";
     return 2;

@@ -1,6 +1,7 @@
 // threshing_sim result writers: run summary (JSON and prose), state trace and event log (CSV).
 #include "threshing_sim/scene/report.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <utility>
@@ -137,6 +138,118 @@ std::string count(size_t n, const char* one, const char* many) {
   return std::to_string(n) + " " + (n == 1 ? one : many);
 }
 
+// A time that may be absent (< 0): the number, or null.
+void optionalTime(JsonBuilder* j, const std::string& key, double t_s) {
+  if (t_s >= 0) {
+    j->number(key, t_s);
+  } else {
+    j->raw(key, "null");
+  }
+}
+
+// The "outcomes" object: thresholds, totals over the kernels, then one object per kernel.
+std::string outcomesJson(const OutcomeReport& report, std::vector<std::string>* non_finite) {
+  JsonBuilder j("outcomes.", non_finite);
+  j.number("plastic_force_N", report.thresholds.plastic_force_N);
+  j.number("fracture_force_N", report.thresholds.fracture_force_N);
+  j.number("sample_interval_s", report.sample_interval_s);
+
+  // Totals.
+  long detached = 0, damaged = 0, fractured = 0, subs = 0;
+  int macros = 0, max_subs = 0;
+  double peak_normal_N = 0, peak_tangential_N = 0, max_contact_N = 0;
+  for (const KernelOutcome& o : report.kernels) {
+    detached += o.detached ? 1 : 0;
+    damaged += o.damage != DamageClass::kNone ? 1 : 0;
+    fractured += o.damage == DamageClass::kFracture ? 1 : 0;
+    macros += o.macro_collisions;
+    subs += o.sub_collisions;
+    max_subs = std::max(max_subs, o.max_sub_collisions);
+    peak_normal_N = std::max(peak_normal_N, o.peak_normal_force_N);
+    peak_tangential_N = std::max(peak_tangential_N, o.peak_tangential_force_N);
+    max_contact_N = std::max(max_contact_N, o.max_contact_force_N);
+  }
+  j.integer("kernels", static_cast<long>(report.kernels.size()));
+  j.integer("detached", detached);
+  j.integer("damaged", damaged);
+  j.integer("fractured", fractured);
+  j.integer("macro_collisions", macros);
+  j.integer("sub_collisions", subs);
+  j.integer("max_sub_collisions", max_subs);
+  j.number("peak_normal_force_N", peak_normal_N);
+  j.number("peak_tangential_force_N", peak_tangential_N);
+  j.number("max_contact_force_N", max_contact_N);
+
+  // Per kernel.
+  std::string items;
+  for (size_t i = 0; i < report.kernels.size(); ++i) {
+    const KernelOutcome& o = report.kernels[i];
+    JsonBuilder k("outcomes.per_kernel." + std::to_string(i) + ".", non_finite);
+    k.integer("kernel", static_cast<long>(i));
+    k.number("peak_normal_force_N", o.peak_normal_force_N);
+    optionalTime(&k, "time_of_peak_normal_s", o.time_of_peak_normal_s);
+    k.number("peak_tangential_force_N", o.peak_tangential_force_N);
+    optionalTime(&k, "time_of_peak_tangential_s", o.time_of_peak_tangential_s);
+    if (o.time_of_peak_normal_s >= 0 && o.time_of_peak_tangential_s >= 0) {
+      k.number("peak_separation_s", o.peak_separation_s);
+    } else {
+      k.raw("peak_separation_s", "null");
+    }
+    k.number("max_contact_force_N", o.max_contact_force_N);
+    k.number("total_normal_impulse_Ns", o.total_normal_impulse_Ns);
+    k.integer("impacts", o.impacts);
+    k.integer("macro_collisions", o.macro_collisions);
+    k.integer("sub_collisions", o.sub_collisions);
+    k.number("sub_collisions_per_macro", o.subCollisionsPerMacro());
+    k.integer("max_sub_collisions", o.max_sub_collisions);
+    k.number("max_impact_energy_J", o.max_impact_energy_J);
+    k.boolean("detached", o.detached);
+    optionalTime(&k, "detach_time_s", o.detach_time_s);
+    k.raw("damage", jsonString(toString(o.damage)));
+    items += (i ? ",\n      " : "\n      ") + jsonObject(k.fields(), 6);
+  }
+  j.raw("per_kernel", "[" + items + (items.empty() ? "]" : "\n    ]"));
+  return jsonObject(j.fields(), 2);
+}
+
+// Outcome totals as a sentence, then one line per kernel (up to kMaxKernelLines).
+void printOutcomes(std::ostream& out, const OutcomeReport& report) {
+  constexpr size_t kMaxKernelLines = 10;
+  long detached = 0, damaged = 0, fractured = 0, subs = 0;
+  int macros = 0;
+  for (const KernelOutcome& o : report.kernels) {
+    detached += o.detached ? 1 : 0;
+    damaged += o.damage != DamageClass::kNone ? 1 : 0;
+    fractured += o.damage == DamageClass::kFracture ? 1 : 0;
+    macros += o.macro_collisions;
+    subs += o.sub_collisions;
+  }
+  out << "Outcomes: " << damaged << " of " << report.kernels.size() << " kernels damaged (contact "
+      << "force >= " << readable(report.thresholds.plastic_force_N, "N") << "), " << fractured
+      << " fractured (>= " << readable(report.thresholds.fracture_force_N, "N") << "), " << detached
+      << " detached; " << count(macros, "tooth macro-collision", "tooth macro-collisions")
+      << " holding " << count(subs, "sub-collision", "sub-collisions") << ".\n";
+  for (size_t i = 0; i < report.kernels.size() && i < kMaxKernelLines; ++i) {
+    const KernelOutcome& o = report.kernels[i];
+    out << "  kernel " << i << ": tooth force peaks normal " << readable(o.peak_normal_force_N, "N")
+        << ", tangential " << readable(o.peak_tangential_force_N, "N");
+    if (o.time_of_peak_normal_s >= 0 && o.time_of_peak_tangential_s >= 0) {
+      out << " (" << readable(o.peak_separation_s, "s") << " after the normal peak)";
+    }
+    out << ", max contact force " << readable(o.max_contact_force_N, "N") << ", impulse "
+        << readable(o.total_normal_impulse_Ns, "N s") << ", "
+        << count(o.impacts, "impact", "impacts") << ", "
+        << count(o.macro_collisions, "macro-collision", "macro-collisions") << " / "
+        << count(o.sub_collisions, "sub-collision", "sub-collisions") << ", max impact energy "
+        << readable(o.max_impact_energy_J, "J") << ", "
+        << (o.detached ? "detached at " + readable(o.detach_time_s, "s") : "attached")
+        << ", damage " << toString(o.damage) << "\n";
+  }
+  if (report.kernels.size() > kMaxKernelLines) {
+    out << "  (" << report.kernels.size() - kMaxKernelLines << " more kernels in --outcomes)\n";
+  }
+}
+
 std::string joinList(const std::vector<std::string>& items) {
   std::string out;
   for (const std::string& item : items) out += (out.empty() ? "" : ", ") + item;
@@ -149,7 +262,8 @@ std::string joinList(const std::vector<std::string>& items) {
 // Summary JSON.
 
 void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
-                      const std::string& status, double wall_time_s, double energy_final_J) {
+                      const std::string& status, double wall_time_s, double energy_final_J,
+                      const OutcomeReport* outcomes) {
   const RunStats& s = data.stats;
   std::vector<std::string> non_finite;
 
@@ -187,6 +301,7 @@ void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
         (i ? ",\n    " : "\n    ") + kernelJson(model, data, static_cast<int>(i), &non_finite);
   }
   j.raw("kernels", "[" + kernels + (kernels.empty() ? "]" : "\n  ]"));
+  if (outcomes != nullptr) j.raw("outcomes", outcomesJson(*outcomes, &non_finite));
 
   // Status first; it names any value written as null.
   std::string full_status = status;
@@ -202,7 +317,8 @@ void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
 // Human-readable summary.
 
 void printSummary(std::ostream& out, const Model& model, const Data& data,
-                  const std::string& status, double wall_time_s, double energy_final_J) {
+                  const std::string& status, double wall_time_s, double energy_final_J,
+                  const OutcomeReport* outcomes) {
   const RunStats& s = data.stats;
   const char* integrator =
       model.integrator.type == IntegratorType::kEventDriven ? "event-driven" : "time stepping";
@@ -227,6 +343,7 @@ void printSummary(std::ostream& out, const Model& model, const Data& data,
       << ", largest energy gain at an impact " << readable(s.max_energy_gain_at_impact_J, "J")
       << ". " << detached << " of " << model.kernels.size() << " kernels detached; "
       << count(s.numerical_recoveries, "numerical recovery", "numerical recoveries") << ".\n";
+  if (outcomes != nullptr) printOutcomes(out, *outcomes);
   for (const std::string& w : s.warnings) out << "warning: " << w << "\n";
 }
 
@@ -284,6 +401,45 @@ void writeEventRows(std::ostream& out, const std::vector<ContactEvent>& events) 
         << exact(e.impulse_tangential_Ns) << "," << exact(e.energy_lost_J) << ","
         << exact(e.peak_normal_force_N) << "," << e.macro_collision << "," << e.sub_collision
         << "\n";
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Outcomes CSV.
+
+void writeOutcomesCsv(std::ostream& out, const std::vector<KernelOutcome>& outcomes) {
+  out << "kernel,peak_normal_force_N,time_of_peak_normal_s,peak_tangential_force_N,"
+         "time_of_peak_tangential_s,peak_separation_s,max_contact_force_N,"
+         "total_normal_impulse_Ns,impacts,"
+         "macro_collisions,sub_collisions,sub_collisions_per_macro,max_sub_collisions,"
+         "max_impact_energy_J,detached,detach_time_s,damage\n";
+  const auto time = [](double t_s) { return t_s >= 0 ? exact(t_s) : std::string(); };
+  for (size_t i = 0; i < outcomes.size(); ++i) {
+    const KernelOutcome& o = outcomes[i];
+    const bool both_peaks = o.time_of_peak_normal_s >= 0 && o.time_of_peak_tangential_s >= 0;
+    out << i << "," << exact(o.peak_normal_force_N) << "," << time(o.time_of_peak_normal_s) << ","
+        << exact(o.peak_tangential_force_N) << "," << time(o.time_of_peak_tangential_s) << ","
+        << (both_peaks ? exact(o.peak_separation_s) : "") << "," << exact(o.max_contact_force_N)
+        << "," << exact(o.total_normal_impulse_Ns) << "," << o.impacts << "," << o.macro_collisions
+        << "," << o.sub_collisions << "," << exact(o.subCollisionsPerMacro()) << ","
+        << o.max_sub_collisions << "," << exact(o.max_impact_energy_J) << ","
+        << (o.detached ? 1 : 0) << "," << time(o.detach_time_s) << "," << toString(o.damage)
+        << "\n";
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Contact force samples CSV.
+
+void writeForcesHeader(std::ostream& out) {
+  out << "t_s,kind,a,b,state,gap_m,normal_force_N,tangential_force_N\n";
+}
+
+void writeForceRows(std::ostream& out, const Data& data) {
+  for (const ContactInfo& c : data.contacts) {
+    out << exact(data.t_s) << "," << toString(c.pair.kind) << "," << c.pair.a << "," << c.pair.b
+        << "," << toString(c.state) << "," << exact(c.gap_m) << "," << exact(c.normal_force_N)
+        << "," << exact(c.tangential_force_N) << "\n";
   }
 }
 

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 #include <utility>
 
 #include "threshing_sim/core/geometry.h"
@@ -62,6 +63,22 @@ const KeySpec kSchema[] = {
     {"kernels.*.pedicel.damping", KeyKind::kValue},
     {"kernels.*.pedicel.rest_length", KeyKind::kValue},
     {"kernels.*.pedicel.detachment_force", KeyKind::kValue},
+    {"stream", KeyKind::kOptionalSection},
+    {"stream.count", KeyKind::kValue},
+    {"stream.rate", KeyKind::kValue},
+    {"stream.start", KeyKind::kValue},
+    {"stream.seed", KeyKind::kValue},
+    {"stream.depth", KeyKind::kValue},
+    {"stream.position_scatter", KeyKind::kValue},
+    {"stream.angle_scatter", KeyKind::kValue},
+    {"stream.semi_axes", KeyKind::kValue},
+    {"stream.mass_range", KeyKind::kValue},
+    {"stream.youngs_modulus", KeyKind::kValue},
+    {"stream.poisson_ratio", KeyKind::kValue},
+    {"stream.pedicel_length", KeyKind::kValue},
+    {"stream.pedicel_stiffness", KeyKind::kValue},
+    {"stream.pedicel_damping", KeyKind::kValue},
+    {"stream.detachment_force_range", KeyKind::kValue},
     {"obstacles", KeyKind::kList},
     {"obstacles.*.type", KeyKind::kValue},
     {"obstacles.*.point", KeyKind::kValue},
@@ -95,7 +112,13 @@ const KeySpec kSchema[] = {
     {"integrator.max_step", KeyKind::kValue},
     {"duration", KeyKind::kValue},
     {"broadphase_margin", KeyKind::kValue},
+    {"macro_collision_gap", KeyKind::kValue},
+    {"damage", KeyKind::kSection},
+    {"damage.plastic_force", KeyKind::kValue},
+    {"damage.fracture_force", KeyKind::kValue},
 };
+
+constexpr double kPi = 3.14159265358979323846;
 
 // Most bending modes the beam model evaluates accurately (kMaxModes in src/core/beam.cc).
 constexpr int kMaxModes = 12;
@@ -523,51 +546,207 @@ Ellipse kernelEllipse(const KernelModel& k) {
   return e;
 }
 
-// Refuses kernel i when the signed distance to `other` is negative.
-void checkClear(double distance_m, size_t i, const KernelModel& k, const std::string& other) {
-  if (distance_m >= 0) return;
-  fail("kernels." + std::to_string(i) + ".position", "kernel overlaps " + other + " at start by " +
-                                                         show(-distance_m) + " m (got " +
-                                                         show(k.initial_position_m) + ")");
+// Smallest signed distance from kernel k to the first n_kernels kernels of the model, the
+// undeformed teeth at the initial drum angle (capsules of radius d/2 from root to tip) and the
+// obstacles; *other names the nearest body.
+double clearance(const Model& model, const KernelModel& k, size_t n_kernels, std::string* other) {
+  const Ellipse e = kernelEllipse(k);
+  double nearest_m = std::numeric_limits<double>::infinity();
+  const auto consider = [&](double distance_m, const std::string& name) {
+    if (distance_m < nearest_m) {
+      nearest_m = distance_m;
+      *other = name;
+    }
+  };
+  for (size_t j = 0; j < n_kernels; ++j) {
+    consider(ellipseEllipse(kernelEllipse(model.kernels[j]), e).distance_m,
+             "kernels." + std::to_string(j));
+  }
+  const Eigen::Matrix2d A_WD = Eigen::Rotation2Dd(model.drum.initial_angle_rad).toRotationMatrix();
+  for (size_t t = 0; t < model.teeth.size(); ++t) {
+    const ToothModel& tooth = model.teeth[t];
+    const Vec2 axis_W =
+        A_WD * Vec2(std::cos(tooth.mount_angle_rad), std::sin(tooth.mount_angle_rad));
+    const Vec2 root_W = model.drum.radius_m * axis_W;
+    const Vec2 tip_W = root_W + tooth.length_m * axis_W;
+    consider(segmentEllipse(root_W, tip_W, e).distance_m - tooth.diameter_m / 2,
+             "teeth." + std::to_string(t));
+  }
+  for (size_t o = 0; o < model.obstacles.size(); ++o) {
+    const ObstacleModel& ob = model.obstacles[o];
+    double distance_m = 0;
+    switch (ob.type) {
+      case ObstacleType::kPlane:
+        distance_m = planeEllipse(ob.point_m, ob.normal, e).distance_m;
+        break;
+      case ObstacleType::kCircle:
+        distance_m = circleEllipse(ob.center_m, ob.radius_m, e).distance_m;
+        break;
+      case ObstacleType::kSegment:
+        distance_m = segmentEllipse(ob.point_m, ob.point_b_m, e).distance_m - ob.radius_m;
+        break;
+    }
+    consider(distance_m, "obstacles." + std::to_string(o));
+  }
+  return nearest_m;
 }
 
-// Every kernel against the earlier kernels, the undeformed teeth at the initial drum angle
-// (capsules of radius d/2 from root to tip) and the obstacles.
+// Every kernel against the earlier kernels, the teeth and the obstacles.
 void checkInitialOverlaps(const Model& model) {
-  const Eigen::Matrix2d A_WD = Eigen::Rotation2Dd(model.drum.initial_angle_rad).toRotationMatrix();
   for (size_t i = 0; i < model.kernels.size(); ++i) {
     const KernelModel& k = model.kernels[i];
-    const Ellipse e = kernelEllipse(k);
-    for (size_t j = 0; j < i; ++j) {
-      checkClear(ellipseEllipse(kernelEllipse(model.kernels[j]), e).distance_m, i, k,
-                 "kernels." + std::to_string(j));
-    }
-    for (size_t t = 0; t < model.teeth.size(); ++t) {
-      const ToothModel& tooth = model.teeth[t];
-      const Vec2 axis_W =
-          A_WD * Vec2(std::cos(tooth.mount_angle_rad), std::sin(tooth.mount_angle_rad));
-      const Vec2 root_W = model.drum.radius_m * axis_W;
-      const Vec2 tip_W = root_W + tooth.length_m * axis_W;
-      checkClear(segmentEllipse(root_W, tip_W, e).distance_m - tooth.diameter_m / 2, i, k,
-                 "teeth." + std::to_string(t));
-    }
-    for (size_t o = 0; o < model.obstacles.size(); ++o) {
-      const ObstacleModel& ob = model.obstacles[o];
-      double distance_m = 0;
-      switch (ob.type) {
-        case ObstacleType::kPlane:
-          distance_m = planeEllipse(ob.point_m, ob.normal, e).distance_m;
-          break;
-        case ObstacleType::kCircle:
-          distance_m = circleEllipse(ob.center_m, ob.radius_m, e).distance_m;
-          break;
-        case ObstacleType::kSegment:
-          distance_m = segmentEllipse(ob.point_m, ob.point_b_m, e).distance_m - ob.radius_m;
-          break;
-      }
-      checkClear(distance_m, i, k, "obstacles." + std::to_string(o));
-    }
+    std::string other;
+    const double distance_m = clearance(model, k, i, &other);
+    if (distance_m >= 0) continue;
+    fail("kernels." + std::to_string(i) + ".position",
+         "kernel overlaps " + other + " at start by " + show(-distance_m) + " m (got " +
+             show(k.initial_position_m) + ")");
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Kernel stream: kernels on pedicels that tooth 0 meets at a set rate, with seeded scatter.
+
+// Uniform numbers from a 64-bit Mersenne Twister, mapped by hand so that the sequence is the
+// same on every standard library (std::uniform_real_distribution is not specified exactly).
+class Uniform {
+ public:
+  explicit Uniform(unsigned long long seed) : engine_(seed) {}
+  double operator()(double lo, double hi) {
+    return lo + (hi - lo) * static_cast<double>(engine_() >> 11) * 0x1.0p-53;
+  }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+// [lo, hi] with 0 < lo <= hi.
+Vec2 positiveRange(const Section& s, const std::string& key, const Vec2& fallback) {
+  const Vec2 range = s.vec2(key, fallback);
+  if (!(range.x() > 0 && range.x() <= range.y())) {
+    fail(s.path(key), "must be [lo, hi] with 0 < lo <= hi (got " + show(s.node(key)) + ")");
+  }
+  return range;
+}
+
+// Angle of drum rotation from tooth 0 to the next tooth ahead of it in the direction of
+// rotation (2 pi with one tooth) [rad].
+double angleToNextTooth(const Model& model, double direction) {
+  double gap_rad = 2 * kPi;
+  for (size_t t = 1; t < model.teeth.size(); ++t) {
+    double delta = std::fmod(
+        direction * (model.teeth[t].mount_angle_rad - model.teeth[0].mount_angle_rad), 2 * kPi);
+    if (delta <= 0) delta += 2 * kPi;
+    gap_rad = std::min(gap_rad, delta);
+  }
+  return gap_rad;
+}
+
+// Appends the stream's kernels. Kernel j sits where the axis of tooth 0 is at time
+// start + j / rate (drum at its initial speed), depth inside the tip circle, its long axis
+// radial, held at its outer end by a pedicel running on outward; then scatter: uniform
+// +-position_scatter radially and along the path, +-angle_scatter on the orientation, mass and
+// detachment force uniform in their ranges. A draw that overlaps a body is redrawn.
+void readStream(const Section& scene, Model* model) {
+  const YAML::Node node = scene.node("stream");
+  if (!node.IsDefined() || node.IsNull()) return;
+  const Section s = scene.section("stream", "stream");
+  if (model->teeth.empty()) fail("stream", "needs at least one tooth (teeth is empty)");
+  const double omega_radps = model->drum.initial_speed_radps;
+  if (omega_radps == 0) fail("drum.speed", "must not be 0 with a kernel stream");
+
+  // Parameters.
+  s.require("count");
+  s.require("rate");
+  const int count = s.integer("count", 1, 1, 10000);
+  const double rate_Hz = s.number("rate", 1.0, kPositive);
+  const double start_s = s.number("start", 5e-4, kNonNegative);
+  const int seed = s.integer("seed", 1, 0, std::numeric_limits<int>::max());
+  const double depth_m = s.number("depth", 0.005, kAnyValue);
+  const double position_scatter_m = s.number("position_scatter", 0.001, kNonNegative);
+  const double angle_scatter_rad = s.number("angle_scatter", 0.5, kNonNegative);
+  KernelModel base;
+  const Vec2 axes = s.vec2("semi_axes", Vec2(base.semi_axis_a_m, base.semi_axis_b_m));
+  if (axes.minCoeff() <= 0 || axes.x() < axes.y()) {
+    fail(s.path("semi_axes"),
+         "must be [a, b] with a >= b > 0 (got " + show(s.node("semi_axes")) + ")");
+  }
+  base.semi_axis_a_m = axes.x();
+  base.semi_axis_b_m = axes.y();
+  const Vec2 mass_kg = positiveRange(s, "mass_range", Vec2(2.4e-5, 3.1e-5));
+  base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa, kPositive);
+  base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio, kPoissonRatio);
+  const double pedicel_length_m = s.number("pedicel_length", 0.003, kPositive);
+  base.pedicel.present = true;
+  base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm, kPositive);
+  base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm, kNonNegative);
+  base.pedicel.rest_length_m = -1.0;
+  base.pedicel.p_KP_K = Vec2(base.semi_axis_a_m, 0.0);
+  const Vec2 detach_N = positiveRange(s, "detachment_force_range", Vec2(0.27, 2.6));
+
+  // The whole stream must pass before the next tooth reaches the first kernel's place.
+  const double direction = omega_radps > 0 ? 1.0 : -1.0;
+  const double tip_radius_m = model->drum.radius_m + model->teeth[0].length_m;
+  const double radius_m = tip_radius_m - depth_m;
+  if (radius_m - position_scatter_m <= base.semi_axis_a_m) {
+    fail(s.path("depth"), "puts the kernels at the drum axis (centre radius " + show(radius_m) +
+                              " m, got " + show(s.node("depth")) + ")");
+  }
+  const double span_rad = std::abs(omega_radps) * (start_s + (count - 1) / rate_Hz) +
+                          position_scatter_m / (radius_m - position_scatter_m);
+  const double gap_rad = angleToNextTooth(*model, direction);
+  if (span_rad >= gap_rad) {
+    fail(s.path("rate"), "the stream spans " + show(span_rad) +
+                             " rad of drum rotation but the next tooth follows tooth 0 after " +
+                             show(gap_rad) + " rad; lower count or start, or raise rate (got " +
+                             show(s.node("rate")) + ")");
+  }
+
+  // Kernels, each redrawn until it clears every body placed before it.
+  Uniform uniform(static_cast<unsigned long long>(seed));
+  const double theta0_rad = model->drum.initial_angle_rad + model->teeth[0].mount_angle_rad;
+  constexpr int kMaxDraws = 100;
+  for (int j = 0; j < count; ++j) {
+    const double arrival_s = start_s + j / rate_Hz;
+    KernelModel k = base;
+    std::string other;
+    double distance_m = -1;
+    for (int draw = 0; draw < kMaxDraws && distance_m < 0; ++draw) {
+      const double r_m = radius_m + uniform(-position_scatter_m, position_scatter_m);
+      const double phi_rad = theta0_rad + omega_radps * arrival_s +
+                             uniform(-position_scatter_m, position_scatter_m) / r_m;
+      const double psi_rad = phi_rad + uniform(-angle_scatter_rad, angle_scatter_rad);
+      const Vec2 axis(std::cos(psi_rad), std::sin(psi_rad));
+      k.initial_position_m = r_m * Vec2(std::cos(phi_rad), std::sin(phi_rad));
+      k.initial_angle_rad = psi_rad;
+      k.pedicel.p_WA_W = k.initial_position_m + (k.semi_axis_a_m + pedicel_length_m) * axis;
+      k.mass_kg = uniform(mass_kg.x(), mass_kg.y());
+      k.pedicel.detachment_force_N = uniform(detach_N.x(), detach_N.y());
+      distance_m = clearance(*model, k, model->kernels.size(), &other);
+    }
+    if (distance_m < 0) {
+      fail("stream", "kernel " + std::to_string(j) + " still overlaps " + other + " after " +
+                         std::to_string(kMaxDraws) +
+                         " draws; lower the scatter or the rate, or change the seed");
+    }
+    model->kernels.push_back(k);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Outcome settings.
+
+DamageThresholds readDamage(const Section& scene) {
+  const Section s = scene.section("damage", "damage");
+  DamageThresholds d;
+  d.plastic_force_N = s.number("plastic_force", d.plastic_force_N, kPositive);
+  d.fracture_force_N = s.number("fracture_force", d.fracture_force_N, kPositive);
+  if (d.fracture_force_N < d.plastic_force_N) {
+    fail(s.path(s.has("fracture_force") ? "fracture_force" : "plastic_force"),
+         "the fracture force must be >= the plastic force (got plastic " + show(d.plastic_force_N) +
+             " N, fracture " + show(d.fracture_force_N) + " N)");
+  }
+  return d;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -653,8 +832,20 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
     const std::string parent = path;
     path = joinPath(path, part);
 
-    // A list item: the index must exist.
+    // A list item: the index must exist; "*" sets every item.
     if (node.IsSequence()) {
+      if (part == "*") {
+        const size_t n_items = node.size();
+        if (n_items == 0) refuse(parent, "has no entries to set");
+        std::string rest;
+        for (size_t j = i + 1; j < parts.size(); ++j) rest = joinPath(rest, parts[j]);
+        for (size_t index = 0; index < n_items; ++index) {
+          const std::string item = joinPath(parent, std::to_string(index));
+          applyOverride(&tree, (rest.empty() ? item : item + "." + rest) + "=" + value_text);
+        }
+        root->reset(tree);
+        return;
+      }
       if (!isIndex(part)) refuse(parent, "is a list; expected an index, got '" + part + "'");
       const size_t index = part.size() < 10 ? std::stoul(part) : node.size();
       if (index >= node.size()) {
@@ -698,6 +889,21 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
   root->reset(tree);
 }
 
+std::vector<std::string> overridesFromFile(const std::string& path) {
+  const YAML::Node root = loadSceneYaml(path);
+  if (!root.IsMap()) {
+    throw SceneError(path + ": expected a mapping of key paths to values (got " + show(root) + ")");
+  }
+  std::vector<std::string> assignments;
+  for (const auto& entry : root) {
+    if (!entry.first.IsScalar()) {
+      throw SceneError(path + ": expected a key path (got " + show(entry.first) + ")");
+    }
+    assignments.push_back(entry.first.Scalar() + "=" + show(entry.second));
+  }
+  return assignments;
+}
+
 Model modelFromYaml(const YAML::Node& root) {
   if (!root.IsMap()) {
     fail("", "expected a mapping of sections at the top level (got " + show(root) + ")");
@@ -723,6 +929,7 @@ Model modelFromYaml(const YAML::Node& root) {
   for (size_t i = 0; i < obstacles.size(); ++i) {
     model.obstacles.push_back(readObstacle(obstacles[i], "obstacles." + std::to_string(i)));
   }
+  readStream(scene, &model);
 
   // Contact laws, gravity, integrator and run settings.
   readContact(scene, &model);
@@ -731,6 +938,9 @@ Model modelFromYaml(const YAML::Node& root) {
   model.duration_s = scene.number("duration", model.duration_s, kPositive);
   model.broadphase_margin_m =
       scene.number("broadphase_margin", model.broadphase_margin_m, kNonNegative);
+  model.macro_collision_gap_s =
+      scene.number("macro_collision_gap", model.macro_collision_gap_s, kPositive);
+  readDamage(scene);  // validated here; damageFromYaml() returns it
 
   // Start configuration, then the core's own checks and derived quantities.
   checkInitialOverlaps(model);
@@ -742,11 +952,19 @@ Model modelFromYaml(const YAML::Node& root) {
   return model;
 }
 
-Model loadScene(const std::string& path, const std::vector<std::string>& overrides) {
+DamageThresholds damageFromYaml(const YAML::Node& root) {
+  if (!root.IsMap()) return DamageThresholds();
+  return readDamage(Section(root, "", childKeys("")));
+}
+
+Model loadScene(const std::string& path, const std::vector<std::string>& overrides,
+                DamageThresholds* damage) {
   YAML::Node root = loadSceneYaml(path);
   for (const std::string& assignment : overrides) applyOverride(&root, assignment);
   try {
-    return modelFromYaml(root);
+    Model model = modelFromYaml(root);
+    if (damage != nullptr) *damage = damageFromYaml(root);
+    return model;
   } catch (const SceneError& e) {
     throw SceneError(path + ": " + e.what());
   }

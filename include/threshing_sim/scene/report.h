@@ -10,18 +10,39 @@
 
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
 
-// Summary of a run as one JSON object: status, times, step and impact counts, force peaks,
-// energy balance, warnings and the final state of each kernel. Non-finite numbers are written
-// as null and the status then names them.
-void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
-                      const std::string& status, double wall_time_s, double energy_final_J);
+// Outcomes of a run as reported: per kernel (outcomes.h) and the thresholds they were judged by.
+struct OutcomeReport {
+  std::vector<KernelOutcome> kernels;
+  DamageThresholds thresholds;
+  double sample_interval_s = 0;  // contact sampling interval the peak times come from [s]
+};
 
-// The same key numbers as one readable paragraph (SI prefixes), then one line per warning.
+// Summary of a run as one JSON object: status, times, step and impact counts, force peaks,
+// energy balance, warnings and the final state of each kernel; with outcomes, an "outcomes"
+// object (thresholds, totals over the kernels, one entry per kernel). Non-finite numbers are
+// written as null and the status then names them.
+void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
+                      const std::string& status, double wall_time_s, double energy_final_J,
+                      const OutcomeReport* outcomes = nullptr);
+
+// The same key numbers as one readable paragraph (SI prefixes), then the outcomes (totals, and
+// one line per kernel for up to 10 kernels), then one line per warning.
 void printSummary(std::ostream& out, const Model& model, const Data& data,
-                  const std::string& status, double wall_time_s, double energy_final_J);
+                  const std::string& status, double wall_time_s, double energy_final_J,
+                  const OutcomeReport* outcomes = nullptr);
+
+// Outcomes CSV: one row per kernel (columns as KernelOutcome, damage as none/plastic/fracture,
+// detach_time_s empty when attached).
+void writeOutcomesCsv(std::ostream& out, const std::vector<KernelOutcome>& outcomes);
+
+// Contact force samples: t_s, kind, a, b, state, gap_m, normal_force_N, tangential_force_N for
+// every pair in data.contacts (pairs within the broad-phase margin) at data.t_s.
+void writeForcesHeader(std::ostream& out);
+void writeForceRows(std::ostream& out, const Data& data);
 
 // State trace: t_s, theta_rad, omega_radps; per kernel i k{i}_x_m, k{i}_y_m, k{i}_psi_rad,
 // k{i}_vx_mps, k{i}_vy_mps, k{i}_omega_radps; per tooth k tooth{k}_tip_deflection_m and its

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
 
@@ -25,16 +26,29 @@ YAML::Node loadSceneYaml(const std::string& path);
 
 // Applies one "key.path=value" override in place (e.g. "teeth.0.modes=0",
 // "drum.speed=120", "kernels.1.position=[0.01, 0.25]"). The path must name an existing key or
-// a known optional key. Throws SceneError naming the path.
+// a known optional key; "*" in place of a list index sets every item of a non-empty list
+// ("teeth.*.modes=0"). Throws SceneError naming the path; the tree is unchanged then.
 void applyOverride(YAML::Node* root, const std::string& assignment);
 
+// The overrides of an override file: a YAML mapping of key paths to values, e.g.
+// "teeth.*.youngs_modulus: 2.06e11", returned as "key.path=value" in file order (values in
+// flow style) for applyOverride. Throws SceneError.
+std::vector<std::string> overridesFromFile(const std::string& path);
+
 // Validates the tree (unknown keys, missing keys, types, ranges, NaN/inf, semi-axes order,
-// kernels overlapping at start) and returns the compiled model. Throws SceneError.
+// kernels overlapping at start), expands a kernel `stream` into kernels appended after the
+// listed ones (deterministic from its seed; docs/scene_reference.md) and returns the compiled
+// model. Throws SceneError.
 Model modelFromYaml(const YAML::Node& root);
 
-// loadSceneYaml + applyOverride for each override + modelFromYaml. Validation errors are
-// prefixed with the file path.
-Model loadScene(const std::string& path, const std::vector<std::string>& overrides = {});
+// The outcome settings of a scene (section `damage`; defaults for rice when absent). The tree
+// must have passed modelFromYaml, which validates the section. Throws SceneError.
+DamageThresholds damageFromYaml(const YAML::Node& root);
+
+// loadSceneYaml + applyOverride for each override + modelFromYaml (and damageFromYaml into
+// *damage when given). Validation errors are prefixed with the file path.
+Model loadScene(const std::string& path, const std::vector<std::string>& overrides = {},
+                DamageThresholds* damage = nullptr);
 
 // Every key path a scene may hold, list items written as "*" (e.g. "teeth.*.length"), in
 // document order. docs/scene_reference.md has one row per path.

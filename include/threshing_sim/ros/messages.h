@@ -1,0 +1,73 @@
+// threshing_sim ROS layer: messages, markers and transforms built from a Snapshot.
+//
+// Pure conversions (no publishing), run by the node's output thread. Frames: `world`, `drum`,
+// `tooth_<i>_root` (static in `drum`: x along the undeformed tooth), `tooth_<i>_tip`.
+#pragma once
+
+#include <geometry_msgs/TransformStamped.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "threshing_sim/BeamShapeArray.h"
+#include "threshing_sim/ContactStateArray.h"
+#include "threshing_sim/DrumSpeedCommand.h"
+#include "threshing_sim/ImpactEvent.h"
+#include "threshing_sim/KernelStateArray.h"
+#include "threshing_sim/ros/snapshot.h"
+
+namespace threshing_sim {
+
+extern const char* const kWorldFrame;   // "world"
+extern const char* const kDrumFrame;    // "drum"
+std::string toothRootFrame(int tooth);  // "tooth_<i>_root"
+std::string toothTipFrame(int tooth);   // "tooth_<i>_tip"
+
+// Marker id of a contact pair, stable for the whole run: kind * 1e6 + a * 1e3 + b.
+int pairMarkerId(const PairId& pair);
+
+// Puts the snapshot's drum angle and positions into scratch, for the tooth shape functions
+// (toothPointWorld and friends read nothing else).
+void loadPose(const Snapshot& s, Data* scratch);
+
+// contact_state. The core keeps running impulse sums per pair; this turns them into the
+// impulse since the previous message.
+class ContactStateBuilder {
+ public:
+  ContactStateArray build(const Snapshot& s);
+
+ private:
+  std::map<PairId, Vec2> last_sums_Ns_;  // (normal, tangential) sums at the previous message
+};
+
+ImpactEvent impactEventMsg(const ContactEvent& e, const ros::Time& stamp);
+DrumSpeedCommand drumSpeedCommandMsg(const AppliedCommand& c);
+KernelStateArray kernelStatesMsg(const Snapshot& s);
+// scratch must hold the snapshot's pose (loadPose).
+BeamShapeArray beamShapeMsg(const Snapshot& s, const Data& scratch, int points);
+
+// world -> drum and tooth_<i>_root -> tooth_<i>_tip at the snapshot (scratch: loadPose).
+std::vector<geometry_msgs::TransformStamped> movingTransforms(const Snapshot& s,
+                                                              const Data& scratch);
+// drum -> tooth_<i>_root, for the StaticTransformBroadcaster.
+std::vector<geometry_msgs::TransformStamped> staticTransforms(const Model& model,
+                                                              const ros::Time& stamp);
+
+// markers: one namespace per entity, stable ids. Static geometry (drum, obstacles) only when
+// asked; DELETEALL first after a reset; arrows of pairs no longer in contact are deleted.
+class MarkerBuilder {
+ public:
+  explicit MarkerBuilder(double force_arrow_scale_mpN, int beam_points)
+      : scale_mpN_(force_arrow_scale_mpN), beam_points_(beam_points) {}
+  visualization_msgs::MarkerArray build(const Snapshot& s, const Data& scratch, bool with_static);
+
+ private:
+  double scale_mpN_;                 // force arrow length per newton [m/N]
+  int beam_points_;                  // centreline samples per tooth [-]
+  std::set<int> live_force_arrows_;  // ids of the contact_forces arrows now shown
+};
+
+}  // namespace threshing_sim

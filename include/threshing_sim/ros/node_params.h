@@ -1,0 +1,51 @@
+// threshing_sim ROS layer: the node's private parameters and the scene it simulates.
+//
+// Every parameter is private (~name), validated once at start-up; a bad value throws
+// std::invalid_argument whose message names the parameter, e.g.
+// "~real_time_factor: must be >= 0 (got -1)". The table with units, defaults and ranges is in
+// docs/ros_interface.md.
+#pragma once
+
+#include <ros/node_handle.h>
+
+#include <string>
+
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+
+// Units in brackets; the ~name each field comes from is in docs/ros_interface.md.
+struct NodeParams {
+  std::string scene;                     // ~scene: scene file; empty = scene keys as private params
+  bool sim_clock = false;                // ~clock_mode "sim": publish /clock, stamp with sim time
+  double real_time_factor = 1.0;         // sim s per wall s; 0 = as fast as possible [-]
+  double physics_dt_s = 0;               // sim time per advanceTo call; 0 = scene default [s]
+  double max_drum_speed_radps = 400.0;   // larger |drum_speed_cmd| are rejected [rad/s]
+  double contact_state_rate_hz = 100.0;  // contact_state [Hz]
+  double state_rate_hz = 50.0;           // kernel_states, beam_shape, tf [Hz]
+  double marker_rate_hz = 30.0;          // markers [Hz]
+  double status_period_s = 1.0;          // status line period, 0 = off [wall s]
+  double end_time_s = 0;                 // stop at this simulation time, 0 = never [s]
+  double reset_period_s = 0;             // reset the bodies every ..., 0 = never [s]
+  std::string command_bag;               // re-simulate the commands applied in this bag
+  bool start_paused = false;             // start paused
+  bool wait_for_subscribers = false;     // hold t = 0 until every output is heard
+  double force_arrow_scale_mpN = 5e-4;   // force arrow length per newton [m/N]
+  int beam_points = 20;                  // centreline samples per tooth [-]
+};
+
+// Reads and validates the node's parameters from the private handle pnh. physics_dt_s is left
+// 0 when not set (the scene decides, see resolvePhysicsStep).
+NodeParams loadNodeParams(const ros::NodeHandle& pnh);
+
+// The scene: the file named by ~scene, or else the scene keys among the private parameters
+// (every private parameter that is not a node parameter). Validated and compiled by the scene
+// loader; throws std::invalid_argument naming the offending key.
+Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params);
+
+// The physics step: ~physics_dt if set, else the scene's time step (time stepping) or 1e-5 s
+// (event-driven). Checks that it is a whole number of nanoseconds and that a time-stepping
+// scene's step divides it. Throws std::invalid_argument naming ~physics_dt.
+double resolvePhysicsStep(const NodeParams& params, const Model& model);
+
+}  // namespace threshing_sim

@@ -1,0 +1,64 @@
+// threshing_sim ROS layer: what the output thread needs of one instant of the simulation.
+//
+// The physics thread copies a Snapshot at a step boundary (cheap: a few vectors); the output
+// thread turns it into messages. Nothing ROS-specific is computed in the stepping loop.
+#pragma once
+
+#include <ros/time.h>
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+
+// Output streams, as a bit mask: which topics a snapshot is due on.
+enum Stream : unsigned {
+  kContactStream = 1u,  // contact_state
+  kStateStream = 2u,    // kernel_states, beam_shape, tf world->drum and tooth tips
+  kMarkerStream = 4u,   // markers
+  kAllStreams = 7u,
+};
+
+// The largest normal force of the latest contact episode of one pair (drawn as the
+// "last_contact" arrow once the episode is over, so that a 40 us contact stays visible at any
+// real-time factor).
+struct PeakContact {
+  PairId pair;
+  ContactState state = ContactState::kSeparated;  // state at the peak
+  Vec2 p_W = Vec2::Zero();                        // contact point, world [m]
+  Vec2 f_W = Vec2::Zero();                        // force on body b at the peak, world [N]
+  double normal_force_N = 0;                      // normal force at the peak [N]
+  long last_closed_step = -1;                     // last boundary the pair was closed at
+};
+
+// A drum speed command as applied at a step boundary.
+struct AppliedCommand {
+  ros::Time stamp;     // the boundary (simulation time in sim clock mode)
+  double speed_radps;  // target drum speed [rad/s]
+};
+
+struct Snapshot {
+  std::shared_ptr<const Model> model;  // the model in effect (contact values may change live)
+  long step = 0;                       // boundary index k: t = k * physics_dt
+  double t_s = 0;                      // simulation time [s]
+  ros::Time stamp;                     // stamp of every message built from this snapshot
+  double theta_rad = 0;                // drum angle [rad]
+  double omega_radps = 0;              // drum speed [rad/s]
+  VecX z;                              // generalised positions (see core/data.h)
+  VecX u;                              // generalised velocities
+  std::vector<std::uint8_t> kernel_attached;
+  std::vector<ContactInfo> contacts;        // pairs examined in the last step
+  std::vector<double> kernel_peak_force_N;  // per kernel, so far [N]
+  std::vector<long> kernel_impacts;         // per kernel, so far
+  std::vector<ContactEvent> impacts;        // impacts completed since the previous snapshot
+  std::vector<AppliedCommand> commands;     // commands applied since the previous snapshot
+  std::vector<PeakContact> peaks;           // latest episode of every pair that touched
+  unsigned streams = 0;                     // Stream bits due
+  bool reset = false;                       // bodies were reset: markers start with DELETEALL
+};
+
+}  // namespace threshing_sim

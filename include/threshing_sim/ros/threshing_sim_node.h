@@ -1,0 +1,179 @@
+// threshing_sim ROS layer: the node. A thin layer over the core (core/simulator.h).
+//
+// Three threads:
+//  - the physics thread owns Model and Data. Paced by a Pacer on the steady clock (never a
+//    ros::Timer: in sim clock mode the node itself produces /clock), it advances the core by
+//    ~physics_dt per step, applies staged inputs (drum speed commands, reconfigured values,
+//    reset) at step boundaries, and copies a Snapshot when an output stream is due;
+//  - the output thread turns snapshots into messages, markers and transforms, publishes /clock
+//    (sim clock mode, at most ~200 Hz of wall time, and always before a stamped message),
+//    /diagnostics and the status line;
+//  - the ROS spinner (main) runs the subscriber, services and dynamic_reconfigure callbacks,
+//    which only stage values under a mutex.
+//
+// Output schedule: at real_time_factor > 0 the publish rates count wall time (for watching);
+// at 0 they count simulated time, so that every output is a deterministic function of the
+// scene and the applied commands (see docs/ros_interface.md, "Re-simulation").
+#pragma once
+
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <dynamic_reconfigure/server.h>
+#include <ros/ros.h>
+#include <std_msgs/Float64.h>
+#include <std_srvs/SetBool.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "threshing_sim/ThreshingSimConfig.h"
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/model.h"
+#include "threshing_sim/ros/messages.h"
+#include "threshing_sim/ros/node_params.h"
+#include "threshing_sim/ros/pacer.h"
+#include "threshing_sim/ros/snapshot.h"
+
+namespace threshing_sim {
+
+class ThreshingSimNode {
+ public:
+  // Loads and validates the parameters and the scene (throws std::invalid_argument naming the
+  // offending parameter), advertises every interface and starts the threads.
+  ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh);
+  ~ThreshingSimNode();
+
+  // Stops and joins the threads and prints the final summary (idempotent).
+  void stop();
+
+ private:
+  // A command scheduled by ~command_bag: applied at step boundary `step`.
+  struct ScheduledCommand {
+    long step;
+    double speed_radps;
+  };
+  // Inputs staged by the callbacks, applied by the physics thread at a step boundary.
+  struct Staged {
+    std::optional<double> drum_target_radps;
+    std::optional<ThreshingSimConfig> config;
+    bool reset = false;
+    long step_periods = 0;  // publish periods requested by ~step while paused
+  };
+
+  // --- start-up ---
+  void loadCommandBag();
+  void advertise(ros::NodeHandle& nh, ros::NodeHandle& pnh);
+  void startReconfigure(ros::NodeHandle& pnh);
+
+  // --- callbacks (spinner thread): stage and return ---
+  void onDrumSpeedCommand(const std_msgs::Float64& msg);
+  bool onPause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res);
+  bool onStep(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  void onReconfigure(const ThreshingSimConfig& config, std::uint32_t level);
+
+  // --- physics thread ---
+  void physicsLoop();
+  void waitForSubscribers();
+  void servePaused();
+  void advanceOneStep(unsigned forced_streams);
+  void applyStaged();
+  void applyDrumTarget(double speed_radps);
+  void applyConfig(const ThreshingSimConfig& config);
+  void resetBodies();
+  void setRates(double contact_hz, double state_hz, double marker_hz);
+  unsigned dueStreams();
+  void trackPeaks();
+  void takeSnapshot(unsigned streams);
+  void publishCounters();
+
+  // --- output thread ---
+  void outputLoop();
+  void publishSnapshot(const Snapshot& s, bool with_static_markers);
+  void publishClock(const ros::Time& t);
+  void printStatus(bool final_line);
+  void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
+
+  ros::Time stampOf(long step) const;  // sim clock: step * physics_dt; wall clock: now
+  long stepsPerPublishPeriod() const;  // the ~step service's advance
+
+  // --- configuration (constant after start-up), then the model (physics thread) ---
+  NodeParams params_;
+  std::shared_ptr<const Model> model_;  // swapped for a recompiled copy on reconfigure
+  double dt_s_ = 0;                     // physics step [s]
+  std::int64_t dt_ns_ = 0;              // the same, in whole nanoseconds (stamps are k * dt_ns_)
+  long end_step_ = 0;                   // stop after this boundary, 0 = never
+  long reset_steps_ = 0;                // reset the bodies every this many steps, 0 = never
+  std::vector<ScheduledCommand> schedule_;  // re-simulation: commands from ~command_bag
+
+  // --- physics thread state ---
+  Data data_;
+  MonotonicClock clock_;
+  Pacer pacer_;
+  size_t next_scheduled_ = 0;         // first schedule_ entry not yet applied
+  double rates_hz_[3] = {0, 0, 0};    // per stream bit: contact, state, marker [Hz]
+  long period_steps_[3] = {1, 1, 1};  // schedule in steps (real_time_factor 0)
+  double next_due_s_[3] = {0, 0, 0};  // schedule in steady seconds (real_time_factor > 0)
+  std::vector<PeakContact> peaks_;
+  std::vector<ContactEvent> pending_impacts_;
+  std::vector<AppliedCommand> pending_commands_;
+  bool pending_reset_ = false;
+  double start_wall_s_ = 0;  // steady time the stepping began [s]
+  double run_wall_s_ = 0;    // wall time from then until the physics thread ended [s]
+
+  // --- shared: staged inputs and service hand-shakes (staged_mutex_) ---
+  std::mutex staged_mutex_;
+  std::condition_variable staged_cv_;  // wakes the physics thread
+  std::condition_variable served_cv_;  // wakes a service waiting for the physics thread
+  Staged staged_;
+  std::atomic<bool> staged_dirty_{false};
+  long resets_requested_ = 0, resets_done_ = 0;
+  long steps_requested_ = 0, steps_done_ = 0;
+
+  // --- shared: snapshot queue (queue_mutex_) ---
+  std::mutex queue_mutex_;
+  std::condition_variable queue_cv_;
+  std::deque<Snapshot> queue_;
+
+  // --- shared: flags and counters, written by the physics thread or callbacks ---
+  std::atomic<bool> stop_{false}, paused_{false}, finished_{false}, failed_{false};
+  std::atomic<long> step_{0};  // last boundary reached
+  std::atomic<long> rejected_commands_{0}, impacts_{0}, recoveries_{0};
+  std::atomic<long> overruns_{0}, resyncs_{0};
+  std::atomic<double> measured_rtf_{0}, step_rate_hz_{0}, peak_force_N_{0};
+
+  // --- output thread state ---
+  ContactStateBuilder contact_builder_;
+  MarkerBuilder marker_builder_;
+  Data scratch_;          // pose for the tooth shape functions
+  ros::Time last_clock_;  // last /clock published
+  bool clock_published_ = false;
+  ros::Time last_tf_;  // last moving-transform stamp (tf2 drops repeats)
+  bool status_on_tty_ = false;
+
+  // --- ROS interfaces ---
+  ros::Publisher contact_pub_, impact_pub_, kernel_pub_, beam_pub_, marker_pub_, applied_pub_;
+  ros::Publisher clock_pub_;
+  ros::Subscriber command_sub_;
+  ros::ServiceServer pause_srv_, step_srv_, reset_srv_;
+  tf2_ros::TransformBroadcaster tf_;
+  tf2_ros::StaticTransformBroadcaster static_tf_;
+  diagnostic_updater::Updater diagnostics_;
+  boost::recursive_mutex reconfigure_mutex_;
+  std::unique_ptr<dynamic_reconfigure::Server<ThreshingSimConfig>> reconfigure_;
+
+  std::thread physics_thread_, output_thread_;
+  bool stopped_ = false;
+};
+
+}  // namespace threshing_sim

@@ -1,0 +1,406 @@
+#!/usr/bin/python3
+"""Long versions of the hard cases: the stability table (docs/stability.md).
+
+Runs `simulate` on each scene of config/hard/ for both integrators with the scene's long
+duration, checks the properties every hard case must keep (issue 5), and writes the stability
+table as markdown: scene, integrator, passed properties, worst energy error, worst
+penetration, steps per simulated second, wall time.
+
+The short versions of the same scenes run in CI (test/core/test_hard_cases.cc), with the
+closed forms, the convergence and agreement checks that need several runs. This script adds
+what only a long run shows: progress over a long simulated time, energy that drifts up
+slowly, contacts that creep or sink, memory that grows with the run.
+
+Usage:
+  scripts/stability_table.py --simulate ~/ws/devel/lib/threshing_sim/simulate \\
+      --output docs/stability.md
+  scripts/stability_table.py --scenes 01 03 --integrators time_stepping   # a subset, to stdout
+  scripts/stability_table.py --scale 0.01                                 # 1 % of each run
+
+Exit status: 0 when every property of every run held, 1 when one failed, 2 on a usage error.
+"""
+
+import argparse
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import yaml
+
+PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENE_DIR = os.path.join(PACKAGE_DIR, "config", "hard")
+INTEGRATORS = ("event_driven", "time_stepping")
+
+
+# ---------------------------------------------------------------------------------------------
+# The long runs.
+
+class Scene:
+    """One hard scene's long run and the bounds its properties are checked against."""
+
+    def __init__(self, key, file, duration_s, title, overrides=(), energy_tol_j=1e-7,
+                 ed_steps_per_s=1e6, checks=(), note=""):
+        self.key = key                  # "01"
+        self.file = file                # "01_zeno.yaml"
+        self.duration_s = duration_s    # long duration [s]
+        self.title = title
+        self.overrides = list(overrides)
+        self.energy_tol_j = energy_tol_j      # energy gain allowed (impact and run) [J]
+        self.ed_steps_per_s = ed_steps_per_s  # event-driven progress bound
+        self.checks = list(checks)            # extra (name, function(scene, yaml, summary, it))
+        self.note = note
+
+
+def kernel_half_height(a, b, psi):
+    """Height of an ellipse's centre above its lowest point [m]."""
+    return math.sqrt((a * math.sin(psi)) ** 2 + (b * math.cos(psi)) ** 2)
+
+
+def check_zeno_rest(scene, doc, summary, integrator):
+    """Scene 1: after 10 s the kernel lies on the plate (centre b above it), at rest."""
+    k = summary["kernels"][0]
+    b = doc["kernels"][0]["semi_axes"][1]
+    speed = math.hypot(*k["velocity_mps"])
+    ok = abs(k["position_m"][1] - b) <= penetration_bound(scene, doc, integrator) and speed < 1e-9
+    return ok, "y - b = %.2e m, |v| = %.1e m/s" % (k["position_m"][1] - b, speed)
+
+
+def check_no_creep(scene, doc, summary, integrator):
+    """Scene 3 (atan(mu) - 0.01 rad): after 20 s the kernel has not crept down the incline.
+
+    Bound 2 nm: the 1 nm touchdown fall moves it by 0.5 nm, time stepping's touchdown delay
+    by another 0.6 nm; a creep of 1 nm/s (a regularised friction law) would show as 20 nm."""
+    x = summary["kernels"][0]["position_m"][0]
+    return abs(x) <= 2e-9, "x = %.2e m" % x
+
+
+def check_resting_on_floor(scene, doc, summary, integrator):
+    """Scene 10: kernels at rest near the floor touch it: no sinking, no floating.
+
+    A kernel counts as resting on the floor if it moves slower than 1 mm/s and its lowest point
+    is within 1 mm of the floor (y = -0.30); its gap must then be within the penetration
+    bound. Kernels resting on other kernels are not counted."""
+    floor = -0.30
+    worst, counted = 0.0, 0
+    for kd, ks in zip(doc["kernels"], summary["kernels"]):
+        a, b = kd["semi_axes"]
+        gap = ks["position_m"][1] - floor - kernel_half_height(a, b, ks["angle_rad"])
+        if math.hypot(*ks["velocity_mps"]) < 1e-3 and gap < 1e-3:
+            counted += 1
+            worst = max(worst, abs(gap))
+    ok = worst <= penetration_bound(scene, doc, integrator)
+    return ok, "%d kernels on the floor, worst |gap| %.2e m" % (counted, worst)
+
+
+SCENES = [
+    Scene("01", "01_zeno.yaml", 10.0, "Zeno drop, e = 0.5",
+          energy_tol_j=1e-12, ed_steps_per_s=1e5, checks=[("rest on plate", check_zeno_rest)]),
+    Scene("02", "02_grazing.yaml", 1.0, "grazing the tooth tip", energy_tol_j=1e-11,
+          ed_steps_per_s=5e5),
+    Scene("03", "03_stick_slip.yaml", 20.0, "stick at atan(mu) - 0.01",
+          energy_tol_j=1e-15, ed_steps_per_s=2e4, checks=[("no creep", check_no_creep)]),
+    Scene("04", "04_simultaneous.yaml", 0.1, "simultaneous impacts", energy_tol_j=1e-9),
+    Scene("05", "05_painleve.yaml", 1.0, "Painleve, mu = 1.3", energy_tol_j=1e-12),
+    Scene("06", "06_stiff_tooth.yaml", 0.1, "stiff steel tooth, 1500 rpm"),
+    Scene("07", "07_soft_tooth.yaml", 0.1, "soft rubber tooth, 1500 rpm"),
+    Scene("08", "08_wedged.yaml", 0.1, "wedged kernel"),
+    Scene("09", "09_drum_command.yaml", 1.0, "drum at 1500 rpm (ramps: CI only)",
+          overrides=["drum.speed=157.08"],
+          note="simulate has no drum command schedule: the long run turns at the commanded "
+               "1500 rpm from the start; the ramps 0 -> 1500 -> 0 rpm run in CI only"),
+    Scene("10", "10_long_run.yaml", 750.0, "10 000 revolutions",
+          checks=[("resting on floor", check_resting_on_floor)]),
+]
+
+
+# ---------------------------------------------------------------------------------------------
+# Bounds derived from the scene file.
+
+def penetration_bound(scene, doc, integrator):
+    """Largest penetration allowed [m]: rigid contacts at 10 x the event tolerance
+    (event-driven) or h x the fastest approach (time stepping, h x 40 m/s: the strikes); compliant
+    tooth-kernel contacts by Hertz's closed form at the tooth's tip speed plus the kernel's speed,
+    with the kernel's mass, plus the wedge's geometric interference (scene 8)."""
+    integ = doc.get("integrator", {})
+    if integrator == "event_driven":
+        rigid = 10 * integ.get("tolerance", 1e-9) * 1e-2
+    else:
+        rigid = integ.get("dt", 1e-6) * 40.0
+    if not doc.get("teeth"):
+        return rigid
+    law = doc.get("contact", {}).get("tooth_kernel", {}).get("law", "compliant")
+    if law != "compliant":
+        return rigid
+    tooth, kernel = doc["teeth"][0], doc["kernels"][0]
+    drum = doc.get("drum", {})
+    omega = abs(float(next((o.split("=")[1] for o in scene.overrides
+                            if o.startswith("drum.speed=")), drum.get("speed", 83.78))))
+    v_kernel = max(math.hypot(*k.get("velocity", [0.0, 0.0])) for k in doc["kernels"])
+    v = omega * (drum.get("radius", 0.2) + tooth.get("length", 0.06)) + v_kernel
+    hertz = hertz_indentation(tooth, kernel, v)
+    interference = 0.6e-3 if scene.key == "08" else 0.0
+    extra = 0.0 if integrator == "event_driven" else integ.get("dt", 1e-6) * v
+    return max(rigid, 1.05 * hertz + interference + extra)
+
+
+def hertz_indentation(tooth, kernel, v):
+    """(5 m v^2 / (4 K))^(2/5) with the smallest Hertz constant of the pair (the kernel's
+    sharpest curvature b^2/a against the tooth's round tip), as in test_hard_cases.cc."""
+    e_t, nu_t = tooth.get("youngs_modulus", 3e9), tooth.get("poisson_ratio", 0.35)
+    e_k, nu_k = kernel.get("youngs_modulus", 2.8e8), kernel.get("poisson_ratio", 0.3)
+    a, b = kernel.get("semi_axes", [5e-3, 1.3e-3])
+    r_t = 0.5 * tooth.get("diameter", 0.01)
+    e_star = 1.0 / ((1 - nu_t ** 2) / e_t + (1 - nu_k ** 2) / e_k)
+    r_in = 1.0 / (1.0 / r_t + a / (b * b))
+    r_out = 1.0 / (1.0 / r_t + 1.0 / b)
+    k_hertz = 4.0 / 3.0 * e_star * math.sqrt(math.sqrt(r_in * r_out))
+    mass = kernel.get("mass", 2.8e-5)
+    return (5.0 * mass * v * v / (4.0 * k_hertz)) ** 0.4
+
+
+# ---------------------------------------------------------------------------------------------
+# Running simulate.
+
+def find_simulate(given):
+    """The simulate binary: --simulate, $THRESHING_SIM_SIMULATE, PATH, or catkin_find."""
+    candidates = [given, os.environ.get("THRESHING_SIM_SIMULATE"), shutil.which("simulate")]
+    if shutil.which("catkin_find"):
+        try:
+            found = subprocess.run(["catkin_find", "--first-only", "threshing_sim", "simulate"],
+                                   capture_output=True, text=True, check=False).stdout.strip()
+            candidates.append(found)
+        except OSError:
+            pass
+    for path in candidates:
+        if path and os.path.isfile(path) and os.access(path, os.X_OK):
+            return path
+    sys.exit("stability_table.py: cannot find the simulate binary; build the package and pass "
+             "--simulate WORKSPACE/devel/lib/threshing_sim/simulate")
+
+
+def resident_kb(pid):
+    """VmRSS of a running process [kB], or None once it has gone."""
+    try:
+        with open("/proc/%d/status" % pid) as status:
+            for line in status:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1])
+    except OSError:
+        return None
+    return None
+
+
+def run_simulate(simulate, scene, integrator, duration_s):
+    """One run: the summary (dict), the wall time and the resident-memory samples (t, kB)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        summary_path = os.path.join(tmp, "summary.json")
+        cmd = [simulate, os.path.join(SCENE_DIR, scene.file), "--quiet",
+               "--summary", summary_path]
+        for o in scene.overrides:
+            cmd += ["--set", o]
+        cmd += ["--duration", repr(duration_s), "--integrator", integrator]
+        start = time.monotonic()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        memory = []
+        while proc.poll() is None:
+            kb = resident_kb(proc.pid)
+            if kb is not None:
+                memory.append((time.monotonic() - start, kb))
+            time.sleep(0.2 if time.monotonic() - start < 10 else 1.0)
+        wall = time.monotonic() - start
+        stderr = proc.stderr.read()
+        summary = None
+        if os.path.exists(summary_path):
+            with open(summary_path) as f:
+                summary = json.load(f)
+        return proc.returncode, summary, wall, memory, stderr.strip()
+
+
+def memory_growth_kb(memory):
+    """Growth of the resident size over the run after its first tenth (allocations while
+    warming up) [kB]: the largest sample minus the sample at 10 % of the wall time."""
+    if len(memory) < 4:
+        return 0
+    t_end = memory[-1][0]
+    early = next(kb for t, kb in memory if t >= 0.1 * t_end)
+    return max(kb for _, kb in memory) - early
+
+
+def without_wall_time(summary):
+    out = dict(summary)
+    out.pop("wall_time_s", None)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# The properties of one run.
+
+def evaluate(scene, doc, integrator, duration_s, code, summary, memory, rerun_same):
+    """(name, passed, detail) for every property of one run."""
+    props = []
+    if summary is None:
+        return [("ok", False, "no summary (exit %d)" % code)]
+    status = summary["status"]
+    props.append(("finite", code == 0 and status == "ok", status))
+    # Progress: the run reached its end; bounded steps per simulated second.
+    dt = doc.get("integrator", {}).get("dt", 1e-6)
+    sim = summary["sim_time_s"]
+    rate = summary["steps"] / sim if sim > 0 else float("inf")
+    bound = scene.ed_steps_per_s if integrator == "event_driven" else 1.0 / dt + 1
+    props.append(("progress", abs(sim - duration_s) <= 0.5 * dt and rate <= bound,
+                  "%.3g steps/s (bound %.3g)" % (rate, bound)))
+    # No impact raises the energy; no gain beyond the drive's work over the run.
+    gain_impact = summary["max_energy_gain_at_impact_J"]
+    gain_run = summary["energy_final_J"] - summary["energy_initial_J"] - summary["drive_work_J"]
+    props.append(("impact energy", gain_impact <= scene.energy_tol_j, "%.2e J" % gain_impact))
+    props.append(("energy balance", gain_run <= scene.energy_tol_j, "%.2e J" % gain_run))
+    # Penetration.
+    pen = summary["max_penetration_m"]
+    pen_bound = penetration_bound(scene, doc, integrator)
+    props.append(("penetration", pen <= pen_bound, "%.2e m (bound %.2e)" % (pen, pen_bound)))
+    # Memory flat: less than 2 MB of growth after the first tenth of the run.
+    growth = memory_growth_kb(memory)
+    props.append(("memory", growth <= 2048, "%+d kB" % growth))
+    # Bit-identical rerun of a shortened run.
+    props.append(("rerun", rerun_same, "identical" if rerun_same else "differs"))
+    for name, check in scene.checks:
+        ok, detail = check(scene, doc, summary, integrator)
+        props.append((name, ok, detail))
+    return props
+
+
+# ---------------------------------------------------------------------------------------------
+# Markdown.
+
+HEADER = """# Stability on the hard cases
+
+The ten scenes of `config/hard/` (each file's header says what makes it hard and where its
+values come from) are the configurations contact simulators fail on. Their short versions run in
+CI for both integrators (`test/core/test_hard_cases.cc`: closed forms, convergence, agreement of
+the integrators, bit-identical reruns); the long versions below run from this command:
+
+    {command}
+
+Properties of each long run (all must hold):
+
+- **finite**: `simulate` exits 0 with status ok (no NaN or infinity, no failed recovery).
+- **progress**: the run reaches its end; accepted steps per simulated second stay below a bound
+  (event-driven: the scene's bound, a stall would exceed it; time stepping: exactly 1/h).
+- **impact energy**: no impact raised the energy (`max_energy_gain_at_impact_J` <= tol).
+- **energy balance**: E(end) - E(0) - drive work <= tol: no energy gain beyond the drive's work.
+- **penetration**: `max_penetration_m` below the bound: rigid contacts at 10 x the event
+  tolerance (event-driven) or h x 40 m/s (time stepping); compliant tooth-kernel contacts at
+  Hertz's closed form for the tooth's tip speed (plus the wedge's 0.6 mm interference, scene 8).
+- **memory**: the resident size grows by less than 2 MB after the first tenth of the run.
+- **rerun**: a run of a tenth of the duration (at most 10 s), made twice, gives identical
+  summaries (full precision).
+- scene checks: Zeno kernel at rest on the plate (1), no creep below the friction limit (3),
+  resting kernels neither sinking into nor floating above the floor (10).
+
+"Worst energy error" is the larger of the largest energy gain at an impact and the gain
+over the run beyond the drive's work (negative: the run only dissipated). "Worst
+penetration" is `max_penetration_m` (compliant contacts indent by design).
+
+"""
+
+
+def markdown(rows, notes):
+    lines = ["| scene | integrator | duration | passed properties | worst energy error (J) | "
+             "worst penetration (m) | steps per simulated s | wall time (s) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append("| %s | %s | %s | %s | %s | %s | %s | %s |" % r)
+    text = "\n".join(lines) + "\n"
+    if notes:
+        text += "\n" + "\n".join("- " + n for n in notes) + "\n"
+    return text
+
+
+def fmt_duration(seconds):
+    return "%g s" % seconds
+
+
+# ---------------------------------------------------------------------------------------------
+# Main.
+
+def main():
+    parser = argparse.ArgumentParser(
+        description="Run the long versions of the hard cases and write the stability table.")
+    parser.add_argument("--simulate", help="path of the simulate binary (default: "
+                        "$THRESHING_SIM_SIMULATE, PATH, catkin_find)")
+    parser.add_argument("--scenes", nargs="+", metavar="NN",
+                        help="scene numbers to run (default: all), e.g. 01 10")
+    parser.add_argument("--integrators", nargs="+", choices=INTEGRATORS, default=list(INTEGRATORS))
+    parser.add_argument("--scale", type=float, default=1.0,
+                        help="multiply every long duration by this (e.g. 0.01 for a quick look)")
+    parser.add_argument("--output", help="write the markdown document here (default: stdout)")
+    args = parser.parse_args()
+    if not args.scale > 0:
+        parser.error("--scale must be > 0")
+    simulate = find_simulate(args.simulate)
+    scenes = [s for s in SCENES if not args.scenes or s.key in args.scenes]
+    if not scenes:
+        parser.error("no scene matches %s" % args.scenes)
+
+    rows, notes, all_ok = [], [], True
+    for scene in scenes:
+        with open(os.path.join(SCENE_DIR, scene.file)) as f:
+            doc = yaml.safe_load(f)
+        duration = scene.duration_s * args.scale
+        if scene.note:
+            notes.append("Scene %s: %s." % (scene.key, scene.note))
+        for integrator in args.integrators:
+            print("scene %s %s: %g s ..." % (scene.key, integrator, duration),
+                  file=sys.stderr, flush=True)
+            code, summary, wall, memory, stderr = run_simulate(simulate, scene, integrator,
+                                                               duration)
+            short = min(duration / 10, 10.0)
+            _, first, _, _, _ = run_simulate(simulate, scene, integrator, short)
+            _, second, _, _, _ = run_simulate(simulate, scene, integrator, short)
+            rerun_same = (first is not None and second is not None
+                          and without_wall_time(first) == without_wall_time(second))
+            props = evaluate(scene, doc, integrator, duration, code, summary, memory, rerun_same)
+            failed = [p for p in props if not p[1]]
+            all_ok = all_ok and not failed
+            passed = "%d/%d" % (len(props) - len(failed), len(props))
+            if failed:
+                passed += ": FAILED " + "; ".join("%s (%s)" % (n, d) for n, _, d in failed)
+            for name, ok, detail in props:
+                print("  %-16s %s  %s" % (name, "ok  " if ok else "FAIL", detail), file=sys.stderr)
+            if stderr:
+                print("  stderr: " + stderr[-500:], file=sys.stderr)
+            if summary is None:
+                rows.append(("%s %s" % (scene.key, scene.title), integrator,
+                             fmt_duration(duration), passed, "-", "-", "-", "%.1f" % wall))
+                continue
+            gain = max(summary["max_energy_gain_at_impact_J"],
+                       summary["energy_final_J"] - summary["energy_initial_J"]
+                       - summary["drive_work_J"])
+            rows.append(("%s %s" % (scene.key, scene.title), integrator,
+                         fmt_duration(summary["sim_time_s"]), passed, "%.2e" % gain,
+                         "%.2e" % summary["max_penetration_m"],
+                         "%.3g" % (summary["steps"] / summary["sim_time_s"]), "%.1f" % wall))
+
+    # The command as run, with a workspace-independent simulate path.
+    shown = []
+    for a in sys.argv[1:]:
+        if a == simulate and "/devel/lib/" in a:
+            a = "WORKSPACE/devel/lib/" + a.split("/devel/lib/", 1)[1]
+        shown.append(a if " " not in a else "'%s'" % a)
+    command = "scripts/stability_table.py " + " ".join(shown)
+    text = HEADER.format(command=command.strip()) + markdown(rows, notes)
+    if args.output:
+        with open(args.output, "w") as f:
+            f.write(text)
+    else:
+        sys.stdout.write(text)
+    return 0 if all_ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,383 @@
+#include "threshing_sim/ros/messages.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+
+const char* const kWorldFrame = "world";
+const char* const kDrumFrame = "drum";
+
+std::string toothRootFrame(int tooth) { return "tooth_" + std::to_string(tooth) + "_root"; }
+std::string toothTipFrame(int tooth) { return "tooth_" + std::to_string(tooth) + "_tip"; }
+
+int pairMarkerId(const PairId& pair) {
+  return static_cast<int>(pair.kind) * 1000000 + pair.a * 1000 + pair.b;
+}
+
+void loadPose(const Snapshot& s, Data* scratch) {
+  scratch->theta_rad = s.theta_rad;
+  scratch->z = s.z;
+}
+
+namespace {
+
+// Contact forces of an arrow shorter than this are drawn at this length [m].
+constexpr double kMinArrowLength_m = 3e-3;
+// Tangent step of the backward difference that gives the tip frame's orientation [-, of L].
+constexpr double kTipSlopeStep = 1e-4;
+
+geometry_msgs::Point point(const Vec2& p_m, double z_m = 0) {
+  geometry_msgs::Point out;
+  out.x = p_m.x();
+  out.y = p_m.y();
+  out.z = z_m;
+  return out;
+}
+
+// Rotation by angle about z.
+geometry_msgs::Quaternion yaw(double angle_rad) {
+  geometry_msgs::Quaternion q;
+  q.z = std::sin(0.5 * angle_rad);
+  q.w = std::cos(0.5 * angle_rad);
+  return q;
+}
+
+// The tangent t = J n of physics.md.
+Vec2 tangent(const Vec2& n) { return Vec2(-n.y(), n.x()); }
+
+std_msgs::ColorRGBA rgba(float r, float g, float b, float a = 1.f) {
+  std_msgs::ColorRGBA c;
+  c.r = r;
+  c.g = g;
+  c.b = b;
+  c.a = a;
+  return c;
+}
+
+// Contact arrows by state: impact orange, stick cyan, slip lime (apart from tf's red, green
+// and blue axes).
+std_msgs::ColorRGBA stateColor(ContactState state) {
+  switch (state) {
+    case ContactState::kImpact:
+      return rgba(1.f, 0.45f, 0.f);
+    case ContactState::kStick:
+      return rgba(0.f, 0.85f, 0.85f);
+    case ContactState::kSlip:
+      return rgba(0.7f, 1.f, 0.f);
+    default:
+      return rgba(0.6f, 0.6f, 0.6f);
+  }
+}
+
+geometry_msgs::TransformStamped transform(const ros::Time& stamp, const std::string& parent,
+                                          const std::string& child, const Vec2& p_m,
+                                          double angle_rad) {
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = parent;
+  t.child_frame_id = child;
+  t.transform.translation.x = p_m.x();
+  t.transform.translation.y = p_m.y();
+  t.transform.rotation = yaw(angle_rad);
+  return t;
+}
+
+// Point of tooth k's deformed centreline at x, in its root frame [m].
+Vec2 toothPointRoot(const Model& model, const Data& scratch, int k, double x_m) {
+  return Vec2(x_m + toothForeshortening(model, scratch, k, x_m),
+              toothDeflection(model, scratch, k, x_m));
+}
+
+visualization_msgs::Marker marker(const Snapshot& s, const std::string& ns, int id, int type) {
+  visualization_msgs::Marker m;
+  m.header.stamp = s.stamp;
+  m.header.frame_id = kWorldFrame;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose.orientation.w = 1;
+  return m;
+}
+
+// An arrow whose head touches p_W, along the force f_W on body b, above the bodies.
+visualization_msgs::Marker forceArrow(const Snapshot& s, const std::string& ns, int id,
+                                      const Vec2& p_W, const Vec2& f_W, double scale_mpN,
+                                      const std_msgs::ColorRGBA& color) {
+  visualization_msgs::Marker m = marker(s, ns, id, visualization_msgs::Marker::ARROW);
+  const double f_N = f_W.norm();
+  const Vec2 dir = f_N > 0 ? Vec2(f_W / f_N) : Vec2::UnitY();
+  const double length_m = std::max(kMinArrowLength_m, scale_mpN * f_N);
+  // 20 mm up: rviz's top-down orthographic view cannot resolve depth differences of a few mm.
+  constexpr double kHeight_m = 2e-2;
+  m.points = {point(p_W - length_m * dir, kHeight_m), point(p_W, kHeight_m)};
+  m.scale.x = 1e-3;    // shaft diameter [m]
+  m.scale.y = 2.5e-3;  // head diameter [m]
+  m.scale.z = 3e-3;    // head length [m]
+  m.color = color;
+  return m;
+}
+
+void addStaticGeometry(const Snapshot& s, visualization_msgs::MarkerArray* out) {
+  const Model& model = *s.model;
+  // Drum: its rim, a fine polygon (rviz's cylinder mesh is too coarse at tooth scale).
+  constexpr int kRimPoints = 721;
+  visualization_msgs::Marker drum = marker(s, "drum", 0, visualization_msgs::Marker::LINE_STRIP);
+  for (int j = 0; j < kRimPoints; ++j) {
+    const double angle_rad = 2 * M_PI * j / (kRimPoints - 1);
+    drum.points.push_back(
+        point(model.drum.radius_m * Vec2(std::cos(angle_rad), std::sin(angle_rad))));
+  }
+  drum.scale.x = 1e-3;
+  drum.color = rgba(0.7f, 0.7f, 0.7f);
+  out->markers.push_back(drum);
+
+  // Obstacles: planes and segments as thin boxes, concave bars as discs.
+  for (size_t i = 0; i < model.obstacles.size(); ++i) {
+    const ObstacleModel& o = model.obstacles[i];
+    const int id = static_cast<int>(i);
+    visualization_msgs::Marker m;
+    if (o.type == ObstacleType::kCircle) {
+      m = marker(s, "obstacles", id, visualization_msgs::Marker::CYLINDER);
+      m.pose.position = point(o.center_m);
+      m.scale.x = m.scale.y = 2 * o.radius_m;
+      m.scale.z = 2e-3;
+    } else if (o.type == ObstacleType::kSegment) {
+      const Vec2 ab = o.point_b_m - o.point_m;
+      m = marker(s, "obstacles", id, visualization_msgs::Marker::CUBE);
+      m.pose.position = point(0.5 * (o.point_m + o.point_b_m));
+      m.pose.orientation = yaw(std::atan2(ab.y(), ab.x()));
+      m.scale.x = ab.norm();
+      m.scale.y = 2 * o.radius_m;
+      m.scale.z = 2e-3;
+    } else {
+      // A 1 m stretch of the plane, 10 mm thick on its solid side.
+      constexpr double kThickness_m = 1e-2;
+      const Vec2 t = tangent(o.normal);
+      m = marker(s, "obstacles", id, visualization_msgs::Marker::CUBE);
+      m.pose.position = point(o.point_m - 0.5 * kThickness_m * o.normal);
+      m.pose.orientation = yaw(std::atan2(t.y(), t.x()));
+      m.scale.x = 1.0;
+      m.scale.y = kThickness_m;
+      m.scale.z = 2e-3;
+    }
+    m.color = rgba(0.45f, 0.5f, 0.55f);
+    out->markers.push_back(m);
+  }
+}
+
+}  // namespace
+
+ContactStateArray ContactStateBuilder::build(const Snapshot& s) {
+  // The core's sums restart at a reset.
+  if (s.reset) last_sums_Ns_.clear();
+  ContactStateArray msg;
+  msg.header.stamp = s.stamp;
+  msg.header.frame_id = kWorldFrame;
+  msg.contacts.reserve(s.contacts.size());
+  for (const ContactInfo& c : s.contacts) {
+    const Vec2 sums_Ns(c.impulse_normal_Ns, c.impulse_tangential_Ns);
+    Vec2& last_Ns = last_sums_Ns_.try_emplace(c.pair, Vec2::Zero()).first->second;
+    PairContact p;
+    p.pair_kind = static_cast<std::uint8_t>(c.pair.kind);
+    p.a = c.pair.a;
+    p.b = c.pair.b;
+    p.state = static_cast<std::uint8_t>(c.state);
+    p.gap = c.gap_m;
+    p.point = point(c.p_W);
+    p.normal.x = c.n_W.x();
+    p.normal.y = c.n_W.y();
+    p.tooth_x = c.tooth_x_m;
+    p.normal_velocity = c.normal_velocity_mps;
+    p.slip_velocity = c.slip_velocity_mps;
+    p.normal_force = c.normal_force_N;
+    p.tangential_force = c.tangential_force_N;
+    p.normal_impulse = sums_Ns.x() - last_Ns.x();
+    p.tangential_impulse = sums_Ns.y() - last_Ns.y();
+    last_Ns = sums_Ns;
+    msg.contacts.push_back(p);
+  }
+  return msg;
+}
+
+ImpactEvent impactEventMsg(const ContactEvent& e, const ros::Time& stamp) {
+  ImpactEvent msg;
+  msg.header.stamp = stamp;
+  msg.header.frame_id = kWorldFrame;
+  msg.time = e.t_s;
+  msg.pair_kind = static_cast<std::uint8_t>(e.pair.kind);
+  msg.a = e.pair.a;
+  msg.b = e.pair.b;
+  msg.state_before = static_cast<std::uint8_t>(e.from);
+  msg.state_after = static_cast<std::uint8_t>(e.to);
+  msg.normal_velocity_before = e.vn_before_mps;
+  msg.normal_velocity_after = e.vn_after_mps;
+  msg.tangential_velocity_before = e.vt_before_mps;
+  msg.tangential_velocity_after = e.vt_after_mps;
+  msg.normal_impulse = e.impulse_normal_Ns;
+  msg.tangential_impulse = e.impulse_tangential_Ns;
+  msg.energy_lost = e.energy_lost_J;
+  msg.peak_normal_force = e.peak_normal_force_N;
+  msg.macro_collision = e.macro_collision;
+  msg.sub_collision = e.sub_collision;
+  return msg;
+}
+
+DrumSpeedCommand drumSpeedCommandMsg(const AppliedCommand& c) {
+  DrumSpeedCommand msg;
+  msg.header.stamp = c.stamp;
+  msg.header.frame_id = kDrumFrame;
+  msg.speed = c.speed_radps;
+  return msg;
+}
+
+KernelStateArray kernelStatesMsg(const Snapshot& s) {
+  const Model& model = *s.model;
+  KernelStateArray msg;
+  msg.header.stamp = s.stamp;
+  msg.header.frame_id = kWorldFrame;
+  for (size_t i = 0; i < model.kernels.size(); ++i) {
+    const int o = model.kernels[i].dof_offset;  // c_x, c_y, psi
+    KernelState k;
+    k.index = static_cast<int>(i);
+    k.pose.x = s.z[o];
+    k.pose.y = s.z[o + 1];
+    k.pose.theta = s.z[o + 2];
+    k.velocity.x = s.u[o];
+    k.velocity.y = s.u[o + 1];
+    k.velocity.theta = s.u[o + 2];
+    k.attached = s.kernel_attached[i] != 0;
+    k.peak_normal_force = s.kernel_peak_force_N[i];
+    k.impacts = s.kernel_impacts[i];
+    msg.kernels.push_back(k);
+  }
+  return msg;
+}
+
+BeamShapeArray beamShapeMsg(const Snapshot& s, const Data& scratch, int points) {
+  const Model& model = *s.model;
+  BeamShapeArray msg;
+  msg.header.stamp = s.stamp;
+  msg.header.frame_id = kWorldFrame;
+  for (size_t k = 0; k < model.teeth.size(); ++k) {
+    const ToothModel& tooth = model.teeth[k];
+    const int ik = static_cast<int>(k);
+    BeamShape b;
+    b.tooth = ik;
+    // Evenly spaced stations from the root to the tip.
+    for (int j = 0; j < points; ++j) {
+      const double x_m = tooth.length_m * j / (points - 1);
+      b.station_x.push_back(x_m);
+      b.points_root.push_back(point(toothPointRoot(model, scratch, ik, x_m)));
+      b.points_world.push_back(point(toothPointWorld(model, scratch, ik, x_m)));
+    }
+    const auto q = s.z.segment(tooth.dof_offset, tooth.n_modes);
+    b.modal_coordinates.assign(q.data(), q.data() + q.size());
+    b.tip_deflection = toothDeflection(model, scratch, ik, tooth.length_m);
+    msg.teeth.push_back(b);
+  }
+  return msg;
+}
+
+std::vector<geometry_msgs::TransformStamped> movingTransforms(const Snapshot& s,
+                                                              const Data& scratch) {
+  const Model& model = *s.model;
+  std::vector<geometry_msgs::TransformStamped> out;
+  out.push_back(transform(s.stamp, kWorldFrame, kDrumFrame, Vec2::Zero(), s.theta_rad));
+  // Tip frames: at the deflected tip, x along the deformed centreline's tangent.
+  for (size_t k = 0; k < model.teeth.size(); ++k) {
+    const int ik = static_cast<int>(k);
+    const double L = model.teeth[k].length_m;
+    const Vec2 p_tip = toothPointRoot(model, scratch, ik, L);
+    const Vec2 dp = p_tip - toothPointRoot(model, scratch, ik, (1 - kTipSlopeStep) * L);
+    out.push_back(transform(s.stamp, toothRootFrame(ik), toothTipFrame(ik), p_tip,
+                            std::atan2(dp.y(), dp.x())));
+  }
+  return out;
+}
+
+std::vector<geometry_msgs::TransformStamped> staticTransforms(const Model& model,
+                                                              const ros::Time& stamp) {
+  std::vector<geometry_msgs::TransformStamped> out;
+  for (size_t k = 0; k < model.teeth.size(); ++k) {
+    const ToothModel& tooth = model.teeth[k];
+    out.push_back(transform(stamp, kDrumFrame, toothRootFrame(static_cast<int>(k)), tooth.p_DR_D,
+                            std::atan2(tooth.e1_D.y(), tooth.e1_D.x())));
+  }
+  return out;
+}
+
+visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Data& scratch,
+                                                     bool with_static) {
+  const Model& model = *s.model;
+  visualization_msgs::MarkerArray out;
+  if (s.reset) {
+    visualization_msgs::Marker clear = marker(s, "", 0, visualization_msgs::Marker::ARROW);
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    out.markers.push_back(clear);
+    live_force_arrows_.clear();
+  }
+  if (with_static || s.reset) addStaticGeometry(s, &out);
+
+  // Teeth: line strips along the deformed centreline, as thick as the tooth.
+  for (size_t k = 0; k < model.teeth.size(); ++k) {
+    const int ik = static_cast<int>(k);
+    const ToothModel& tooth = model.teeth[k];
+    visualization_msgs::Marker m = marker(s, "teeth", ik, visualization_msgs::Marker::LINE_STRIP);
+    for (int j = 0; j < beam_points_; ++j)
+      m.points.push_back(
+          point(toothPointWorld(model, scratch, ik, tooth.length_m * j / (beam_points_ - 1))));
+    m.scale.x = tooth.diameter_m;
+    m.color = rgba(0.3f, 0.6f, 1.f);
+    out.markers.push_back(m);
+  }
+
+  // Kernels: flat elliptic cylinders, semi-axes a along the kernel's x axis.
+  for (size_t i = 0; i < model.kernels.size(); ++i) {
+    const KernelModel& kernel = model.kernels[i];
+    const int o = kernel.dof_offset;
+    visualization_msgs::Marker m =
+        marker(s, "kernels", static_cast<int>(i), visualization_msgs::Marker::CYLINDER);
+    m.pose.position = point(s.z.segment<2>(o));
+    m.pose.orientation = yaw(s.z[o + 2]);
+    m.scale.x = 2 * kernel.semi_axis_a_m;
+    m.scale.y = 2 * kernel.semi_axis_b_m;
+    m.scale.z = 2 * kernel.semi_axis_b_m;
+    m.color = rgba(1.f, 0.78f, 0.1f);
+    out.markers.push_back(m);
+  }
+
+  // Force arrows at the contacts now closed, coloured by state; stale ones deleted.
+  std::set<int> live;
+  for (const ContactInfo& c : s.contacts) {
+    if (c.state == ContactState::kSeparated) continue;
+    const int id = pairMarkerId(c.pair);
+    const Vec2 f_W = c.normal_force_N * c.n_W + c.tangential_force_N * tangent(c.n_W);
+    out.markers.push_back(
+        forceArrow(s, "contact_forces", id, c.p_W, f_W, scale_mpN_, stateColor(c.state)));
+    live.insert(id);
+  }
+  for (int id : live_force_arrows_) {
+    if (live.count(id)) continue;
+    visualization_msgs::Marker m =
+        marker(s, "contact_forces", id, visualization_msgs::Marker::ARROW);
+    m.action = visualization_msgs::Marker::DELETE;
+    out.markers.push_back(m);
+  }
+  live_force_arrows_ = std::move(live);
+
+  // The peak of each pair's latest finished episode, magenta; hidden while the pair touches
+  // (its live arrow shows then).
+  for (const PeakContact& p : s.peaks) {
+    visualization_msgs::Marker m = forceArrow(s, "last_contact", pairMarkerId(p.pair), p.p_W, p.f_W,
+                                              scale_mpN_, rgba(0.9f, 0.2f, 0.9f));
+    if (p.last_closed_step == s.step) m.action = visualization_msgs::Marker::DELETE;
+    out.markers.push_back(m);
+  }
+  return out;
+}
+
+}  // namespace threshing_sim

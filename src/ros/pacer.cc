@@ -1,0 +1,112 @@
+#include "threshing_sim/ros/pacer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace threshing_sim {
+
+double MonotonicClock::nowSeconds() const {
+  using Seconds = std::chrono::duration<double>;
+  return std::chrono::duration_cast<Seconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+namespace {
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("Pacer: " + what);
+}
+
+}  // namespace
+
+Pacer::Pacer(const SteadyClock& clock, const PacerOptions& options)
+    : clock_(clock), options_(options) {
+  require(std::isfinite(options.step_s) && options.step_s > 0, "step_s must be > 0");
+  require(std::isfinite(options.tick_s) && options.tick_s > 0, "tick_s must be > 0");
+  require(std::isfinite(options.catch_up_factor) && options.catch_up_factor >= 1,
+          "catch_up_factor must be >= 1");
+  require(std::isfinite(options.max_lag_s) && options.max_lag_s > 0, "max_lag_s must be > 0");
+  require(options.fast_batch_steps >= 1, "fast_batch_steps must be >= 1");
+  require(std::isfinite(options.rate_window_s) && options.rate_window_s > 0,
+          "rate_window_s must be > 0");
+  setRealTimeFactor(options.real_time_factor);
+}
+
+void Pacer::setRealTimeFactor(double real_time_factor) {
+  require(std::isfinite(real_time_factor) && real_time_factor >= 0,
+          "real_time_factor must be >= 0");
+  options_.real_time_factor = real_time_factor;
+  // The catch-up bound: catch_up_factor ticks' worth of steps, at least one (fixed batches at
+  // factor 0).
+  if (real_time_factor == 0) {
+    max_batch_steps_ = options_.fast_batch_steps;
+  } else {
+    const double steps_per_tick = options_.tick_s * real_time_factor / options_.step_s;
+    max_batch_steps_ =
+        std::max(1, static_cast<int>(std::ceil(options_.catch_up_factor * steps_per_tick - 1e-9)));
+  }
+  restart();
+}
+
+void Pacer::restart() {
+  last_s_ = clock_.nowSeconds();
+  owed_s_ = 0;
+  window_start_s_ = last_s_;
+  window_steps_ = 0;
+  previous_batch_ = 0;
+}
+
+int Pacer::nextBatch() {
+  const double now_s = clock_.nowSeconds();
+  const double rtf = options_.real_time_factor;
+  int steps = options_.fast_batch_steps;
+  if (rtf > 0) {
+    // Accumulate the simulated time owed since the previous call.
+    owed_s_ += (now_s - last_s_) * rtf;
+    // Far behind: drop the backlog, keep one full batch.
+    if (owed_s_ / rtf > options_.max_lag_s) {
+      owed_s_ = max_batch_steps_ * options_.step_s;
+      ++resyncs_;
+    }
+    // Whole steps due (the epsilon absorbs rounding in owed_s_), bounded by the catch-up limit.
+    steps = static_cast<int>(std::floor(owed_s_ / options_.step_s + 1e-9));
+    if (steps > max_batch_steps_) {
+      steps = max_batch_steps_;
+      ++overruns_;
+    }
+    owed_s_ -= steps * options_.step_s;
+  }
+  // The previous batch has run by now: count it in the measured rates.
+  updateRates(now_s, previous_batch_);
+  previous_batch_ = steps;
+  last_s_ = now_s;
+  return steps;
+}
+
+double Pacer::secondsUntilDue() const {
+  const double rtf = options_.real_time_factor;
+  if (rtf == 0 || owed_s_ + 1e-9 * options_.step_s >= options_.step_s) return 0;
+  return std::max(options_.tick_s, (options_.step_s - owed_s_) / rtf);
+}
+
+void Pacer::updateRates(double now_s, int steps) {
+  window_steps_ += steps;
+  const double elapsed_s = now_s - window_start_s_;
+  if (elapsed_s <= 0) return;
+  // Running values until a first window completes, then one value per complete window.
+  const bool window_done = elapsed_s >= options_.rate_window_s;
+  if (window_done || !have_window_) {
+    step_rate_hz_ = window_steps_ / elapsed_s;
+    measured_rtf_ = step_rate_hz_ * options_.step_s;
+  }
+  if (window_done) {
+    have_window_ = true;
+    window_start_s_ = now_s;
+    window_steps_ = 0;
+  }
+}
+
+}  // namespace threshing_sim

@@ -1,0 +1,628 @@
+#include "threshing_sim/ros/threshing_sim_node.h"
+
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <rosgraph_msgs/Clock.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <utility>
+
+#include "threshing_sim/core/simulator.h"
+
+namespace threshing_sim {
+namespace {
+
+// The snapshot queue holds at most this many; the physics thread waits when it is full.
+constexpr size_t kMaxQueuedSnapshots = 64;
+// /clock is published at most this often in wall time (plus before each stamped message) [s].
+constexpr double kClockPeriod_s = 1.0 / 200.0;
+// Static geometry (drum, obstacles) is republished this often, for late subscribers [s].
+constexpr double kStaticMarkerPeriod_s = 1.0;
+// Diagnostics period, wall time (diagnostic_updater's own timer would run on /clock) [s].
+constexpr double kDiagnosticsPeriod_s = 1.0;
+// After the last message of a bounded run the node waits this long before shutting down, so
+// that recorders receive everything [s].
+constexpr double kLinger_s = 1.0;
+// How long a service waits for the physics thread [s].
+constexpr double kServiceTimeout_s = 30.0;
+// A measured real-time factor below this fraction of the target is a warning [-].
+constexpr double kSlowFraction = 0.9;
+
+PacerOptions pacerOptions(const NodeParams& params, double dt_s) {
+  PacerOptions o;
+  o.step_s = dt_s;
+  o.real_time_factor = params.real_time_factor;
+  return o;
+}
+
+std::chrono::duration<double> seconds(double s) { return std::chrono::duration<double>(s); }
+
+}  // namespace
+
+ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
+    : params_(loadNodeParams(pnh)),
+      model_(std::make_shared<const Model>(loadSceneFromParams(pnh, params_))),
+      dt_s_(resolvePhysicsStep(params_, *model_)),
+      pacer_(clock_, pacerOptions(params_, dt_s_)),
+      marker_builder_(params_.force_arrow_scale_mpN, params_.beam_points),
+      diagnostics_(nh, pnh) {
+  dt_ns_ = std::llround(dt_s_ * 1e9);
+  if (params_.sim_clock && !ros::param::param("/use_sim_time", false))
+    ROS_WARN(
+        "~clock_mode is 'sim' but /use_sim_time is not set: other nodes will not follow "
+        "the /clock this node publishes");
+
+  if (params_.end_time_s > 0)
+    end_step_ = static_cast<long>(std::ceil(params_.end_time_s / dt_s_ - 1e-9));
+  reset_steps_ = std::lround(params_.reset_period_s / dt_s_);
+  if (!params_.command_bag.empty()) loadCommandBag();
+
+  resetData(*model_, &data_);
+  setRates(params_.contact_state_rate_hz, params_.state_rate_hz, params_.marker_rate_hz);
+  paused_ = params_.start_paused;
+  status_on_tty_ = isatty(STDOUT_FILENO) != 0;
+
+  advertise(nh, pnh);
+  static_tf_.sendTransform(staticTransforms(*model_, stampOf(0)));
+  startReconfigure(pnh);
+  ROS_INFO(
+      "threshing_sim_node: %zu teeth, %zu kernels, %zu obstacles; physics step %g s, "
+      "real-time factor %g, %s clock%s",
+      model_->teeth.size(), model_->kernels.size(), model_->obstacles.size(), dt_s_,
+      params_.real_time_factor, params_.sim_clock ? "sim" : "wall",
+      schedule_.empty() ? "" : ", re-simulating the commands of ~command_bag");
+
+  output_thread_ = std::thread(&ThreshingSimNode::outputLoop, this);
+  physics_thread_ = std::thread(&ThreshingSimNode::physicsLoop, this);
+}
+
+ThreshingSimNode::~ThreshingSimNode() { stop(); }
+
+void ThreshingSimNode::stop() {
+  if (stopped_) return;
+  stopped_ = true;
+  stop_ = true;
+  staged_cv_.notify_all();
+  served_cv_.notify_all();
+  queue_cv_.notify_all();
+  if (physics_thread_.joinable()) physics_thread_.join();
+  if (output_thread_.joinable()) output_thread_.join();
+  // Final summary on stdout.
+  if (status_on_tty_ && params_.status_period_s > 0) std::printf("\n");
+  const double wall_s = run_wall_s_;
+  const double sim_s = step_ * dt_s_;
+  std::printf(
+      "threshing_sim_node: simulated %.6f s in %.2f s of wall time (real-time factor %.3g "
+      "overall), %ld impacts, peak normal force %.1f N, %ld overruns, %ld rejected commands, "
+      "%ld numerical recoveries\n",
+      sim_s, wall_s, wall_s > 0 ? sim_s / wall_s : 0.0, impacts_.load(), peak_force_N_.load(),
+      overruns_.load(), rejected_commands_.load(), recoveries_.load());
+  std::fflush(stdout);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Start-up
+
+void ThreshingSimNode::loadCommandBag() {
+  const std::string where = "~command_bag (" + params_.command_bag + "): ";
+  try {
+    rosbag::Bag bag(params_.command_bag, rosbag::bagmode::Read);
+    // The boundary index of a stamp; stamps off the step grid mean another ~physics_dt.
+    auto stepOf = [&](const ros::Time& stamp) {
+      const std::int64_t ns = static_cast<std::int64_t>(stamp.toNSec());
+      const long k = static_cast<long>((ns + dt_ns_ / 2) / dt_ns_);
+      if (std::abs(ns - k * dt_ns_) * 1000 > dt_ns_)
+        throw std::invalid_argument(where + "stamp " + std::to_string(stamp.toSec()) +
+                                    " s is not on this node's step grid (recorded with another "
+                                    "~physics_dt or in wall clock mode?)");
+      return k;
+    };
+    // The applied commands, in boundary order.
+    for (const rosbag::MessageInstance& m :
+         rosbag::View(bag, rosbag::TypeQuery("threshing_sim/DrumSpeedCommand"))) {
+      const auto c = m.instantiate<DrumSpeedCommand>();
+      schedule_.push_back({stepOf(c->header.stamp), c->speed});
+    }
+    std::stable_sort(
+        schedule_.begin(), schedule_.end(),
+        [](const ScheduledCommand& a, const ScheduledCommand& b) { return a.step < b.step; });
+    // Without ~end_time, run up to the last contact_state the recording holds.
+    if (end_step_ == 0) {
+      for (const rosbag::MessageInstance& m :
+           rosbag::View(bag, rosbag::TypeQuery("threshing_sim/ContactStateArray")))
+        end_step_ = std::max(end_step_, stepOf(m.instantiate<ContactStateArray>()->header.stamp));
+      if (end_step_ == 0)
+        throw std::invalid_argument(where +
+                                    "holds no contact_state to end the run at; set "
+                                    "~end_time");
+    }
+  } catch (const rosbag::BagException& e) {
+    throw std::invalid_argument(where + e.what());
+  }
+  ROS_INFO("re-simulating %zu drum speed commands up to t = %g s", schedule_.size(),
+           end_step_ * dt_s_);
+}
+
+void ThreshingSimNode::advertise(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
+  contact_pub_ = nh.advertise<ContactStateArray>("contact_state", 100);
+  impact_pub_ = nh.advertise<ImpactEvent>("impact_events", 1000);
+  kernel_pub_ = nh.advertise<KernelStateArray>("kernel_states", 100);
+  beam_pub_ = nh.advertise<BeamShapeArray>("beam_shape", 100);
+  marker_pub_ = nh.advertise<visualization_msgs::MarkerArray>("markers", 100);
+  // Latched: a late subscriber still learns the drum's current target.
+  applied_pub_ = nh.advertise<DrumSpeedCommand>("drum_speed_cmd_applied", 1000, true);
+  if (params_.sim_clock) clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);
+  // A re-simulation takes its commands from the bag only.
+  if (params_.command_bag.empty())
+    command_sub_ = nh.subscribe("drum_speed_cmd", 100, &ThreshingSimNode::onDrumSpeedCommand, this,
+                                ros::TransportHints().tcpNoDelay());
+  pause_srv_ = pnh.advertiseService("pause", &ThreshingSimNode::onPause, this);
+  step_srv_ = pnh.advertiseService("step", &ThreshingSimNode::onStep, this);
+  reset_srv_ = pnh.advertiseService("reset", &ThreshingSimNode::onReset, this);
+  diagnostics_.setHardwareID("threshing_sim");
+  diagnostics_.add("simulation", this, &ThreshingSimNode::diagnose);
+}
+
+void ThreshingSimNode::startReconfigure(ros::NodeHandle& pnh) {
+  // The contact values start from the scene unless set explicitly as private parameters.
+  const char* kinds[3] = {"tooth_kernel", "kernel_kernel", "kernel_obstacle"};
+  for (int k = 0; k < 3; ++k) {
+    const std::string base = kinds[k];
+    if (!pnh.hasParam(base + "_restitution"))
+      pnh.setParam(base + "_restitution", model_->contact[k].restitution);
+    if (!pnh.hasParam(base + "_friction"))
+      pnh.setParam(base + "_friction", model_->contact[k].friction);
+  }
+  reconfigure_ =
+      std::make_unique<dynamic_reconfigure::Server<ThreshingSimConfig>>(reconfigure_mutex_, pnh);
+  reconfigure_->setCallback([this](const ThreshingSimConfig& config, std::uint32_t level) {
+    onReconfigure(config, level);
+  });
+}
+
+// ---------------------------------------------------------------------------------------------
+// Callbacks: validate, stage, return (the physics thread applies at a step boundary)
+
+void ThreshingSimNode::onDrumSpeedCommand(const std_msgs::Float64& msg) {
+  const double speed_radps = msg.data;
+  if (!std::isfinite(speed_radps) || std::abs(speed_radps) > params_.max_drum_speed_radps) {
+    const long n = ++rejected_commands_;
+    ROS_WARN_THROTTLE(1.0,
+                      "drum_speed_cmd rejected: %g rad/s is not finite or exceeds "
+                      "~max_drum_speed = %g rad/s (%ld rejected so far)",
+                      speed_radps, params_.max_drum_speed_radps, n);
+    return;
+  }
+  std::lock_guard<std::mutex> lock(staged_mutex_);
+  staged_.drum_target_radps = speed_radps;
+  staged_dirty_ = true;
+}
+
+bool ThreshingSimNode::onPause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res) {
+  {
+    std::lock_guard<std::mutex> lock(staged_mutex_);
+    paused_ = req.data;
+  }
+  staged_cv_.notify_all();
+  res.success = true;
+  res.message =
+      (req.data ? "paused at t = " : "running from t = ") + std::to_string(step_ * dt_s_) + " s";
+  return true;
+}
+
+bool ThreshingSimNode::onStep(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::unique_lock<std::mutex> lock(staged_mutex_);
+  if (!paused_ || finished_) {
+    res.success = false;
+    res.message = finished_ ? "the run has ended" : "not paused: call ~pause first";
+    return true;
+  }
+  const long ticket = ++steps_requested_;
+  ++staged_.step_periods;
+  staged_dirty_ = true;
+  staged_cv_.notify_all();
+  res.success = served_cv_.wait_for(lock, seconds(kServiceTimeout_s), [&] {
+    return steps_done_ >= ticket || stop_;
+  }) && !stop_;
+  res.message = "t = " + std::to_string(step_ * dt_s_) + " s";
+  return true;
+}
+
+bool ThreshingSimNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  std::unique_lock<std::mutex> lock(staged_mutex_);
+  const long ticket = ++resets_requested_;
+  staged_.reset = true;
+  staged_dirty_ = true;
+  staged_cv_.notify_all();
+  res.success = served_cv_.wait_for(lock, seconds(kServiceTimeout_s), [&] {
+    return resets_done_ >= ticket || stop_;
+  }) && !stop_;
+  res.message = "bodies reset at t = " + std::to_string(step_ * dt_s_) + " s";
+  return true;
+}
+
+void ThreshingSimNode::onReconfigure(const ThreshingSimConfig& config, std::uint32_t) {
+  std::lock_guard<std::mutex> lock(staged_mutex_);
+  staged_.config = config;
+  staged_dirty_ = true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Physics thread
+
+void ThreshingSimNode::physicsLoop() {
+  waitForSubscribers();
+  start_wall_s_ = clock_.nowSeconds();
+  pending_reset_ = true;  // markers start with DELETEALL: clears a previous run's
+  takeSnapshot(kAllStreams);
+  pacer_.restart();
+  while (!stop_ && !finished_) {
+    if (paused_) {
+      servePaused();
+      continue;
+    }
+    // Run the steps due, then sleep until more are (woken early by stop).
+    const int n = pacer_.nextBatch();
+    for (int i = 0; i < n && !paused_ && !stop_ && !finished_; ++i) advanceOneStep(0);
+    publishCounters();
+    if (n == 0) {
+      std::unique_lock<std::mutex> lock(staged_mutex_);
+      staged_cv_.wait_for(lock, seconds(pacer_.secondsUntilDue()),
+                          [&] { return stop_.load() || paused_.load(); });
+    }
+  }
+  publishCounters();
+  run_wall_s_ = clock_.nowSeconds() - start_wall_s_;
+}
+
+void ThreshingSimNode::waitForSubscribers() {
+  if (!params_.wait_for_subscribers) return;
+  const ros::Publisher* outputs[] = {&contact_pub_, &impact_pub_, &kernel_pub_,
+                                     &beam_pub_,    &marker_pub_, &applied_pub_};
+  ROS_INFO("~wait_for_subscribers: holding t = 0 until every output topic has a subscriber");
+  auto allHeard = [&] {
+    return std::all_of(std::begin(outputs), std::end(outputs),
+                       [](const ros::Publisher* p) { return p->getNumSubscribers() > 0; });
+  };
+  while (!stop_ && ros::ok() && !allHeard()) std::this_thread::sleep_for(seconds(0.01));
+}
+
+void ThreshingSimNode::servePaused() {
+  std::unique_lock<std::mutex> lock(staged_mutex_);
+  staged_cv_.wait(lock,
+                  [&] { return stop_ || !paused_ || staged_.step_periods > 0 || staged_.reset; });
+  const long steps = std::exchange(staged_.step_periods, 0) * stepsPerPublishPeriod();
+  const long ticket = steps_requested_;
+  lock.unlock();
+  // ~step: publish periods of steps, then everything is published; ~reset is applied now.
+  for (long i = 1; i <= steps && !stop_ && !finished_; ++i)
+    advanceOneStep(i == steps ? kAllStreams : 0u);
+  if (steps == 0) applyStaged();
+  publishCounters();
+  lock.lock();
+  steps_done_ = ticket;
+  served_cv_.notify_all();
+  lock.unlock();
+  if (!paused_) pacer_.restart();  // the paused time is not owed
+}
+
+void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
+  applyStaged();
+  const long k = step_ + 1;
+  const StepStatus status = advanceTo(*model_, &data_, k * dt_s_);
+  step_ = k;
+  if (status == StepStatus::kFailed) {
+    failed_ = true;
+    paused_ = true;
+    ROS_ERROR(
+        "the integrator failed at t = %g s (state kept at the last good step); paused: "
+        "call ~reset to continue",
+        data_.t_s);
+  }
+  // Completed impacts go out with the next snapshot.
+  for (const ContactEvent& e : data_.events)
+    if (e.is_impact) pending_impacts_.push_back(e);
+  data_.events.clear();
+  trackPeaks();
+
+  // The last step of a bounded run and a periodic reset publish everything.
+  const bool last = end_step_ > 0 && k >= end_step_;
+  unsigned streams = dueStreams() | forced_streams | (last ? kAllStreams : 0u);
+  if (reset_steps_ > 0 && k % reset_steps_ == 0) {
+    resetBodies();
+    streams = kAllStreams;
+  }
+  if (streams != 0) takeSnapshot(streams);
+  if (last) finished_ = true;
+}
+
+void ThreshingSimNode::applyStaged() {
+  // Re-simulation: the recorded commands at their recorded boundaries.
+  const long k = step_;
+  while (next_scheduled_ < schedule_.size() && schedule_[next_scheduled_].step <= k)
+    applyDrumTarget(schedule_[next_scheduled_++].speed_radps);
+  if (!staged_dirty_) return;
+
+  Staged staged;
+  long reset_ticket = 0;
+  {
+    std::lock_guard<std::mutex> lock(staged_mutex_);
+    staged = std::exchange(staged_, Staged());
+    staged_.step_periods = staged.step_periods;  // consumed by servePaused only
+    reset_ticket = resets_requested_;
+    staged_dirty_ = false;
+  }
+  if (staged.drum_target_radps) applyDrumTarget(*staged.drum_target_radps);
+  if (staged.config) applyConfig(*staged.config);
+  if (staged.reset) {
+    resetBodies();
+    takeSnapshot(kAllStreams);
+    std::lock_guard<std::mutex> lock(staged_mutex_);
+    resets_done_ = reset_ticket;
+    served_cv_.notify_all();
+  }
+}
+
+void ThreshingSimNode::applyDrumTarget(double speed_radps) {
+  setDrumTarget(*model_, &data_, speed_radps);
+  pending_commands_.push_back({stampOf(step_), speed_radps});
+}
+
+void ThreshingSimNode::applyConfig(const ThreshingSimConfig& config) {
+  setRates(config.contact_state_rate, config.state_rate, config.marker_rate);
+  // Contact values live in the constant model: swap in a recompiled copy when they change.
+  const double values[3][2] = {
+      {config.tooth_kernel_restitution, config.tooth_kernel_friction},
+      {config.kernel_kernel_restitution, config.kernel_kernel_friction},
+      {config.kernel_obstacle_restitution, config.kernel_obstacle_friction}};
+  bool changed = false;
+  for (int k = 0; k < 3; ++k)
+    changed |= model_->contact[k].restitution != values[k][0] ||
+               model_->contact[k].friction != values[k][1];
+  if (!changed) return;
+  auto model = std::make_shared<Model>(*model_);
+  for (int k = 0; k < 3; ++k) {
+    model->contact[k].restitution = values[k][0];
+    model->contact[k].friction = values[k][1];
+  }
+  try {
+    compileModel(model.get());
+    model_ = std::move(model);
+    ROS_INFO("contact parameters reconfigured at t = %g s", step_ * dt_s_);
+  } catch (const std::exception& e) {
+    ROS_ERROR("reconfigure rejected, contact parameters unchanged: %s", e.what());
+  }
+}
+
+void ThreshingSimNode::resetBodies() {
+  resetBodiesKeepTime(*model_, &data_);
+  peaks_.clear();
+  pending_reset_ = true;
+  failed_ = false;
+}
+
+void ThreshingSimNode::setRates(double contact_hz, double state_hz, double marker_hz) {
+  const double hz[3] = {contact_hz, state_hz, marker_hz};
+  for (int i = 0; i < 3; ++i) {
+    if (hz[i] == rates_hz_[i]) continue;
+    rates_hz_[i] = hz[i];
+    period_steps_[i] = std::max(1L, std::lround(1.0 / (hz[i] * dt_s_)));
+    next_due_s_[i] = 0;
+  }
+}
+
+unsigned ThreshingSimNode::dueStreams() {
+  unsigned due = 0;
+  const long k = step_;
+  // Factor 0: a schedule in simulated time, identical from run to run.
+  if (params_.real_time_factor == 0) {
+    for (int i = 0; i < 3; ++i)
+      if (k % period_steps_[i] == 0) due |= 1u << i;
+    return due;
+  }
+  // Otherwise a schedule in wall time, without bursts after a late boundary.
+  const double now_s = clock_.nowSeconds();
+  for (int i = 0; i < 3; ++i) {
+    if (now_s < next_due_s_[i]) continue;
+    due |= 1u << i;
+    next_due_s_[i] += 1.0 / rates_hz_[i];
+    if (next_due_s_[i] <= now_s) next_due_s_[i] = now_s + 1.0 / rates_hz_[i];
+  }
+  return due;
+}
+
+void ThreshingSimNode::trackPeaks() {
+  // A pair's episode restarts when it closes after being apart at the previous boundary; it
+  // keeps the state, point and force of its largest normal force.
+  const long k = step_;
+  for (const ContactInfo& c : data_.contacts) {
+    if (c.state == ContactState::kSeparated) continue;
+    auto it = std::find_if(peaks_.begin(), peaks_.end(),
+                           [&](const PeakContact& p) { return p.pair == c.pair; });
+    if (it == peaks_.end()) it = peaks_.insert(peaks_.end(), PeakContact{c.pair});
+    if (it->last_closed_step != k - 1 || c.normal_force_N > it->normal_force_N) {
+      it->state = c.state;
+      it->p_W = c.p_W;
+      it->f_W = c.normal_force_N * c.n_W + c.tangential_force_N * Vec2(-c.n_W.y(), c.n_W.x());
+      it->normal_force_N = c.normal_force_N;
+    }
+    it->last_closed_step = k;
+  }
+}
+
+void ThreshingSimNode::takeSnapshot(unsigned streams) {
+  Snapshot s;
+  s.model = model_;
+  s.step = step_;
+  s.t_s = s.step * dt_s_;
+  s.stamp = stampOf(s.step);
+  s.theta_rad = data_.theta_rad;
+  s.omega_radps = data_.omega_radps;
+  s.z = data_.z;
+  s.u = data_.u;
+  s.kernel_attached = data_.kernel_attached;
+  s.contacts = data_.contacts;
+  s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
+  s.kernel_impacts = data_.stats.kernel_impacts;
+  s.impacts = std::exchange(pending_impacts_, {});
+  s.commands = std::exchange(pending_commands_, {});
+  s.peaks = peaks_;
+  s.streams = streams;
+  s.reset = std::exchange(pending_reset_, false);
+  // Back-pressure: at factor 0 the simulation waits for the publisher rather than drop.
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  queue_cv_.wait(lock, [&] { return queue_.size() < kMaxQueuedSnapshots || stop_; });
+  queue_.push_back(std::move(s));
+  queue_cv_.notify_all();
+}
+
+void ThreshingSimNode::publishCounters() {
+  measured_rtf_ = pacer_.measuredRealTimeFactor();
+  step_rate_hz_ = pacer_.stepRateHz();
+  overruns_ = pacer_.overruns();
+  resyncs_ = pacer_.resyncs();
+  impacts_ = data_.stats.impacts;
+  peak_force_N_ = data_.stats.peak_normal_force_N;
+  recoveries_ = data_.stats.numerical_recoveries;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output thread
+
+void ThreshingSimNode::outputLoop() {
+  double next_clock_s = 0, next_static_s = 0, next_status_s = 0, next_diagnostics_s = 0;
+  while (ros::ok()) {
+    std::deque<Snapshot> batch;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      queue_cv_.wait_for(lock, seconds(kClockPeriod_s), [&] { return !queue_.empty() || stop_; });
+      batch.swap(queue_);
+    }
+    queue_cv_.notify_all();
+    if (batch.empty() && stop_) break;
+
+    const double now_s = clock_.nowSeconds();
+    if (params_.sim_clock && now_s >= next_clock_s) {
+      publishClock(stampOf(step_));
+      next_clock_s = now_s + kClockPeriod_s;
+    }
+    for (const Snapshot& s : batch) {
+      const bool with_static = (s.streams & kMarkerStream) && now_s >= next_static_s;
+      if (with_static) next_static_s = now_s + kStaticMarkerPeriod_s;
+      publishSnapshot(s, with_static);
+    }
+    if (params_.status_period_s > 0 && now_s >= next_status_s) {
+      printStatus(false);
+      next_status_s = now_s + params_.status_period_s;
+    }
+    if (now_s >= next_diagnostics_s) {
+      diagnostics_.force_update();
+      next_diagnostics_s = now_s + kDiagnosticsPeriod_s;
+    }
+    // A bounded run: once the last snapshot is out, linger for the recorders, then shut down.
+    if (finished_) {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      if (!queue_.empty()) continue;
+      lock.unlock();
+      if (params_.status_period_s > 0) printStatus(true);
+      diagnostics_.force_update();
+      std::this_thread::sleep_for(seconds(kLinger_s));
+      ros::requestShutdown();
+      break;
+    }
+  }
+}
+
+void ThreshingSimNode::publishSnapshot(const Snapshot& s, bool with_static_markers) {
+  // In sim clock mode /clock is never behind a stamp the node publishes.
+  if (params_.sim_clock) publishClock(s.stamp);
+  loadPose(s, &scratch_);
+  if (s.streams & kContactStream) contact_pub_.publish(contact_builder_.build(s));
+  for (const ContactEvent& e : s.impacts)
+    impact_pub_.publish(impactEventMsg(
+        e, params_.sim_clock ? ros::Time().fromNSec(std::llround(e.t_s * 1e9)) : s.stamp));
+  for (const AppliedCommand& c : s.commands) applied_pub_.publish(drumSpeedCommandMsg(c));
+  if (s.streams & kStateStream) {
+    kernel_pub_.publish(kernelStatesMsg(s));
+    beam_pub_.publish(beamShapeMsg(s, scratch_, params_.beam_points));
+    // tf2 listeners drop (and complain about) repeated stamps.
+    if (s.stamp > last_tf_) {
+      tf_.sendTransform(movingTransforms(s, scratch_));
+      last_tf_ = s.stamp;
+    }
+  }
+  if ((s.streams & kMarkerStream) || s.reset)
+    marker_pub_.publish(marker_builder_.build(s, scratch_, with_static_markers));
+}
+
+void ThreshingSimNode::publishClock(const ros::Time& t) {
+  if (clock_published_ && t <= last_clock_) return;
+  clock_published_ = true;
+  rosgraph_msgs::Clock msg;
+  msg.clock = t;
+  clock_pub_.publish(msg);
+  last_clock_ = t;
+}
+
+void ThreshingSimNode::printStatus(bool final_line) {
+  char line[256];
+  std::snprintf(line, sizeof(line),
+                "t = %.6f s | real-time factor %.3g (target %g) | impacts %ld | peak force "
+                "%.1f N%s",
+                step_ * dt_s_, measured_rtf_.load(), params_.real_time_factor, impacts_.load(),
+                peak_force_N_.load(),
+                finished_ ? " | finished"
+                : paused_ ? " | paused"
+                          : "");
+  // On a terminal the line is rewritten in place; otherwise one line per period.
+  if (status_on_tty_ && !final_line)
+    std::printf("\r%s\033[K", line);
+  else
+    std::printf("%s%s\n", status_on_tty_ ? "\r" : "", line);
+  std::fflush(stdout);
+}
+
+void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
+  const double rtf = measured_rtf_;
+  const double target = params_.real_time_factor;
+  if (failed_)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "integrator failed: call ~reset");
+  else if (recoveries_ > 0)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "numerical recoveries");
+  else if (!paused_ && !finished_ && target > 0 && rtf < kSlowFraction * target)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "slower than the target real time");
+  else
+    stat.summary(diagnostic_msgs::DiagnosticStatus::OK, finished_ ? "finished"
+                                                        : paused_ ? "paused"
+                                                                  : "running");
+  stat.add("simulation time [s]", step_ * dt_s_);
+  stat.add("physics step [s]", dt_s_);
+  stat.add("step rate [Hz]", step_rate_hz_.load());
+  stat.add("measured real-time factor", rtf);
+  stat.add("target real-time factor", target);
+  stat.add("overruns", overruns_.load());
+  stat.add("re-synchronisations", resyncs_.load());
+  stat.add("rejected commands", rejected_commands_.load());
+  stat.add("numerical recoveries", recoveries_.load());
+  stat.add("impacts", impacts_.load());
+  stat.add("peak normal force [N]", peak_force_N_.load());
+  stat.add("paused", static_cast<bool>(paused_));
+}
+
+ros::Time ThreshingSimNode::stampOf(long step) const {
+  return params_.sim_clock ? ros::Time().fromNSec(step * dt_ns_) : ros::Time::now();
+}
+
+long ThreshingSimNode::stepsPerPublishPeriod() const {
+  // One contact_state period of simulated time (at factor f > 0 a wall period is f times that).
+  const double rtf = params_.real_time_factor;
+  const double period_s = (rtf > 0 ? rtf : 1.0) / rates_hz_[0];
+  return std::max(1L, std::lround(period_s / dt_s_));
+}
+
+}  // namespace threshing_sim

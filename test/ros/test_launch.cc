@@ -1,0 +1,291 @@
+// rostest (launch.test): the node and the launch files as a user runs them, each started as a
+// process against this test's master, one after another:
+//  - bad parameters are refused with a message naming them and a non-zero exit;
+//  - record.launch records a bounded run while drum speed commands arrive;
+//  - replay.launch plays the bag back: the same message counts, monotonic stamps;
+//  - resimulate.launch re-runs the recorded commands: contact_state and impact_events are
+//    bit-identical (scripts/compare_bags).
+// The tests run in declaration order and share the bags.
+#include <gtest/gtest.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <rosgraph_msgs/Clock.h>
+#include <signal.h>
+#include <std_msgs/Float64.h>
+#include <stdlib.h>
+#include <sys/wait.h>
+#include <tf2_msgs/TFMessage.h>
+#include <topic_tools/shape_shifter.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "threshing_sim/BeamShapeArray.h"
+#include "threshing_sim/ContactStateArray.h"
+#include "threshing_sim/DrumSpeedCommand.h"
+#include "threshing_sim/ImpactEvent.h"
+#include "threshing_sim/KernelStateArray.h"
+
+namespace {
+
+std::string g_dir;  // scratch directory of this test run
+
+// Runs a shell command, returns its exit status and its merged stdout/stderr.
+int run(const std::string& cmd, std::string* output) {
+  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
+  if (!pipe) return -1;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) output->append(buf.data(), n);
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// A roslaunch in the background, in its own process group (SIGINT on timeout).
+class Launch {
+ public:
+  explicit Launch(const std::string& args) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      setpgid(0, 0);
+      const std::string cmd = "exec roslaunch " + args + " > " + g_dir + "/roslaunch.log 2>&1";
+      execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  // A launch still running when the test ends (a failed assertion) is interrupted.
+  ~Launch() {
+    if (running()) stop();
+  }
+  bool running() {
+    if (exited_) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == 0) return true;
+    exited_ = true;
+    exit_status_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return false;
+  }
+  // Exit status, or -1 if it had to be interrupted after timeout_s.
+  int wait(double timeout_s) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+    while (running()) {
+      if (ros::WallTime::now() > end) {
+        stop();
+        return -1;
+      }
+      ros::WallDuration(0.05).sleep();
+    }
+    return exit_status_;
+  }
+
+ private:
+  // SIGINT to the whole group (roslaunch and its nodes), as Ctrl-C would.
+  void stop() {
+    kill(-pid_, SIGINT);
+    waitpid(pid_, nullptr, 0);
+    exited_ = true;
+  }
+
+  pid_t pid_ = -1;
+  bool exited_ = false;
+  int exit_status_ = -1;
+};
+
+// A bad value: exit status 1 and a message naming the parameter. Each run has its own node
+// name, so that no private parameter of a previous run is left over.
+void expectRefused(const std::string& args, const std::string& named) {
+  static int run_index = 0;
+  const std::string name = " __name:=refused_" + std::to_string(++run_index) + " ";
+  std::string out;
+  EXPECT_EQ(run(std::string(THRESHING_SIM_NODE) + name + args, &out), 1) << out;
+  EXPECT_NE(out.find(named), std::string::npos) << "message does not name " << named << ":\n"
+                                                << out;
+}
+
+TEST(Launch, RefusesBadParameters) {
+  const std::string scene = std::string(THRESHING_SIM_SOURCE_DIR) + "/config/default_scene.yaml";
+  const std::string ok = " _clock_mode:=sim _scene:=";
+  expectRefused("_clock_mode:=simulated", "~clock_mode");
+  expectRefused(ok + scene + " _real_time_factor:=-1", "~real_time_factor");
+  expectRefused(ok + scene + " _max_drum_speed:=0", "~max_drum_speed");
+  expectRefused(ok + scene + " _physics_dt:=0.1", "~physics_dt");
+  expectRefused(ok + scene + " _marker_rate:=0", "~marker_rate");
+  expectRefused(ok + g_dir + "/missing.yaml", "~scene");
+  // A scene value: the scene loader's message names the key.
+  std::ifstream in(scene);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t mass = text.find("mass: 2.8e-5");
+  ASSERT_NE(mass, std::string::npos);
+  text.replace(mass, 12, "mass: -1.0");
+  std::ofstream(g_dir + "/bad_scene.yaml") << text;
+  expectRefused(ok + g_dir + "/bad_scene.yaml", "mass");
+}
+
+// Header stamps of one topic in bag order.
+template <typename M>
+std::vector<ros::Time> stamps(const rosbag::Bag& bag, const std::string& topic) {
+  std::vector<ros::Time> out;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic)))
+    out.push_back(m.instantiate<M>()->header.stamp);
+  return out;
+}
+
+void expectMonotonic(const std::vector<ros::Time>& t, const std::string& what) {
+  for (size_t i = 1; i < t.size(); ++i)
+    ASSERT_LE(t[i - 1], t[i]) << what << " stamp " << i << " goes back";
+}
+
+std::map<std::string, long> countsByTopic(const std::string& path) {
+  rosbag::Bag bag(path, rosbag::bagmode::Read);
+  std::map<std::string, long> counts;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag)) ++counts[m.getTopic()];
+  return counts;
+}
+
+// A bounded run at real_time_factor 0 in sim clock mode, with speed commands sent while it
+// runs; everything lands in run.bag. The run (2 s of simulated time) is long enough for the
+// commands to land mid-run on a machine up to some 40 times faster than real time.
+TEST(Launch, RecordsABoundedRun) {
+  ros::NodeHandle nh;
+  std::mutex mutex;
+  long applied = 0;
+  ros::Subscriber sub = nh.subscribe<threshing_sim::DrumSpeedCommand>(
+      "/drum_speed_cmd_applied", 10,
+      boost::function<void(const threshing_sim::DrumSpeedCommand::ConstPtr&)>(
+          [&](const threshing_sim::DrumSpeedCommand::ConstPtr&) {
+            std::lock_guard<std::mutex> lock(mutex);
+            ++applied;
+          }));
+  ros::Publisher pub = nh.advertise<std_msgs::Float64>("/drum_speed_cmd", 1, true);
+  std_msgs::Float64 cmd;
+  cmd.data = 60.0;
+  pub.publish(cmd);
+
+  Launch launch("threshing_sim record.launch bag:=" + g_dir + "/run.bag duration:=2");
+  // Each time a command has been applied, the next one, while the run goes on.
+  long sent = 1;
+  for (double speed : {100.0, 70.0}) {
+    auto appliedSoFar = [&] {
+      std::lock_guard<std::mutex> lock(mutex);
+      return applied;
+    };
+    while (launch.running() && appliedSoFar() < sent) ros::WallDuration(1e-3).sleep();
+    cmd.data = speed;
+    pub.publish(cmd);
+    ++sent;
+  }
+  ASSERT_EQ(launch.wait(60), 0) << "record.launch did not end by itself";
+
+  rosbag::Bag bag(g_dir + "/run.bag", rosbag::bagmode::Read);
+  const auto contact = stamps<threshing_sim::ContactStateArray>(bag, "/contact_state");
+  const auto impacts = stamps<threshing_sim::ImpactEvent>(bag, "/impact_events");
+  const auto commands = stamps<threshing_sim::DrumSpeedCommand>(bag, "/drum_speed_cmd_applied");
+  ASSERT_FALSE(contact.empty());
+  EXPECT_EQ(contact.back(), ros::Time(2.0)) << "the run ends at ~end_time";
+  EXPECT_GE(impacts.size(), 1u);
+  // The first command is applied at t = 0, the next ones while the run goes on.
+  ASSERT_GE(commands.size(), 2u);
+  EXPECT_GT(commands.back(), ros::Time(0));
+  expectMonotonic(contact, "contact_state");
+  expectMonotonic(impacts, "impact_events");
+  expectMonotonic(commands, "drum_speed_cmd_applied");
+  expectMonotonic(stamps<threshing_sim::KernelStateArray>(bag, "/kernel_states"), "kernel_states");
+  expectMonotonic(stamps<threshing_sim::BeamShapeArray>(bag, "/beam_shape"), "beam_shape");
+  std::vector<ros::Time> clock, drum_tf;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery("/clock")))
+    clock.push_back(m.instantiate<rosgraph_msgs::Clock>()->clock);
+  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery("/tf")))
+    for (const auto& t : m.instantiate<tf2_msgs::TFMessage>()->transforms)
+      if (t.child_frame_id == "drum") drum_tf.push_back(t.header.stamp);
+  EXPECT_FALSE(clock.empty());
+  expectMonotonic(clock, "/clock");
+  expectMonotonic(drum_tf, "world->drum");
+  const auto counts = countsByTopic(g_dir + "/run.bag");
+  for (const char* topic : {"/beam_shape", "/kernel_states", "/markers", "/tf", "/tf_static",
+                            "/diagnostics", "/drum_speed_cmd"})
+    EXPECT_GT(counts.count(topic) ? counts.at(topic) : 0, 0) << topic;
+}
+
+// replay.launch (no simulator, no rviz) delivers every recorded message of every topic.
+TEST(Launch, ReplaysWithTheSameCounts) {
+  auto counts = countsByTopic(g_dir + "/run.bag");
+  ASSERT_FALSE(counts.empty());
+  counts.erase("/clock");  // rosbag play publishes its own /clock instead
+
+  ros::NodeHandle nh;
+  std::mutex mutex;
+  std::map<std::string, long> received;
+  bool clock_went_back = false;
+  ros::Time last_clock;
+  std::vector<ros::Subscriber> subs;
+  for (const auto& [topic, n] : counts) {
+    const std::string name = topic;
+    subs.push_back(nh.subscribe<topic_tools::ShapeShifter>(
+        name, 10000,
+        boost::function<void(const topic_tools::ShapeShifter::ConstPtr&)>(
+            [&, name](const topic_tools::ShapeShifter::ConstPtr&) {
+              std::lock_guard<std::mutex> lock(mutex);
+              ++received[name];
+            })));
+  }
+  subs.push_back(nh.subscribe<rosgraph_msgs::Clock>(
+      "/clock", 1000,
+      boost::function<void(const rosgraph_msgs::Clock::ConstPtr&)>(
+          [&](const rosgraph_msgs::Clock::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(mutex);
+            clock_went_back |= m->clock < last_clock;
+            last_clock = m->clock;
+          })));
+
+  Launch launch("threshing_sim replay.launch rviz:=false wait_for_subscribers:=true bag:=" + g_dir +
+                "/run.bag");
+  ASSERT_EQ(launch.wait(60), 0) << "replay.launch did not end by itself";
+  ros::WallDuration(1.0).sleep();  // the last messages in flight
+  std::lock_guard<std::mutex> lock(mutex);
+  for (const auto& [topic, n] : counts) EXPECT_EQ(received[topic], n) << topic;
+  EXPECT_FALSE(clock_went_back);
+}
+
+// resimulate.launch re-applies the recorded commands at their step boundaries: contact_state
+// and impact_events come out bit for bit the same.
+TEST(Launch, ResimulatesBitForBit) {
+  Launch launch("threshing_sim resimulate.launch bag:=" + g_dir + "/run.bag out:=" + g_dir +
+                "/resim.bag");
+  ASSERT_EQ(launch.wait(60), 0) << "resimulate.launch did not end by itself";
+  const auto run_counts = countsByTopic(g_dir + "/run.bag");
+  const auto resim_counts = countsByTopic(g_dir + "/resim.bag");
+  EXPECT_EQ(run_counts.at("/drum_speed_cmd_applied"),
+            resim_counts.count("/drum_speed_cmd_applied")
+                ? resim_counts.at("/drum_speed_cmd_applied")
+                : 0);
+  std::string out;
+  EXPECT_EQ(run(std::string(THRESHING_SIM_SOURCE_DIR) + "/scripts/compare_bags " + g_dir +
+                    "/run.bag " + g_dir + "/resim.bag",
+                &out),
+            0)
+      << out;
+  std::printf("%s", out.c_str());
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_launch");
+  ros::NodeHandle nh;
+  char dir[] = "/tmp/threshing_sim_test_XXXXXX";
+  g_dir = mkdtemp(dir);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  const int result = RUN_ALL_TESTS();
+  ros::shutdown();
+  return result;
+}

@@ -1,0 +1,160 @@
+// Unit tests of the Pacer with a fake clock (no ROS master, no sleeping).
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+#include "threshing_sim/ros/pacer.h"
+
+namespace threshing_sim {
+namespace {
+
+class FakeClock : public SteadyClock {
+ public:
+  double nowSeconds() const override { return now_s; }
+  double now_s = 100.0;  // arbitrary origin [s]
+};
+
+PacerOptions options(double real_time_factor) {
+  PacerOptions o;
+  o.step_s = 1e-5;
+  o.real_time_factor = real_time_factor;
+  o.tick_s = 1e-3;
+  o.catch_up_factor = 2.0;
+  o.max_lag_s = 0.1;
+  o.fast_batch_steps = 500;
+  o.rate_window_s = 1.0;
+  return o;
+}
+
+// Runs the pacer for wall_s seconds with the clock advancing tick_s per call; returns the steps.
+long run(FakeClock* clock, Pacer* pacer, double wall_s, double tick_s) {
+  long steps = 0;
+  const int calls = static_cast<int>(wall_s / tick_s + 0.5);
+  for (int i = 0; i < calls; ++i) {
+    clock->now_s += tick_s;
+    steps += pacer->nextBatch();
+  }
+  return steps;
+}
+
+// At factor 1 the steps handed out over 1 s of wall time cover 1 s of simulated time
+// (to within the one step left in the accumulator).
+TEST(Pacer, RealTimeKeepsPace) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  const long steps = run(&clock, &pacer, 1.0, 1e-3);
+  EXPECT_NEAR(steps, 100000, 1);
+  EXPECT_EQ(pacer.overruns(), 0);
+  EXPECT_EQ(pacer.resyncs(), 0);
+}
+
+// Slow motion: 1 s of wall time at factor 0.001 is 1 ms of simulated time, 100 steps.
+TEST(Pacer, SlowMotion) {
+  FakeClock clock;
+  Pacer pacer(clock, options(0.001));
+  EXPECT_EQ(pacer.maxBatchSteps(), 1);
+  EXPECT_NEAR(run(&clock, &pacer, 1.0, 1e-3), 100, 1);
+  // Between steps the caller may sleep until the next one is due (at most one step: 10 ms).
+  EXPECT_GT(pacer.secondsUntilDue(), 1e-3 - 1e-12);
+  EXPECT_LE(pacer.secondsUntilDue(), 1e-2 + 1e-12);
+}
+
+// Factor 0: fixed batches, no sleeping, whatever the clock does.
+TEST(Pacer, AsFastAsPossible) {
+  FakeClock clock;
+  Pacer pacer(clock, options(0.0));
+  EXPECT_EQ(pacer.nextBatch(), 500);
+  EXPECT_EQ(pacer.nextBatch(), 500);
+  EXPECT_EQ(pacer.secondsUntilDue(), 0.0);
+}
+
+// A late call is caught up in bounded batches (two ticks' worth = 200 steps) and each capped
+// batch counts as an overrun; nothing is lost below the re-sync threshold.
+TEST(Pacer, BoundedCatchUp) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  EXPECT_EQ(pacer.maxBatchSteps(), 200);
+  clock.now_s += 5e-3;  // 500 steps due
+  EXPECT_EQ(pacer.nextBatch(), 200);
+  EXPECT_EQ(pacer.secondsUntilDue(), 0.0);
+  EXPECT_EQ(pacer.nextBatch(), 200);
+  EXPECT_EQ(pacer.nextBatch(), 100);
+  EXPECT_EQ(pacer.nextBatch(), 0);
+  EXPECT_EQ(pacer.overruns(), 2);
+  EXPECT_EQ(pacer.resyncs(), 0);
+  // With nothing owed the caller sleeps at least one tick.
+  EXPECT_GE(pacer.secondsUntilDue(), 1e-3);
+}
+
+// Far behind (1 s > max_lag 0.1 s): the backlog is dropped, one full batch runs, then none.
+TEST(Pacer, ResynchronisesWhenFarBehind) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  clock.now_s += 1.0;
+  EXPECT_EQ(pacer.nextBatch(), 200);
+  EXPECT_EQ(pacer.resyncs(), 1);
+  EXPECT_EQ(pacer.nextBatch(), 0);
+}
+
+// A caller whose steps cost twice their simulated time runs at half real time: the measured
+// factor says so, and the pacer keeps re-synchronising instead of spiralling.
+TEST(Pacer, MeasuresTheAchievedFactor) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  long steps = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const int n = pacer.nextBatch();
+    steps += n;
+    clock.now_s += n > 0 ? n * 2e-5 : 1e-3;  // each step costs 20 us of wall time
+  }
+  EXPECT_NEAR(pacer.measuredRealTimeFactor(), 0.5, 0.01);
+  EXPECT_NEAR(pacer.stepRateHz(), 50000, 500);
+  EXPECT_GT(pacer.overruns(), 0);
+  EXPECT_GT(steps, 0);
+}
+
+// The measured factor at real time is 1, and it is a running value before the first window.
+TEST(Pacer, MeasuredFactorAtRealTime) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  run(&clock, &pacer, 0.5, 1e-3);
+  EXPECT_NEAR(pacer.measuredRealTimeFactor(), 1.0, 0.01);
+  run(&clock, &pacer, 2.0, 1e-3);
+  EXPECT_NEAR(pacer.measuredRealTimeFactor(), 1.0, 0.01);
+}
+
+// restart() forgets the time spent paused.
+TEST(Pacer, RestartDropsTheBacklog) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  clock.now_s += 0.05;  // paused for 50 ms
+  pacer.restart();
+  EXPECT_EQ(pacer.nextBatch(), 0);
+  clock.now_s += 1e-3;
+  EXPECT_EQ(pacer.nextBatch(), 100);
+}
+
+// Changing the factor re-derives the catch-up bound and starts afresh.
+TEST(Pacer, ChangesFactor) {
+  FakeClock clock;
+  Pacer pacer(clock, options(1.0));
+  pacer.setRealTimeFactor(0.5);
+  EXPECT_EQ(pacer.maxBatchSteps(), 100);
+  EXPECT_EQ(pacer.realTimeFactor(), 0.5);
+  clock.now_s += 1e-3;
+  EXPECT_EQ(pacer.nextBatch(), 50);
+}
+
+TEST(Pacer, RejectsBadOptions) {
+  FakeClock clock;
+  PacerOptions o = options(1.0);
+  o.step_s = 0;
+  EXPECT_THROW(Pacer(clock, o), std::invalid_argument);
+  EXPECT_THROW(Pacer(clock, options(-1.0)), std::invalid_argument);
+  Pacer pacer(clock, options(1.0));
+  EXPECT_THROW(pacer.setRealTimeFactor(std::numeric_limits<double>::quiet_NaN()),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace threshing_sim
