@@ -42,14 +42,17 @@ void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, S
   (*w)[2] = sign * cross(p_W - c_W, dir);
 }
 
-// Deformed centreline point at material coordinate x in world: A(theta) [b + (x + w_c) e1 + w e2].
+// Deformed centreline point at material coordinate x in world, A(theta) [b + (x + w_c) e1 + w e2],
+// and its tangent dr/dx = A(theta) [(1 + w_c') e1 + w' e2] with w_c' = -(w')^2 / 2.
 Vec2 centrelinePoint(const ToothModel& tm, const Eigen::Ref<const VecX>& q, double theta_rad,
-                     double x_m, Workspace* ws) {
+                     double x_m, Workspace* ws, Vec2* dr_dx) {
   evaluateModes(tm, x_m, &ws->scratch_phi, &ws->scratch_dphi);
   interpolateH(tm, x_m, &ws->scratch_H);
   const double w = ws->scratch_phi.dot(q);
+  const double slope = ws->scratch_dphi.dot(q);
   const SmallVec Hq = ws->scratch_H * q;
   const double wc = -0.5 * q.dot(Hq);
+  *dr_dx = rotate(theta_rad, (1.0 - 0.5 * slope * slope) * tm.e1_D + slope * tm.e2_D);
   return rotate(theta_rad, tm.p_DR_D + (x_m + wc) * tm.e1_D + w * tm.e2_D);
 }
 
@@ -222,32 +225,30 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     g->tooth_x_m = x0 + best.param * (x1 - x0);
     if (tm.n_modes > 0) {
       // Refine on the exact deformed centreline (the polyline only brackets it), so that the
-      // gap and the modal Jacobian below describe the same curve: golden-section search of
-      // the point-ellipse distance over one station spacing either side.
+      // gap and the modal Jacobian below describe the same curve: secant iterations on the
+      // closest-point condition h(x) = n(x) . r'(x) = 0, started from the polyline's answer.
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
-      auto distanceAt = [&](double x) {
-        return pointEllipse(centrelinePoint(tm, q, drive.theta_rad, x, ws), e);
+      Vec2 r_x;
+      auto slopeAt = [&](double x, Proximity* p) {
+        Vec2 dr_dx;
+        r_x = centrelinePoint(tm, q, drive.theta_rad, x, ws, &dr_dx);
+        *p = pointEllipse(r_x, e);
+        return p->normal.dot(dr_dx);
       };
-      const double spacing = x1 - x0;
-      double lo = std::max(0.0, g->tooth_x_m - spacing);
-      double hi = std::min(tm.length_m, g->tooth_x_m + spacing);
-      const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
-      double xa = hi - ratio * (hi - lo), xb = lo + ratio * (hi - lo);
-      double fa = distanceAt(xa).distance_m, fb = distanceAt(xb).distance_m;
-      for (int it = 0; it < 40 && hi - lo > 1e-12 * tm.length_m; ++it) {
-        if (fa <= fb) {
-          hi = xb, xb = xa, fb = fa;
-          xa = hi - ratio * (hi - lo);
-          fa = distanceAt(xa).distance_m;
-        } else {
-          lo = xa, xa = xb, fa = fb;
-          xb = lo + ratio * (hi - lo);
-          fb = distanceAt(xb).distance_m;
-        }
+      double xa = g->tooth_x_m;
+      double xb = std::min(tm.length_m, xa + 1e-6 * tm.length_m);
+      if (xb == xa) xb = xa - 1e-6 * tm.length_m;
+      Proximity pa, pb;
+      double ha = slopeAt(xa, &pa), hb = slopeAt(xb, &pb);
+      for (int it = 0; it < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m; ++it) {
+        const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
+        xa = xb, ha = hb;
+        xb = xn;
+        hb = slopeAt(xb, &pb);
       }
-      g->tooth_x_m = fa <= fb ? xa : xb;
-      best = distanceAt(g->tooth_x_m);
-      best.point1 = centrelinePoint(tm, q, drive.theta_rad, g->tooth_x_m, ws);
+      g->tooth_x_m = xb;
+      slopeAt(xb, &best);
+      best.point1 = r_x;
     }
     g->gap_m = best.distance_m - r_t;
     g->n = best.normal;

@@ -79,7 +79,7 @@ struct PairMemory {
   int sub_index = -1;                   // sub-collision index within the macro-collision
   double normal_force_N = 0;            // last force values (for ContactInfo) [N]
   double tangential_force_N = 0;
-  double impulse_n_acc = 0;  // impulses since the last clearImpulseAccumulators [N s]
+  double impulse_n_acc = 0;  // running sums of the impulses since reset [N s]
   double impulse_t_acc = 0;
   bool seen = false;  // touched by the broad phase in the current step
 };

@@ -45,8 +45,8 @@ struct ContactInfo {
   double slip_velocity_mps = 0;    // dg_T/dt along t = J n [m/s]
   double normal_force_N = 0;       // lambda_N on the kernel (impulse / h under time stepping) [N]
   double tangential_force_N = 0;   // lambda_T on the kernel along t = J n [N]
-  double impulse_normal_Ns = 0;  // normal impulse accumulated since clearImpulseAccumulators [N s]
-  double impulse_tangential_Ns = 0;  // tangential impulse accumulated likewise [N s]
+  double impulse_normal_Ns = 0;  // normal impulse of this pair since reset (running sum) [N s]
+  double impulse_tangential_Ns = 0;  // tangential impulse likewise [N s]
 };
 
 // One impact (initial contact) or state transition of a pair.
