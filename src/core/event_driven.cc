@@ -661,7 +661,11 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
 
   // Trial step size.
   double h = ws.ed_h > 0 ? ws.ed_h : std::min(m.integrator.max_step_s, 1e-6);
-  h = std::min({h, m.integrator.max_step_s, t_end_s - d->t_s, margin / v_bound});
+  h = std::min({h, m.integrator.max_step_s, margin / v_bound});
+  // A step cut short to land on t_end (or on the end of a drum ramp) must not shrink the
+  // step-size proposal for the steps after it.
+  const double h_wanted = h;
+  h = std::min(h, t_end_s - d->t_s);
   const double ramp = timeToTarget(m, *d);
   if (ramp > 1e-15 && ramp < h) h = ramp;
   if (!(h > 0)) h = t_end_s - d->t_s;
@@ -724,7 +728,8 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  if (!event) ws.ed_h = h_next;
+  const bool truncated = h < h_wanted;
+  if (!event) ws.ed_h = truncated && h_next < h_wanted ? h_wanted : h_next;
   const double t = d->t_s;
 
   // Statistics of the forces over the accepted step (end point).
