@@ -25,9 +25,10 @@ while [ $# -gt 0 ]; do
   esac
 done
 
-# ROS on the loopback interface (a fresh machine may not resolve its own hostname).
-export ROS_HOSTNAME="${ROS_HOSTNAME:-localhost}"
-export ROS_MASTER_URI="${ROS_MASTER_URI:-http://localhost:11311}"
+# A fresh system may have no /etc/hosts (not even "localhost"): use the numeric loopback address
+# unless the user chose an address.
+if [ -z "${ROS_IP:-}" ] && [ -z "${ROS_HOSTNAME:-}" ]; then export ROS_IP=127.0.0.1; fi
+export ROS_MASTER_URI="${ROS_MASTER_URI:-http://127.0.0.1:11311}"
 
 # The package: from a sourced workspace, else built in .build/ws (incremental after the first).
 if ! rospack find threshing_sim >/dev/null 2>&1; then

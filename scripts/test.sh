@@ -9,9 +9,10 @@ bash "$ROOT/scripts/setup.sh" || { echo "0 passed, 1 failed"; exit 1; }
 WS="$ROOT/.build/ws"
 cd "$WS"
 export PATH="/usr/bin:$PATH"
-# A fresh machine may not resolve its own hostname: keep ROS on the loopback interface.
-export ROS_HOSTNAME="${ROS_HOSTNAME:-localhost}"
-export ROS_MASTER_URI="${ROS_MASTER_URI:-http://localhost:11311}"
+# A fresh system may have no /etc/hosts (not even "localhost"): use the numeric loopback address
+# unless the user chose an address.
+if [ -z "${ROS_IP:-}" ] && [ -z "${ROS_HOSTNAME:-}" ]; then export ROS_IP=127.0.0.1; fi
+export ROS_MASTER_URI="${ROS_MASTER_URI:-http://127.0.0.1:11311}"
 set +u
 # shellcheck disable=SC1091
 source "$WS/devel/setup.bash"
