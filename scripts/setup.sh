@@ -28,6 +28,13 @@ if [ ${#missing[@]} -gt 0 ]; then
   apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
+# roslaunch names its local machine "localhost", which must resolve; a minimal system
+# (debootstrap minbase, some containers) has no /etc/hosts at all.
+if ! getent hosts localhost >/dev/null 2>&1; then
+  echo "setup: adding the loopback entries to /etc/hosts (roslaunch needs 'localhost')"
+  printf '127.0.0.1\tlocalhost\n::1\tlocalhost ip6-localhost ip6-loopback\n' >> /etc/hosts
+fi
+
 # Build in .build/ws with Debian's python (a pyenv shim on PATH lacks catkin_pkg).
 WS="$ROOT/.build/ws"
 mkdir -p "$WS/src"
