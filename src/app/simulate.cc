@@ -7,7 +7,7 @@
 //
 // Sampling: the state trace is written every kChunk_s (times --trace-every). Contacts are
 // sampled for the outcomes and --forces after every advanceTo(): every --sample-interval while
-// some pair is within the broad-phase margin or in contact, otherwise at least every time the
+// some tooth-kernel pair is within the broad-phase margin, otherwise at least every time the
 // fastest body could cover the margin (and at every trace chunk).
 #include <unistd.h>
 
@@ -244,8 +244,13 @@ void checkWritten(const std::string& path, std::ofstream* out) {
   if (out->fail()) throw std::runtime_error("error writing '" + path + "'");
 }
 
-// Whether contacts must be sampled finely: some pair is within the broad-phase margin.
-bool nearContact(const Data& data) { return !data.contacts.empty(); }
+// Whether contacts must be sampled finely: some tooth-kernel pair is within the broad-phase
+// margin (the outcomes' force peaks and the --forces histories are the teeth's).
+bool nearContact(const Data& data) {
+  return std::any_of(data.contacts.begin(), data.contacts.end(), [](const ContactInfo& c) {
+    return c.pair.kind == PairKind::kToothKernel;
+  });
+}
 
 // Longest coarse sampling interval: the time the fastest tooth tip or kernel needs to cover the
 // broad-phase margin, so that no contact starts between two looks at data.contacts [s].

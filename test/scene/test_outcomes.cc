@@ -240,6 +240,29 @@ TEST(ThreshingScenes, PolyurethaneKneadsLessThanRigid) {
   EXPECT_LT(soft.peak_tangential_force_N, rigid.peak_tangential_force_N);
 }
 
+// Claim 2: struck at its tip, the nylon tooth hits the kernel a second time within the same
+// macro-collision: the deflected tip springs back into the kernel its pedicel holds. The rigid
+// tooth and the same nylon tooth frozen (no bending modes) hit it once: the extra
+// sub-collision comes from the bending. (Elsewhere, e.g. in the knead scene, the rigid tooth has
+// as many or more sub-collisions: docs/findings.md.)
+TEST(ThreshingScenes, FlexibleToothAddsSubCollisionsWhereRigidHasOne) {
+  const std::string tip =
+      std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/cases/tip_strike.yaml";
+  const std::vector<std::string> at_tip = overridesFromFile(tip);
+  std::vector<std::string> frozen = at_tip;
+  frozen.push_back("teeth.*.modes=0");
+  const KernelOutcome rigid = run(scene("single_strike", "rigid", at_tip)).outcomes.at(0);
+  const KernelOutcome nylon = run(scene("single_strike", "nylon", at_tip)).outcomes.at(0);
+  const KernelOutcome still = run(scene("single_strike", "nylon", frozen)).outcomes.at(0);
+  RecordProperty("sub_per_macro_rigid", std::to_string(rigid.subCollisionsPerMacro()));
+  RecordProperty("sub_per_macro_nylon", std::to_string(nylon.subCollisionsPerMacro()));
+  ASSERT_EQ(rigid.macro_collisions, 1);
+  EXPECT_EQ(rigid.sub_collisions, 1);
+  EXPECT_EQ(still.sub_collisions, 1);
+  ASSERT_EQ(nylon.macro_collisions, 1);
+  EXPECT_GT(nylon.subCollisionsPerMacro(), 1.0);
+}
+
 // The core's macro-collision rule, seen in the events of a run: an episode starting within
 // macro_collision_gap of the previous one's end is the next sub-collision of the same
 // macro-collision, otherwise the first of a new one.
