@@ -32,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "sim_test_util.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -237,42 +238,9 @@ void expectCommon(const Model& m, const RunLog& r, const Limits& lim) {
   EXPECT_LE(st.max_penetration_m, lim.penetration_m);
 }
 
-// Byte-wise equality (bit-identical reruns: no tolerance at all).
-bool sameBits(const VecX& a, const VecX& b) {
-  return a.size() == b.size() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
-}
-
-bool sameEvents(const std::vector<ContactEvent>& a, const std::vector<ContactEvent>& b) {
-  if (a.size() != b.size()) return false;
-  for (size_t i = 0; i < a.size(); ++i) {
-    const ContactEvent& x = a[i];
-    const ContactEvent& y = b[i];
-    if (!(x.pair == y.pair) || x.from != y.from || x.to != y.to || x.is_impact != y.is_impact ||
-        x.macro_collision != y.macro_collision || x.sub_collision != y.sub_collision)
-      return false;
-    const double fx[] = {x.t_s,
-                         x.vn_before_mps,
-                         x.vn_after_mps,
-                         x.vt_before_mps,
-                         x.vt_after_mps,
-                         x.impulse_normal_Ns,
-                         x.impulse_tangential_Ns,
-                         x.energy_lost_J,
-                         x.peak_normal_force_N};
-    const double fy[] = {y.t_s,
-                         y.vn_before_mps,
-                         y.vn_after_mps,
-                         y.vt_before_mps,
-                         y.vt_after_mps,
-                         y.impulse_normal_Ns,
-                         y.impulse_tangential_Ns,
-                         y.energy_lost_J,
-                         y.peak_normal_force_N};
-    if (std::memcmp(fx, fy, sizeof(fx)) != 0) return false;
-  }
-  return true;
-}
+// Bit-identical reruns compare with testutil::sameBits / sameEvents (sim_test_util.h).
+using testutil::sameBits;
+using testutil::sameEvents;
 
 // A second run of the same model (fresh Data) must repeat the first bit for bit.
 void expectBitIdenticalRerun(const Model& m, const RunLog& first,
