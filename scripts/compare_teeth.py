@@ -632,7 +632,9 @@ def write_findings(path, a, plots, rpms, history_rpm):
         "spring_steel,nylon,polyurethane}.yaml` (values and sources in the files); drum "
         f"speeds {rpms[0]}-{rpms[-1]} rpm; contact forces sampled every {fmt(a['sample_us'])} "
         "us near contacts; all contacts compliant (Hertz with Hunt-Crossley damping, Coulomb "
-        "friction), integrated event-driven.", "",
+        "friction), integrated event-driven. The stream is one seed of a chaotic process (its "
+        "kernels hit each other and the bars), so its numbers scatter from speed to speed: read "
+        "them as trends.", "",
         "| claim | verdict |", "|---|---|"]
     lines += [f"| {title} | {verdict} |" for title, verdict, _ in claims]
     lines.append("")

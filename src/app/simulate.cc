@@ -247,9 +247,8 @@ void checkWritten(const std::string& path, std::ofstream* out) {
 // Whether contacts must be sampled finely: some tooth-kernel pair is within the broad-phase
 // margin (the outcomes' force peaks and the --forces histories are the teeth's).
 bool nearContact(const Data& data) {
-  return std::any_of(data.contacts.begin(), data.contacts.end(), [](const ContactInfo& c) {
-    return c.pair.kind == PairKind::kToothKernel;
-  });
+  return std::any_of(data.contacts.begin(), data.contacts.end(),
+                     [](const ContactInfo& c) { return c.pair.kind == PairKind::kToothKernel; });
 }
 
 // Longest coarse sampling interval: the time the fastest tooth tip or kernel needs to cover the

@@ -666,6 +666,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   // step-size proposal for the steps after it.
   const double h_wanted = h;
   h = std::min(h, t_end_s - d->t_s);
+  const bool truncated = h < h_wanted;
   const double ramp = timeToTarget(m, *d);
   if (ramp > 1e-15 && ramp < h) h = ramp;
   if (!(h > 0)) h = t_end_s - d->t_s;
@@ -678,9 +679,11 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   // Adaptive step until the error is within tolerance.
   VecX z1(n), u1(n);
   double err = 0, torque1 = 0;
+  bool rejected = false;
   for (int attempt = 0;; ++attempt) {
     if (!dopriStep(c, d->t_s, h, d->z, d->u, &z1, &u1, &err, &torque1)) err = kInf;
     if (err <= 1.0) break;
+    rejected = true;
     ++d->stats.rejected_steps;
     h *= std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
     if (h < 1e-15 || attempt > 200) return StepStatus::kFailed;
@@ -728,8 +731,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  const bool truncated = h < h_wanted;
-  if (!event) ws.ed_h = truncated && h_next < h_wanted ? h_wanted : h_next;
+  if (!event) ws.ed_h = truncated && !rejected && h_next < h_wanted ? h_wanted : h_next;
   const double t = d->t_s;
 
   // Statistics of the forces over the accepted step (end point).

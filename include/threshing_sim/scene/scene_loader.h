@@ -37,8 +37,8 @@ std::vector<std::string> overridesFromFile(const std::string& path);
 
 // Validates the tree (unknown keys, missing keys, types, ranges, NaN/inf, semi-axes order,
 // kernels overlapping at start), expands a kernel `stream` into kernels appended after the
-// listed ones (deterministic from its seed; README.md "Scene file reference") and returns the compiled
-// model. Throws SceneError.
+// listed ones (deterministic from its seed; README.md "Scene file reference") and returns the
+// compiled model. Throws SceneError.
 Model modelFromYaml(const YAML::Node& root);
 
 // The outcome settings of a scene (section `damage`; defaults for rice when absent). The tree
