@@ -73,6 +73,55 @@ std::uint64_t pairKey(const PairId& p) {
          static_cast<std::uint64_t>(static_cast<std::uint32_t>(p.b));
 }
 
+namespace {
+// Slot of a key in a table of n_slots = 2^k slots: a 64-bit multiplicative hash (the key's
+// fields sit in the high and low bits, the product mixes them into the top bits).
+size_t slotOf(std::uint64_t key, size_t n_slots) {
+  const std::uint64_t mixed = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
+  return static_cast<size_t>(mixed >> 32) & (n_slots - 1);
+}
+}  // namespace
+
+void PairTable::reserve(size_t n) {
+  entries_.reserve(n);
+  // Load factor at most 1/2.
+  size_t n_slots = 16;
+  while (n_slots < 2 * n) n_slots *= 2;
+  if (n_slots > slots_.size()) rehash(n_slots);
+}
+
+void PairTable::rehash(size_t n_slots) {
+  slots_.assign(n_slots, -1);
+  for (size_t i = 0; i < entries_.size(); ++i) {
+    size_t s = slotOf(entries_[i].first, n_slots);
+    while (slots_[s] >= 0) s = (s + 1) & (n_slots - 1);
+    slots_[s] = static_cast<int>(i);
+  }
+}
+
+int PairTable::indexOf(std::uint64_t key) {
+  if (slots_.empty()) rehash(16);
+  // Linear probing to the key or an empty slot.
+  size_t s = slotOf(key, slots_.size());
+  while (slots_[s] >= 0) {
+    if (entries_[slots_[s]].first == key) return slots_[s];
+    s = (s + 1) & (slots_.size() - 1);
+  }
+  // New entry; grow the slots past half full (allocates only beyond the reserve).
+  const int index = static_cast<int>(entries_.size());
+  entries_.emplace_back(key, PairMemory());
+  slots_[s] = index;
+  if (2 * entries_.size() > slots_.size()) rehash(2 * slots_.size());
+  return index;
+}
+
+PairMemory& PairTable::operator[](std::uint64_t key) { return entries_[indexOf(key)].second; }
+
+void PairTable::clear() {
+  entries_.clear();
+  std::fill(slots_.begin(), slots_.end(), -1);
+}
+
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i) {
   const KernelModel& k = m.kernels[i];
   Ellipse e;
@@ -453,7 +502,13 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2) {
   const int T = static_cast<int>(m.teeth.size());
-  if (body < T) return tooth_minv ? w1.dot((*tooth_minv)[body] * w2) : w1.dot(w2);
+  if (body < T) {
+    if (!tooth_minv) return w1.dot(w2);
+    // The product into fixed-capacity storage: no heap temporary.
+    SmallVec mw2(w2.size());
+    mw2.noalias() = (*tooth_minv)[body] * w2;
+    return w1.dot(mw2);
+  }
   const KernelModel& k = m.kernels[body - T];
   return (w1[0] * w2[0] + w1[1] * w2[1]) / k.mass_kg + w1[2] * w2[2] / k.inertia_kgm2;
 }
@@ -469,8 +524,9 @@ int findRoot(std::vector<int>* parent, int i) {
 
 bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Workspace* ws) {
   const int k = static_cast<int>(ws->active.size());
-  ws->lambda.setZero(2 * k);
-  ws->y.resize(2 * k);
+  growTo(&ws->lambda, 2 * k);
+  growTo(&ws->y, 2 * k);
+  ws->lambda.head(2 * k).setZero();
   if (k == 0) return true;
 
   // Union-find over bodies: two contacts sharing a moving body are in the same island.
@@ -492,8 +548,11 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
     ws->island_contacts[c] = c;
     ws->island_of_body[c] = findRoot(&ws->island_parent, ws->geoms[ws->active[c]].side[1].body);
   }
-  std::stable_sort(ws->island_contacts.begin(), ws->island_contacts.end(),
-                   [&](int a, int b) { return ws->island_of_body[a] < ws->island_of_body[b]; });
+  // (std::stable_sort would allocate a buffer; ties broken by index give the same order.)
+  std::sort(ws->island_contacts.begin(), ws->island_contacts.end(), [&](int a, int b) {
+    return ws->island_of_body[a] < ws->island_of_body[b] ||
+           (ws->island_of_body[a] == ws->island_of_body[b] && a < b);
+  });
 
   bool all_ok = true;
   for (int begin = 0; begin < k;) {
@@ -503,8 +562,12 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
     const int ki = end - begin;
 
     // Delassus matrix G = W^T Minv W of the island, and its right-hand side.
-    ws->G_island.setZero(2 * ki, 2 * ki);
-    ws->b_island.resize(2 * ki);
+    growTo(&ws->G_island, 2 * ki, 2 * ki);
+    growTo(&ws->b_island, 2 * ki);
+    growTo(&ws->lambda_island, 2 * ki);
+    growTo(&ws->y_island, 2 * ki);
+    auto G_island = ws->G_island.topLeftCorner(2 * ki, 2 * ki);
+    G_island.setZero();
     ws->rows_island.resize(ki);
     for (int i = 0; i < ki; ++i) {
       const int ci = ws->island_contacts[begin + i];
@@ -523,16 +586,17 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
             tt += weightedDot(m, tooth_minv, si.body, si.w_t, sj.w_t);
           }
         }
-        ws->G_island(2 * i, 2 * j) = ws->G_island(2 * j, 2 * i) = nn;
-        ws->G_island(2 * i, 2 * j + 1) = ws->G_island(2 * j + 1, 2 * i) = nt;
-        ws->G_island(2 * i + 1, 2 * j) = ws->G_island(2 * j, 2 * i + 1) = tn;
-        ws->G_island(2 * i + 1, 2 * j + 1) = ws->G_island(2 * j + 1, 2 * i + 1) = tt;
+        G_island(2 * i, 2 * j) = G_island(2 * j, 2 * i) = nn;
+        G_island(2 * i, 2 * j + 1) = G_island(2 * j + 1, 2 * i) = nt;
+        G_island(2 * i + 1, 2 * j) = G_island(2 * j, 2 * i + 1) = tn;
+        G_island(2 * i + 1, 2 * j + 1) = G_island(2 * j + 1, 2 * i + 1) = tt;
       }
     }
 
     // One complementarity problem over the island's contacts.
-    const bool ok = solveContactProblem(ws->G_island, ws->b_island, ws->rows_island,
-                                        &ws->lambda_island, &ws->y_island, &ws->lcp);
+    const bool ok =
+        solveContactProblem(G_island, ws->b_island.head(2 * ki), ws->rows_island,
+                            ws->lambda_island.head(2 * ki), ws->y_island.head(2 * ki), &ws->lcp);
     all_ok = all_ok && ok;
     for (int i = 0; i < ki; ++i) {
       const int ci = ws->island_contacts[begin + i];

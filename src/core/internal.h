@@ -2,9 +2,11 @@
 // Not installed; nothing outside src/core includes it.
 #pragma once
 
+#include <Eigen/LU>
+#include <algorithm>
 #include <cstdint>
 #include <limits>
-#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "threshing_sim/core/data.h"
@@ -18,6 +20,16 @@ namespace internal {
 
 // A short vector that never touches the heap (a tooth has at most 12 modes, a kernel 3 dofs).
 using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1>;
+
+// Grow-only sizing of scratch storage: the size rises to the largest request seen and stays,
+// so that steady stepping allocates nothing; callers use the leading n entries (head, block).
+inline void growTo(VecX* v, Eigen::Index n) {
+  if (v->size() < n) v->resize(n);
+}
+inline void growTo(MatX* m, Eigen::Index rows, Eigen::Index cols) {
+  if (m->rows() < rows || m->cols() < cols)
+    m->resize(std::max(m->rows(), rows), std::max(m->cols(), cols));
+}
 
 // Rheonomic drum state at one instant.
 struct Drive {
@@ -86,21 +98,50 @@ struct PairMemory {
 
 std::uint64_t pairKey(const PairId& p);
 
+// Pair memory by pair key: open addressing over a dense array of entries. Lookups and inserts
+// allocate nothing while the reserved capacity holds (reserve() at reset sizes it from the
+// model); entries are never removed except by clear(). Iteration visits entries in insertion
+// order, so it is deterministic.
+class PairTable {
+ public:
+  using Entry = std::pair<std::uint64_t, PairMemory>;
+  // Room for n entries without allocating.
+  void reserve(size_t n);
+  // The memory of a pair, default-constructed on first use.
+  PairMemory& operator[](std::uint64_t key);
+  // Index of the entry of key in the dense array (inserting it if new).
+  int indexOf(std::uint64_t key);
+  Entry& entry(int index) { return entries_[index]; }
+  void clear();
+  size_t size() const { return entries_.size(); }
+  std::vector<Entry>::iterator begin() { return entries_.begin(); }
+  std::vector<Entry>::iterator end() { return entries_.end(); }
+
+ private:
+  void rehash(size_t n_slots);
+  std::vector<Entry> entries_;  // dense, insertion order
+  std::vector<int> slots_;      // hash table of indices into entries_ (-1 = empty), 2^k long
+};
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
 struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
-  std::unordered_map<std::uint64_t, internal::PairMemory> memory;
+  internal::PairTable memory;
   std::vector<int> sort_index;      // sweep-and-prune order
   std::vector<Vec2> stations_W;     // deformed tooth centrelines, all teeth [m]
   std::vector<int> station_offset;  // first station of each tooth in stations_W
   VecX forces;                      // generalised forces [N or sqrt(kg) m/s^2]
   VecX u_free, z_mid, u_old, z_old, du;
-  VecX guard_z, guard_u;                // last good state for the non-finite guard
-  std::vector<MatX> iteration_inverse;  // time stepping: (I + h theta D + h^2 theta^2 K)^-1
-  double iteration_omega = -1;          // drum speed the matrices above were built at
+  VecX guard_z, guard_u;                  // last good state for the non-finite guard
+  std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  std::vector<MatX> iteration_stiffness;  // time stepping: K(Omega) of each tooth [1/s^2]
+  std::vector<MatX> iteration_matrix;     // time stepping: I + h theta D + h^2 theta^2 K [-]
+  std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
+  double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
+  double iteration_h = -1;      // and the step [s]
   std::vector<int> island_of_body, island_contacts, island_start, island_parent;
   MatX G_island;
   VecX b_island, lambda_island, y_island;
@@ -119,6 +160,19 @@ struct Workspace {
   VecX ed_fn, ed_ft;             // contact forces per geom at the last rhs [N]
   VecX ed_imp_n, ed_imp_t;       // their integrals over the last trial step [N s]
   double ed_torque_impulse = 0;  // integral of the drum contact torque [N m s]
+  // Event-driven scratch, reused so that a step allocates nothing after warm-up.
+  VecX ed_z1, ed_u1, ed_zt, ed_ut;             // trial end states [m or -, m/s or -]
+  VecX ed_zz, ed_uu, ed_udot;                  // Runge-Kutta stage state and acceleration
+  VecX ed_udot_end, ed_udot_ev;                // accelerations at the step end / event checks
+  VecX ed_imp_n_step, ed_imp_t_step;           // impulses of the accepted step per geom [N s]
+  std::vector<double> ed_ev0, ed_ev1, ed_evm;  // event function values (see eventValues)
+  std::vector<int> ed_forced_slip;             // geoms forced into slip by a stick-slip event
+  std::vector<std::pair<int, int>> ed_idx;     // constraint rows: (active contact, 0 N / 1 T)
+  MatX ed_A;                                   // constraint matrix of those rows (grow-only)
+  VecX ed_rc, ed_lam;                          // its right-hand side and solution
+  std::vector<int> ed_row_perm, ed_col_perm;   // pivoting of the elimination
+  // Pair-table indices of the candidates of the previous step that were in contact.
+  std::vector<int> prev_active;
 };
 
 namespace internal {

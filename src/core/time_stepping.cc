@@ -14,18 +14,39 @@ namespace threshing_sim {
 namespace internal {
 namespace {
 
-// (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega changes.
+// (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega or h changes
+// (a recovery crosses an interval with smaller steps).
 void updateIterationMatrices(const Model& m, double omega, double h, Workspace* ws) {
-  if (ws->iteration_omega == omega && ws->iteration_inverse.size() == m.teeth.size()) return;
+  if (ws->iteration_omega == omega && ws->iteration_h == h &&
+      ws->iteration_inverse.size() == m.teeth.size())
+    return;
   const double th = m.integrator.theta;
-  ws->iteration_inverse.resize(m.teeth.size());
-  for (size_t k = 0; k < m.teeth.size(); ++k) {
+  const size_t T = m.teeth.size();
+  ws->iteration_inverse.resize(T);
+  ws->iteration_stiffness.resize(T);
+  ws->iteration_matrix.resize(T);
+  ws->iteration_lu.resize(T);
+  for (size_t k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
-    MatX W = (h * h * th * th) * toothStiffness(tm, omega);
+    const int n = tm.n_modes;
+    // K(Omega) = Lambda + Omega^2 (K_G - I), written into storage of a fixed size per tooth so
+    // that a drum ramp (new Omega every step) allocates nothing.
+    MatX& K = ws->iteration_stiffness[k];
+    K.resize(n, n);
+    K = (omega * omega) * tm.K_G;
+    K.diagonal().array() =
+        (omega * omega) * (tm.K_G.diagonal().array() - 1.0) + tm.omega0_sq.array();
+    MatX& W = ws->iteration_matrix[k];
+    W.resize(n, n);
+    W = (h * h * th * th) * K;
     W.diagonal().array() += 1.0 + h * th * tm.damping_coeff.array();
-    ws->iteration_inverse[k] = W.inverse();
+    ws->iteration_inverse[k].resize(n, n);
+    if (n == 0) continue;
+    ws->iteration_lu[k].compute(W);
+    ws->iteration_inverse[k] = ws->iteration_lu[k].inverse();
   }
   ws->iteration_omega = omega;
+  ws->iteration_h = h;
 }
 
 // Largest speed of any material point, to widen the broad phase over one step [m/s].
@@ -77,8 +98,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
     auto f = ws.forces.segment(tm.dof_offset, tm.n_modes);
-    f.noalias() -= h * (th - 0.5) *
-                   (toothStiffness(tm, mid.omega_radps) * d->u.segment(tm.dof_offset, tm.n_modes));
+    f.noalias() -=
+        (h * (th - 0.5)) * (ws.iteration_stiffness[k] * d->u.segment(tm.dof_offset, tm.n_modes));
   }
   ws.u_free = d->u;
   for (int k = 0; k < T; ++k) {
@@ -115,8 +136,9 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     ws.rows.push_back(row);
   }
   const int k = static_cast<int>(ws.active.size());
-  ws.b.resize(2 * k);
-  ws.b_offset.setZero(k);
+  growTo(&ws.b, 2 * k);
+  growTo(&ws.b_offset, k);
+  ws.b_offset.head(k).setZero();
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     double bn = g.wtilde_n, bt = g.wtilde_t;
