@@ -47,32 +47,59 @@ bool isActive(const PairMemory& mem) { return mem.state != ContactState::kSepara
 // Drum state at absolute time t (the target is fixed within a step).
 Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 
-// Evaluates every candidate pair at (z, u, t) into ws.geoms. Separated pairs whose gap is
-// surely above a quarter of the broad-phase margin get only that bound (their event function
-// needs just its sign).
-void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr) {
-  updateStations(c.m, z, dr.theta_rad, &c.ws);
+// How much of a separated pair evaluateAll computes.
+enum class SeparatedPairs {
+  kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts)
+  kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within 1 um by
+          // the supporting-line bound (event functions)
+  kNone,  // nothing beyond a bound (Runge-Kutta stages: separated pairs exert no force)
+};
+
+// Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
+// says (a far pair gets only a lower bound of its gap).
+void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
+                 SeparatedPairs separated = SeparatedPairs::kNear) {
+  // Stations only of the teeth that have a candidate pair (candidates are sorted by kind, tooth
+  // pairs first, by tooth).
+  layoutStations(c.m, &c.ws);
+  int last_tooth = -1;
+  for (const PairId& p : c.ws.candidates) {
+    if (p.kind != PairKind::kToothKernel) break;
+    if (p.a == last_tooth) continue;
+    updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
+    last_tooth = p.a;
+  }
   c.ws.geoms.resize(c.ws.candidates.size());
-  const double far_m = 0.25 * c.m.broadphase_margin_m;
+  const double near_m = 0.25 * c.m.broadphase_margin_m;
   for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
     const PairId& p = c.ws.candidates[i];
-    const bool separated = c.ws.memory[pairKey(p)].state == ContactState::kSeparated;
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &c.ws.geoms[i], separated ? far_m : kInf);
+    double far_m = kInf;
+    bool tight = false;
+    if (c.ws.memory[pairKey(p)].state == ContactState::kSeparated) {
+      const bool tooth = p.kind == PairKind::kToothKernel;
+      far_m = separated == SeparatedPairs::kNone             ? -kInf
+              : separated == SeparatedPairs::kSign && !tooth ? 1e-6
+                                                             : near_m;
+      tight = separated == SeparatedPairs::kSign && !tooth;
+    }
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &c.ws.geoms[i], far_m, tight);
   }
 }
 
 // Relative velocity derivative along the motion with u frozen: (d/dt W)^T u + d(wtilde)/dt,
 // by a central difference over +-eps of time, for the normal (0) and tangential (1) rows.
+// Only the pair's own tooth has its stations moved (and left moved).
 Vec2 velocityDrift(const Ctx& c, const VecX& z, const VecX& u, double t, const PairId& pair) {
   const double eps = 1e-8;
+  const bool tooth = pair.kind == PairKind::kToothKernel;
   ContactGeom gp, gm;
   c.ws.z_mid = z + eps * u;
   Drive dp = driveAtTime(c, t + eps);
-  updateStations(c.m, c.ws.z_mid, dp.theta_rad, &c.ws);
+  if (tooth) updateToothStations(c.m, c.ws.z_mid, dp.theta_rad, pair.a, &c.ws);
   evaluateContact(c.m, c.ws.z_mid, u, dp, pair, &c.ws, &gp);
   c.ws.z_mid = z - eps * u;
   Drive dm = driveAtTime(c, t - eps);
-  updateStations(c.m, c.ws.z_mid, dm.theta_rad, &c.ws);
+  if (tooth) updateToothStations(c.m, c.ws.z_mid, dm.theta_rad, pair.a, &c.ws);
   evaluateContact(c.m, c.ws.z_mid, u, dm, pair, &c.ws, &gm);
   return Vec2((gp.vn - gm.vn) / (2 * eps), (gp.vt - gm.vt) / (2 * eps));
 }
@@ -122,13 +149,14 @@ bool solveSquare(Workspace* ws, int n) {
 // Right-hand side under the current index sets: udot, the contact forces (stored in the pair
 // memory's normal/tangential force) and the contact torque on the drum. Returns false if the
 // constraint system is singular.
+// `separated` is passed to evaluateAll (the Runge-Kutta stages need no separated pair).
 bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, double* drum_torque,
-         bool store_forces) {
+         bool store_forces, SeparatedPairs separated = SeparatedPairs::kNear) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   const Drive dr = driveAtTime(c, t);
   smoothForces(m, c.d, z, u, dr, &ws.forces);
-  evaluateAll(c, z, u, dr);
+  evaluateAll(c, z, u, dr, separated);
 
   // Known forces: compliant normals and every sliding friction with a known normal.
   ws.active.clear();
@@ -294,7 +322,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
   const Model& m = c.m;
   Workspace& ws = c.ws;
   double torque;
-  rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true);
+  rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true, SeparatedPairs::kSign);
   vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
@@ -358,7 +386,7 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
       zz += h * kA[s][j] * ws.rk_k[j].head(n);
       uu += h * kA[s][j] * ws.rk_k[j].tail(n);
     }
-    if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false)) return false;
+    if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false, SeparatedPairs::kNone)) return false;
     ws.rk_k[s].head(n) = uu;
     ws.rk_k[s].tail(n) = udot;
     // Contact impulses and drum torque integrated with the 5th-order weights (b = row 7 of A).
@@ -598,8 +626,10 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
 
 // Projects the state back onto closed rigid contacts (g = 0, dg/dt = 0) and sticking tangents
 // (dg_T/dt = 0) after a step, so that constraint drift never accumulates. Gauss-Seidel: each
-// contact is re-evaluated after the previous one's correction.
-void projectConstraints(const Ctx& c, double t) {
+// contact is re-evaluated after the previous one's correction. Returns whether any correction
+// was applied (the state is otherwise untouched).
+bool projectConstraints(const Ctx& c, double t) {
+  bool corrected = false;
   const Model& m = c.m;
   Workspace& ws = c.ws;
   Data& d = c.d;
@@ -615,8 +645,10 @@ void projectConstraints(const Ctx& c, double t) {
       if (!normal && !tangent) continue;
       // This contact at the current (already corrected) state.
       ContactGeom g;
-      updateStations(m, d.z, dr.theta_rad, &ws);
-      evaluateContact(m, d.z, d.u, dr, ws.candidates[i], &ws, &g);
+      const PairId& pair = ws.candidates[i];
+      if (pair.kind == PairKind::kToothKernel)
+        updateToothStations(m, d.z, dr.theta_rad, pair.a, &ws);
+      evaluateContact(m, d.z, d.u, dr, pair, &ws, &g);
       // Minimal mass-weighted correction of this contact alone.
       double gnn = 0, gtt = 0;
       for (const BodyJac& s : g.side) {
@@ -625,17 +657,25 @@ void projectConstraints(const Ctx& c, double t) {
         gtt += weightedDot(m, nullptr, s.body, s.w_t, s.w_t);
       }
       if (normal && gnn > 0) {
+        corrected = true;
         for (const BodyJac& s : g.side) {
           applyInverseMass(m, nullptr, s.body, s.w_n, -g.gap_m / gnn, &d.z);
           applyInverseMass(m, nullptr, s.body, s.w_n, -g.vn / gnn, &d.u);
         }
       }
       if (tangent && gtt > 0) {
+        corrected = true;
         for (const BodyJac& s : g.side)
           applyInverseMass(m, nullptr, s.body, s.w_t, -g.vt / gtt, &d.u);
       }
     }
   }
+  return corrected;
+}
+
+// Number of kernels still on their pedicels.
+long attachedCount(const Data& d) {
+  return std::count(d.kernel_attached.begin(), d.kernel_attached.end(), 1);
 }
 
 // Size of the next trial step: bounded by the broad-phase margin over the fastest motion.
@@ -814,6 +854,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   }
 
   // Switch the index sets for every event function at or past zero.
+  const long attached_before = attachedCount(*d);
   if (event) {
     const double e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
     bool rigid_impact = false;
@@ -867,8 +908,11 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   } else {
     updatePedicels(m, d);
   }
-  projectConstraints(c, t);
-  rhs(c, t, d->z, d->u, &udot0, &torque1, true);
+  // The forces and geometry of the end state: the statistics' evaluation above holds them
+  // unless an event, a broken pedicel or a projection changed the state or the index sets.
+  const bool projected = projectConstraints(c, t);
+  if (event || projected || attached_before != attachedCount(*d))
+    rhs(c, t, d->z, d->u, &udot0, &torque1, true);
   publishContacts(d, &ws);
   return StepStatus::kOk;
 }

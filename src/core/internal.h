@@ -130,10 +130,12 @@ struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;
-  std::vector<int> sort_index;      // sweep-and-prune order
-  std::vector<Vec2> stations_W;     // deformed tooth centrelines, all teeth [m]
-  std::vector<int> station_offset;  // first station of each tooth in stations_W
-  VecX forces;                      // generalised forces [N or sqrt(kg) m/s^2]
+  std::vector<int> sort_index;       // sweep-and-prune order
+  std::vector<Vec2> stations_W;      // deformed tooth centrelines, all teeth [m]
+  std::vector<int> station_offset;   // first station of each tooth in stations_W
+  std::vector<double> station_wc_m;  // foreshortening w_c at each station [m]
+  MatX station_Hq;                   // H(x_s) q, one column per station [1/sqrt(kg)]
+  VecX forces;                       // generalised forces [N or sqrt(kg) m/s^2]
   VecX u_free, z_mid, u_old, z_old, du;
   VecX guard_z, guard_u;                  // last good state for the non-finite guard
   std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
@@ -185,8 +187,13 @@ Drive driveAt(const Model& m, const Data& d, double dt_s);
 double timeToTarget(const Model& m, const Data& d);
 
 // --- kinematics ----------------------------------------------------------------------------
-// Deformed centreline of every tooth at its stations, in world, for configuration z.
+// Deformed centreline of every tooth at its stations, in world, for configuration z (with the
+// stations' foreshortening and H q, which the narrow phase interpolates).
 void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* ws);
+// Sizes the station arrays for the model (updateStations does it too).
+void layoutStations(const Model& m, Workspace* ws);
+// The same for one tooth only; the arrays must be laid out.
+void updateToothStations(const Model& m, const VecX& z, double theta_rad, int tooth, Workspace* ws);
 // Kernel as a geometric ellipse.
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 
@@ -195,10 +202,16 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
 
 // Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
 // Requires updateStations for z first. If a cheap lower bound of the gap exceeds far_m, only
-// that bound is stored (g->far = true): enough for the sign of a separated pair's gap.
+// that bound is stored (g->far = true): enough for the sign of a separated pair's gap. The
+// bound is that of the bounding circles (which pairs count as near, and are reported in
+// Data::contacts, follows from it), or with tight_bound, for pairs of exact shapes (kernels,
+// obstacles), the supporting-line gap along the line of centres, a far better bound for
+// elongated kernels; tooth pairs always use the bounding circles (the polyline of stations only
+// approximates the deformed tooth, and the margin covers the difference).
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g,
-                     double far_m = std::numeric_limits<double>::infinity());
+                     double far_m = std::numeric_limits<double>::infinity(),
+                     bool tight_bound = false);
 
 // Adds w * scale to the generalised vector f for each side of the contact.
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f);
