@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -123,6 +124,39 @@ class PairTable {
   std::vector<int> slots_;      // hash table of indices into entries_ (-1 = empty), 2^k long
 };
 
+// Energy and angular momentum of one state, remembered with a copy of the state so that the
+// next step can reuse them only if the state is bit for bit the same (nothing moved it).
+class StateValues {
+ public:
+  void store(const Data& d, double energy_J, double momentum_kgm2ps) {
+    z_ = d.z;
+    u_ = d.u;
+    attached_ = d.kernel_attached;
+    omega_radps_ = d.omega_radps;
+    energy_J_ = energy_J;
+    momentum_kgm2ps_ = momentum_kgm2ps;
+    valid_ = true;
+  }
+  bool lookup(const Data& d, double* energy_J, double* momentum_kgm2ps) const {
+    if (!valid_ || d.omega_radps != omega_radps_ || d.z.size() != z_.size() ||
+        d.u.size() != u_.size() || d.kernel_attached != attached_ ||
+        std::memcmp(d.z.data(), z_.data(), sizeof(double) * z_.size()) != 0 ||
+        std::memcmp(d.u.data(), u_.data(), sizeof(double) * u_.size()) != 0)
+      return false;
+    *energy_J = energy_J_;
+    *momentum_kgm2ps = momentum_kgm2ps_;
+    return true;
+  }
+
+ private:
+  VecX z_, u_;                          // the state [m or -, m/s or -]
+  std::vector<std::uint8_t> attached_;  // its pedicels [-]
+  double omega_radps_ = 0;              // its drum speed [rad/s]
+  double energy_J_ = 0;                 // mechanical energy [J]
+  double momentum_kgm2ps_ = 0;          // teeth's angular momentum [kg m^2/s]
+  bool valid_ = false;                  // something is stored
+};
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
@@ -139,6 +173,7 @@ struct Workspace {
   VecX u_free, z_mid, u_old, z_old, du;
   VecX guard_z, guard_u;                  // last good state for the non-finite guard
   std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues ts_end_values;    // time stepping: energy and momentum at the last end
   std::vector<MatX> iteration_stiffness;  // time stepping: K(Omega) of each tooth [1/s^2]
   std::vector<MatX> iteration_matrix;     // time stepping: I + h theta D + h^2 theta^2 K [-]
   std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation

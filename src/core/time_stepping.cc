@@ -75,9 +75,14 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   Drive forcing = mid;
   forcing.alpha_radps2 = (end.omega_radps - d->omega_radps) / h;
   updateIterationMatrices(m, mid.omega_radps, h, &ws);
-  const double energy_net_before =
-      energyOf(m, *d, d->z, d->u, d->omega_radps) - d->stats.drive_work_J;
-  const double H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  // Energy and angular momentum at the step start: those the previous step ended with, if the
+  // state is still exactly that one.
+  double energy_before = 0.0, H_before = 0.0;
+  if (!ws.ts_end_values.lookup(*d, &energy_before, &H_before)) {
+    energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
+    H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  }
+  const double energy_net_before = energy_before - d->stats.drive_work_J;
 
   // Contact detection at the midpoint configuration z_M = z + h/2 u.
   ws.z_mid = d->z + 0.5 * h * d->u;
@@ -227,8 +232,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  const double energy_net_after =
-      energyOf(m, *d, d->z, d->u, d->omega_radps) - d->stats.drive_work_J;
+  const double energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
+  const double energy_net_after = energy_after - d->stats.drive_work_J;
 
   // Contact states, episodes, events and statistics.
   for (auto& kv : ws.memory) kv.second.seen = false;
@@ -314,6 +319,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     endEpisode(m, d, &mem, g_far, d->t_s, energy_net_after);
   }
   updatePedicels(m, d);
+  ws.ts_end_values.store(*d, energy_after, H_after);
   publishContacts(d, &ws);
   return solved ? StepStatus::kOk : StepStatus::kRecovered;
 }
