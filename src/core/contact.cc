@@ -357,7 +357,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       auto slopeAt = [&](double x, Proximity* p) {
         Vec2 dr_dx;
         r_x = centrelinePoint(tm, pair.a, q, rot, x, ws, &dr_dx);
-        *p = pointEllipse(r_x, e);
+        *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
         return p->normal.dot(dr_dx);
       };
       double xa = g->tooth_x_m;
@@ -371,8 +371,9 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
         xb = xn;
         hb = slopeAt(xb, &pb);
       }
+      // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
       g->tooth_x_m = xb;
-      slopeAt(xb, &best);
+      best = pb;
       best.point1 = r_x;
     }
     g->gap_m = best.distance_m - r_t;
@@ -389,7 +390,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     s.w_n.resize(n);
     s.w_t.resize(n);
     if (n > 0) {
-      evaluateModes(tm, g->tooth_x_m, &ws->scratch_phi, &ws->scratch_dphi);
+      // phi and phi' at x: still in the scratch from the refinement's last evaluation.
       // H(x) q blended from the stations like H(x) itself.
       int s_h = 0;
       double t_h = 0;

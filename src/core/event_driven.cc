@@ -52,20 +52,23 @@ enum class SeparatedPairs {
   kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts)
   kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within 1 um by
           // the supporting-line bound (event functions)
-  kNone,  // nothing beyond a bound (Runge-Kutta stages: separated pairs exert no force)
+  kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
 };
 
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
 // says (a far pair gets only a lower bound of its gap).
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
                  SeparatedPairs separated = SeparatedPairs::kNear) {
-  // Stations only of the teeth that have a candidate pair (candidates are sorted by kind, tooth
-  // pairs first, by tooth).
+  // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
+  // are sorted by kind, tooth pairs first, by tooth).
   layoutStations(c.m, &c.ws);
   int last_tooth = -1;
   for (const PairId& p : c.ws.candidates) {
     if (p.kind != PairKind::kToothKernel) break;
     if (p.a == last_tooth) continue;
+    if (separated == SeparatedPairs::kNone &&
+        c.ws.memory[pairKey(p)].state == ContactState::kSeparated)
+      continue;
     updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
     last_tooth = p.a;
   }
@@ -73,16 +76,23 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   const double near_m = 0.25 * c.m.broadphase_margin_m;
   for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
     const PairId& p = c.ws.candidates[i];
+    ContactGeom& g = c.ws.geoms[i];
     double far_m = kInf;
     bool tight = false;
     if (c.ws.memory[pairKey(p)].state == ContactState::kSeparated) {
+      if (separated == SeparatedPairs::kNone) {
+        // Not evaluated: marked far with no finite bound.
+        g.pair = p;
+        g.params = &c.m.contact[static_cast<int>(p.kind)];
+        g.far = true;
+        g.gap_m = kInf;
+        continue;
+      }
       const bool tooth = p.kind == PairKind::kToothKernel;
-      far_m = separated == SeparatedPairs::kNone             ? -kInf
-              : separated == SeparatedPairs::kSign && !tooth ? 1e-6
-                                                             : near_m;
+      far_m = separated == SeparatedPairs::kSign && !tooth ? 1e-6 : near_m;
       tight = separated == SeparatedPairs::kSign && !tooth;
     }
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &c.ws.geoms[i], far_m, tight);
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight);
   }
 }
 
