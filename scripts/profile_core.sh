@@ -33,7 +33,7 @@ for c in "${CASES[@]}"; do
   valgrind --tool=callgrind --callgrind-out-file="$OUT/$name.cg" "$SIMULATE" "$ROOT/$scene" \
     $opts --quiet --summary "$OUT/$name.json" >"$OUT/$name.log" 2>&1
   ir=$(callgrind_annotate --inclusive=yes "$OUT/$name.cg" 2>/dev/null |
-       grep -m1 'threshing_sim::advanceTo' | awk '{gsub(",", "", $1); print $1}')
+       awk '/threshing_sim::advanceTo/ && !done {gsub(",", "", $1); print $1; done = 1}')
   steps=$(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['steps'])" \
           "$OUT/$name.json")
   echo "| $name | $ir | $steps | $((ir / steps)) |"

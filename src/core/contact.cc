@@ -203,15 +203,20 @@ void updateToothStations(const Model& m, const VecX& z, double theta_rad, int to
   const int s0 = ws->station_offset[tooth];
   const Rotation2 rot(theta_rad);
   const auto q = z.segment(tm.dof_offset, n);
+  double hq[16];  // H(x_s) q (at most 12 modes)
   for (int s = 0; s < tm.n_stations; ++s) {
     double w = 0.0, qHq = 0.0;
-    const MatX& H = tm.H_s[s];
+    // H q column by column (contiguous in memory), each entry summed over j in order.
+    const double* H = tm.H_s[s].data();
+    for (int i = 0; i < n; ++i) hq[i] = 0.0;
+    for (int j = 0; j < n; ++j) {
+      const double qj = q[j];
+      for (int i = 0; i < n; ++i) hq[i] += H[j * n + i] * qj;
+    }
     for (int i = 0; i < n; ++i) {
       w += tm.phi_s(s, i) * q[i];
-      double hq = 0.0;
-      for (int j = 0; j < n; ++j) hq += H(i, j) * q[j];
-      ws->station_Hq(i, s0 + s) = hq;
-      qHq += q[i] * hq;
+      ws->station_Hq(i, s0 + s) = hq[i];
+      qHq += q[i] * hq[i];
     }
     const double wc = -0.5 * qHq;
     ws->station_wc_m[s0 + s] = wc;
@@ -276,6 +281,12 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
       if (o.type == ObstacleType::kPlane) {
         dist = o.normal.dot(c - o.point_m);
       } else if (o.type == ObstacleType::kCircle) {
+        // A bar clearly out of reach along either axis is rejected without a square root (the
+        // slack keeps the decision that of the exact test below).
+        const double reach_m = (r + o.radius_m) * (1.0 + 1e-9) + 1e-12;
+        if (std::abs(c.x() - o.center_m.x()) > reach_m ||
+            std::abs(c.y() - o.center_m.y()) > reach_m)
+          continue;
         dist = (c - o.center_m).norm() - o.radius_m;
       } else {
         const Vec2 ab = o.point_b_m - o.point_m;
