@@ -15,6 +15,26 @@ inline Vec2 rotate(double angle_rad, const Vec2& v) {
   const double c = std::cos(angle_rad), s = std::sin(angle_rad);
   return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y());
 }
+// The same rotation with its cosine and sine computed once.
+struct Rotation2 {
+  explicit Rotation2(double angle_rad) : c(std::cos(angle_rad)), s(std::sin(angle_rad)) {}
+  Vec2 operator*(const Vec2& v) const { return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y()); }
+  double c, s;  // cos and sin of the angle [-]
+};
+
+// Station interval [x_s, x_{s+1}] holding x and the blend weight t of x_{s+1}, as in
+// interpolateH (beam.cc): a guess from the equal spacing, corrected against the stored
+// station positions so that x == x_s gives weight exactly 0 on the next station.
+void stationInterval(const ToothModel& tm, double x_m, int* s_out, double* t_out) {
+  const VecX& xs = tm.station_x_m;
+  const int last = static_cast<int>(xs.size()) - 1;
+  const double x = std::clamp(x_m, 0.0, tm.length_m);
+  int s = std::clamp(static_cast<int>(x / tm.length_m * last), 0, last - 1);
+  while (s > 0 && x < xs[s]) --s;
+  while (s < last - 1 && x >= xs[s + 1]) ++s;
+  *s_out = s;
+  *t_out = (x - xs[s]) / (xs[s + 1] - xs[s]);
+}
 inline Vec2 perp(const Vec2& v) { return Vec2(-v.y(), v.x()); }  // J v
 inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
@@ -34,6 +54,29 @@ double hertzConstant(double E_star, double r_in, double r_out) {
   return 4.0 / 3.0 * E_star * std::sqrt(r_star);
 }
 
+// Half-width of an ellipse along the unit direction n (its support value h(n)) [m].
+struct EllipseWidth {
+  explicit EllipseWidth(const Ellipse& e)
+      : axis(std::cos(e.angle_rad), std::sin(e.angle_rad)), a_m(e.a_m), b_m(e.b_m) {}
+  double operator()(const Vec2& n) const {
+    const double na = a_m * n.dot(axis), nb = b_m * cross(axis, n);
+    return std::sqrt(na * na + nb * nb);
+  }
+  Vec2 axis;        // unit a-axis in world [-]
+  double a_m, b_m;  // semi-axes [m]
+};
+
+// Lower bound of the signed distance between the ellipse and a convex body whose nearest point
+// to the ellipse's centre is p: with n from p to the centre, the body lies behind the line
+// through p normal to n, and the ellipse reaches at most h(n) towards it. (Any direction gives
+// a lower bound, the supporting-line gap; this one is cheap and tight for nearby bodies.)
+double gapLowerBound(const Ellipse& e, const EllipseWidth& width, const Vec2& p) {
+  const Vec2 d = e.center - p;
+  const double dist = d.norm();
+  if (!(dist > 0.0)) return -e.a_m;
+  return dist - width(d / dist);
+}
+
 // Kernel contact point Jacobian rows: d(v_point . dir)/d(vx, vy, omega).
 void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, SmallVec* w) {
   w->resize(3);
@@ -44,16 +87,20 @@ void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, S
 
 // Deformed centreline point at material coordinate x in world, A(theta) [b + (x + w_c) e1 + w e2],
 // and its tangent dr/dx = A(theta) [(1 + w_c') e1 + w' e2] with w_c' = -(w')^2 / 2.
-Vec2 centrelinePoint(const ToothModel& tm, const Eigen::Ref<const VecX>& q, double theta_rad,
-                     double x_m, Workspace* ws, Vec2* dr_dx) {
+// The foreshortening w_c(x) = -q^T H(x) q / 2 blends the stations' values linearly, as H(x)
+// blends the station matrices; updateStations stored them for this q.
+Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const VecX>& q,
+                     const Rotation2& rot, double x_m, Workspace* ws, Vec2* dr_dx) {
   evaluateModes(tm, x_m, &ws->scratch_phi, &ws->scratch_dphi);
-  interpolateH(tm, x_m, &ws->scratch_H);
+  int s = 0;
+  double t = 0;
+  stationInterval(tm, x_m, &s, &t);
+  const int s0 = ws->station_offset[tooth];
+  const double wc = (1.0 - t) * ws->station_wc_m[s0 + s] + t * ws->station_wc_m[s0 + s + 1];
   const double w = ws->scratch_phi.dot(q);
   const double slope = ws->scratch_dphi.dot(q);
-  const SmallVec Hq = ws->scratch_H * q;
-  const double wc = -0.5 * q.dot(Hq);
-  *dr_dx = rotate(theta_rad, (1.0 - 0.5 * slope * slope) * tm.e1_D + slope * tm.e2_D);
-  return rotate(theta_rad, tm.p_DR_D + (x_m + wc) * tm.e1_D + w * tm.e2_D);
+  *dr_dx = rot * ((1.0 - 0.5 * slope * slope) * tm.e1_D + slope * tm.e2_D);
+  return rot * (tm.p_DR_D + (x_m + wc) * tm.e1_D + w * tm.e2_D);
 }
 
 }  // namespace
@@ -73,6 +120,55 @@ std::uint64_t pairKey(const PairId& p) {
          static_cast<std::uint64_t>(static_cast<std::uint32_t>(p.b));
 }
 
+namespace {
+// Slot of a key in a table of n_slots = 2^k slots: a 64-bit multiplicative hash (the key's
+// fields sit in the high and low bits, the product mixes them into the top bits).
+size_t slotOf(std::uint64_t key, size_t n_slots) {
+  const std::uint64_t mixed = (key ^ (key >> 31)) * 0x9E3779B97F4A7C15ull;
+  return static_cast<size_t>(mixed >> 32) & (n_slots - 1);
+}
+}  // namespace
+
+void PairTable::reserve(size_t n) {
+  entries_.reserve(n);
+  // Load factor at most 1/2.
+  size_t n_slots = 16;
+  while (n_slots < 2 * n) n_slots *= 2;
+  if (n_slots > slots_.size()) rehash(n_slots);
+}
+
+void PairTable::rehash(size_t n_slots) {
+  slots_.assign(n_slots, -1);
+  for (size_t i = 0; i < entries_.size(); ++i) {
+    size_t s = slotOf(entries_[i].first, n_slots);
+    while (slots_[s] >= 0) s = (s + 1) & (n_slots - 1);
+    slots_[s] = static_cast<int>(i);
+  }
+}
+
+int PairTable::indexOf(std::uint64_t key) {
+  if (slots_.empty()) rehash(16);
+  // Linear probing to the key or an empty slot.
+  size_t s = slotOf(key, slots_.size());
+  while (slots_[s] >= 0) {
+    if (entries_[slots_[s]].first == key) return slots_[s];
+    s = (s + 1) & (slots_.size() - 1);
+  }
+  // New entry; grow the slots past half full (allocates only beyond the reserve).
+  const int index = static_cast<int>(entries_.size());
+  entries_.emplace_back(key, PairMemory());
+  slots_[s] = index;
+  if (2 * entries_.size() > slots_.size()) rehash(2 * slots_.size());
+  return index;
+}
+
+PairMemory& PairTable::operator[](std::uint64_t key) { return entries_[indexOf(key)].second; }
+
+void PairTable::clear() {
+  entries_.clear();
+  std::fill(slots_.begin(), slots_.end(), -1);
+}
+
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i) {
   const KernelModel& k = m.kernels[i];
   Ellipse e;
@@ -83,31 +179,56 @@ Ellipse kernelEllipse(const Model& m, const VecX& z, int i) {
   return e;
 }
 
-void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* ws) {
-  // Lay out all teeth's stations in one array.
+void layoutStations(const Model& m, Workspace* ws) {
+  // All teeth's stations in one array; H(x_s) q per station in rows of the largest mode count.
   ws->station_offset.resize(m.teeth.size() + 1);
-  int total = 0;
+  int total = 0, max_modes = 0;
   for (size_t k = 0; k < m.teeth.size(); ++k) {
     ws->station_offset[k] = total;
     total += m.teeth[k].n_stations;
+    max_modes = std::max(max_modes, m.teeth[k].n_modes);
   }
   ws->station_offset[m.teeth.size()] = total;
   ws->stations_W.resize(total);
-  // r(x) = A(theta) [ b + (x + w_c(x)) e1 + w(x) e2 ] at every station.
-  for (size_t k = 0; k < m.teeth.size(); ++k) {
-    const ToothModel& tm = m.teeth[k];
-    const auto q = z.segment(tm.dof_offset, tm.n_modes);
-    for (int s = 0; s < tm.n_stations; ++s) {
-      double w = 0.0, wc = 0.0;
-      if (tm.n_modes > 0) {
-        w = tm.phi_s.row(s).dot(q);
-        const SmallVec Hq = tm.H_s[s] * q;  // fixed capacity: no heap allocation
-        wc = -0.5 * q.dot(Hq);
-      }
-      const Vec2 p_D = tm.p_DR_D + (tm.station_x_m[s] + wc) * tm.e1_D + w * tm.e2_D;
-      ws->stations_W[ws->station_offset[k] + s] = rotate(theta_rad, p_D);
+  ws->station_wc_m.resize(total);
+  ws->station_Hq.resize(max_modes, total);
+}
+
+void updateToothStations(const Model& m, const VecX& z, double theta_rad, int tooth,
+                         Workspace* ws) {
+  // r(x) = A(theta) [ b + (x + w_c(x)) e1 + w(x) e2 ] at every station, with
+  // w = phi(x_s) . q and w_c = -q^T H(x_s) q / 2 (H symmetric; H q is kept for the Jacobians).
+  const ToothModel& tm = m.teeth[tooth];
+  const int n = tm.n_modes;
+  const int s0 = ws->station_offset[tooth];
+  const Rotation2 rot(theta_rad);
+  const auto q = z.segment(tm.dof_offset, n);
+  double hq[16];  // H(x_s) q (at most 12 modes)
+  for (int s = 0; s < tm.n_stations; ++s) {
+    double w = 0.0, qHq = 0.0;
+    // H q column by column (contiguous in memory), each entry summed over j in order.
+    const double* H = tm.H_s[s].data();
+    for (int i = 0; i < n; ++i) hq[i] = 0.0;
+    for (int j = 0; j < n; ++j) {
+      const double qj = q[j];
+      for (int i = 0; i < n; ++i) hq[i] += H[j * n + i] * qj;
     }
+    for (int i = 0; i < n; ++i) {
+      w += tm.phi_s(s, i) * q[i];
+      ws->station_Hq(i, s0 + s) = hq[i];
+      qHq += q[i] * hq[i];
+    }
+    const double wc = -0.5 * qHq;
+    ws->station_wc_m[s0 + s] = wc;
+    const Vec2 p_D = tm.p_DR_D + (tm.station_x_m[s] + wc) * tm.e1_D + w * tm.e2_D;
+    ws->stations_W[s0 + s] = rot * p_D;
   }
+}
+
+void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* ws) {
+  layoutStations(m, ws);
+  for (size_t k = 0; k < m.teeth.size(); ++k)
+    updateToothStations(m, z, theta_rad, static_cast<int>(k), ws);
 }
 
 void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
@@ -160,6 +281,12 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
       if (o.type == ObstacleType::kPlane) {
         dist = o.normal.dot(c - o.point_m);
       } else if (o.type == ObstacleType::kCircle) {
+        // A bar clearly out of reach along either axis is rejected without a square root (the
+        // slack keeps the decision that of the exact test below).
+        const double reach_m = (r + o.radius_m) * (1.0 + 1e-9) + 1e-12;
+        if (std::abs(c.x() - o.center_m.x()) > reach_m ||
+            std::abs(c.y() - o.center_m.y()) > reach_m)
+          continue;
         dist = (c - o.center_m).norm() - o.radius_m;
       } else {
         const Vec2 ab = o.point_b_m - o.point_m;
@@ -173,7 +300,8 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
 }
 
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
-                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m) {
+                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
+                     bool tight_bound) {
   g->pair = pair;
   g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
@@ -184,6 +312,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   const int kb = pair.kind == PairKind::kKernelObstacle ? pair.a : pair.b;
   const KernelModel& kern = m.kernels[kb];
   const Ellipse e = kernelEllipse(m, z, kb);
+  const EllipseWidth width(e);
   double r_in = 0, r_out = 0, E_star = 0;
 
   if (pair.kind == PairKind::kToothKernel) {
@@ -195,19 +324,25 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     int best_seg = 0;
     // Segments are visited nearest first by a cheap lower bound (distance to the ellipse's
     // centre minus a); once the bound passes the best distance the rest cannot win.
+    // Segments are ordered by the supporting-line gap (gapLowerBound); "far" is decided by the
+    // coarser bounding-circle bound (centre distance minus a) as it always was: the polyline
+    // only approximates the deformed centreline between stations, which the margin covers.
     const int n_seg = tm.n_stations - 1;
     double lower[64];
     int order[64];
+    double circle_bound = std::numeric_limits<double>::infinity();
     for (int s = 0; s < n_seg; ++s) {
       const Vec2& a = ws->stations_W[s0 + s];
       const Vec2 ab = ws->stations_W[s0 + s + 1] - a;
       const double f = std::clamp((e.center - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-      lower[s] = (e.center - (a + f * ab)).norm() - e.a_m;
+      const Vec2 p = a + f * ab;
+      lower[s] = gapLowerBound(e, width, p);
+      circle_bound = std::min(circle_bound, (e.center - p).norm() - e.a_m);
       order[s] = s;
     }
     std::sort(order, order + n_seg, [&](int i, int j) { return lower[i] < lower[j]; });
-    if (lower[order[0]] - 0.5 * tm.diameter_m > far_m) {
-      g->gap_m = lower[order[0]] - 0.5 * tm.diameter_m;
+    if (circle_bound - 0.5 * tm.diameter_m > far_m) {
+      g->gap_m = circle_bound - 0.5 * tm.diameter_m;
       g->far = true;
       return;
     }
@@ -229,10 +364,11 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       // closest-point condition h(x) = n(x) . r'(x) = 0, started from the polyline's answer.
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
       Vec2 r_x;
+      const Rotation2 rot(drive.theta_rad);
       auto slopeAt = [&](double x, Proximity* p) {
         Vec2 dr_dx;
-        r_x = centrelinePoint(tm, q, drive.theta_rad, x, ws, &dr_dx);
-        *p = pointEllipse(r_x, e);
+        r_x = centrelinePoint(tm, pair.a, q, rot, x, ws, &dr_dx);
+        *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
         return p->normal.dot(dr_dx);
       };
       double xa = g->tooth_x_m;
@@ -246,8 +382,9 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
         xb = xn;
         hb = slopeAt(xb, &pb);
       }
+      // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
       g->tooth_x_m = xb;
-      slopeAt(xb, &best);
+      best = pb;
       best.point1 = r_x;
     }
     g->gap_m = best.distance_m - r_t;
@@ -264,15 +401,20 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     s.w_n.resize(n);
     s.w_t.resize(n);
     if (n > 0) {
-      evaluateModes(tm, g->tooth_x_m, &ws->scratch_phi, &ws->scratch_dphi);
-      interpolateH(tm, g->tooth_x_m, &ws->scratch_H);
-      const auto q = z.segment(tm.dof_offset, n);
-      const Vec2 e1 = rotate(drive.theta_rad, tm.e1_D), e2 = rotate(drive.theta_rad, tm.e2_D);
+      // phi and phi' at x: still in the scratch from the refinement's last evaluation.
+      // H(x) q blended from the stations like H(x) itself.
+      int s_h = 0;
+      double t_h = 0;
+      stationInterval(tm, g->tooth_x_m, &s_h, &t_h);
+      const int col_h = ws->station_offset[pair.a] + s_h;
+      const Rotation2 rot(drive.theta_rad);
+      const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
       const Vec2 jr = perp(r_t * g->n);
       const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
       const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
       for (int i = 0; i < n; ++i) {
-        const double hq = ws->scratch_H.row(i).dot(q);
+        const double hq =
+            (1.0 - t_h) * ws->station_Hq(i, col_h) + t_h * ws->station_Hq(i, col_h + 1);
         s.w_n[i] = -(e2n * ws->scratch_phi[i] - e1n * hq + jrn * ws->scratch_dphi[i]);
         s.w_t[i] = -(e2t * ws->scratch_phi[i] - e1t * hq + jrt * ws->scratch_dphi[i]);
       }
@@ -291,7 +433,14 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     // Ellipse a against ellipse b; normal from a to b.
     const KernelModel& ka = m.kernels[pair.a];
     const Ellipse ea = kernelEllipse(m, z, pair.a);
-    const double bound = (e.center - ea.center).norm() - e.a_m - ea.a_m;
+    // Supporting-line gap along the line of centres.
+    const Vec2 d_ab = e.center - ea.center;
+    const double dist_ab = d_ab.norm();
+    const double bound =
+        !tight_bound
+            ? dist_ab - e.a_m - ea.a_m
+            : (dist_ab > 0.0 ? dist_ab - width(d_ab / dist_ab) - EllipseWidth(ea)(d_ab / dist_ab)
+                             : -e.a_m - ea.a_m);
     if (bound > far_m) {
       g->gap_m = bound;
       g->far = true;
@@ -317,13 +466,17 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     const ObstacleModel& o = m.obstacles[pair.b];
     double bound = 0.0;
     if (o.type == ObstacleType::kPlane) {
-      bound = o.normal.dot(e.center - o.point_m) - e.a_m;
+      bound = o.normal.dot(e.center - o.point_m) - (!tight_bound ? e.a_m : width(o.normal));
     } else if (o.type == ObstacleType::kCircle) {
-      bound = (e.center - o.center_m).norm() - o.radius_m - e.a_m;
+      bound = (!tight_bound ? (e.center - o.center_m).norm() - e.a_m
+                            : gapLowerBound(e, width, o.center_m)) -
+              o.radius_m;
     } else {
       const Vec2 ab = o.point_b_m - o.point_m;
       const double f = std::clamp((e.center - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-      bound = (e.center - (o.point_m + f * ab)).norm() - o.radius_m - e.a_m;
+      const Vec2 p = o.point_m + f * ab;
+      bound =
+          (!tight_bound ? (e.center - p).norm() - e.a_m : gapLowerBound(e, width, p)) - o.radius_m;
     }
     if (bound > far_m) {
       g->gap_m = bound;
@@ -453,7 +606,13 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2) {
   const int T = static_cast<int>(m.teeth.size());
-  if (body < T) return tooth_minv ? w1.dot((*tooth_minv)[body] * w2) : w1.dot(w2);
+  if (body < T) {
+    if (!tooth_minv) return w1.dot(w2);
+    // The product into fixed-capacity storage: no heap temporary.
+    SmallVec mw2(w2.size());
+    mw2.noalias() = (*tooth_minv)[body] * w2;
+    return w1.dot(mw2);
+  }
   const KernelModel& k = m.kernels[body - T];
   return (w1[0] * w2[0] + w1[1] * w2[1]) / k.mass_kg + w1[2] * w2[2] / k.inertia_kgm2;
 }
@@ -469,8 +628,9 @@ int findRoot(std::vector<int>* parent, int i) {
 
 bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Workspace* ws) {
   const int k = static_cast<int>(ws->active.size());
-  ws->lambda.setZero(2 * k);
-  ws->y.resize(2 * k);
+  growTo(&ws->lambda, 2 * k);
+  growTo(&ws->y, 2 * k);
+  ws->lambda.head(2 * k).setZero();
   if (k == 0) return true;
 
   // Union-find over bodies: two contacts sharing a moving body are in the same island.
@@ -492,8 +652,11 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
     ws->island_contacts[c] = c;
     ws->island_of_body[c] = findRoot(&ws->island_parent, ws->geoms[ws->active[c]].side[1].body);
   }
-  std::stable_sort(ws->island_contacts.begin(), ws->island_contacts.end(),
-                   [&](int a, int b) { return ws->island_of_body[a] < ws->island_of_body[b]; });
+  // (std::stable_sort would allocate a buffer; ties broken by index give the same order.)
+  std::sort(ws->island_contacts.begin(), ws->island_contacts.end(), [&](int a, int b) {
+    return ws->island_of_body[a] < ws->island_of_body[b] ||
+           (ws->island_of_body[a] == ws->island_of_body[b] && a < b);
+  });
 
   bool all_ok = true;
   for (int begin = 0; begin < k;) {
@@ -503,8 +666,12 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
     const int ki = end - begin;
 
     // Delassus matrix G = W^T Minv W of the island, and its right-hand side.
-    ws->G_island.setZero(2 * ki, 2 * ki);
-    ws->b_island.resize(2 * ki);
+    growTo(&ws->G_island, 2 * ki, 2 * ki);
+    growTo(&ws->b_island, 2 * ki);
+    growTo(&ws->lambda_island, 2 * ki);
+    growTo(&ws->y_island, 2 * ki);
+    auto G_island = ws->G_island.topLeftCorner(2 * ki, 2 * ki);
+    G_island.setZero();
     ws->rows_island.resize(ki);
     for (int i = 0; i < ki; ++i) {
       const int ci = ws->island_contacts[begin + i];
@@ -523,16 +690,17 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
             tt += weightedDot(m, tooth_minv, si.body, si.w_t, sj.w_t);
           }
         }
-        ws->G_island(2 * i, 2 * j) = ws->G_island(2 * j, 2 * i) = nn;
-        ws->G_island(2 * i, 2 * j + 1) = ws->G_island(2 * j + 1, 2 * i) = nt;
-        ws->G_island(2 * i + 1, 2 * j) = ws->G_island(2 * j, 2 * i + 1) = tn;
-        ws->G_island(2 * i + 1, 2 * j + 1) = ws->G_island(2 * j + 1, 2 * i + 1) = tt;
+        G_island(2 * i, 2 * j) = G_island(2 * j, 2 * i) = nn;
+        G_island(2 * i, 2 * j + 1) = G_island(2 * j + 1, 2 * i) = nt;
+        G_island(2 * i + 1, 2 * j) = G_island(2 * j, 2 * i + 1) = tn;
+        G_island(2 * i + 1, 2 * j + 1) = G_island(2 * j + 1, 2 * i + 1) = tt;
       }
     }
 
     // One complementarity problem over the island's contacts.
-    const bool ok = solveContactProblem(ws->G_island, ws->b_island, ws->rows_island,
-                                        &ws->lambda_island, &ws->y_island, &ws->lcp);
+    const bool ok =
+        solveContactProblem(G_island, ws->b_island.head(2 * ki), ws->rows_island,
+                            ws->lambda_island.head(2 * ki), ws->y_island.head(2 * ki), &ws->lcp);
     all_ok = all_ok && ok;
     for (int i = 0; i < ki; ++i) {
       const int ci = ws->island_contacts[begin + i];

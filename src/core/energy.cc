@@ -9,6 +9,16 @@
 
 namespace threshing_sim {
 namespace internal {
+namespace {
+
+// q^T K q with the product in fixed-capacity storage (no heap temporary).
+double quadraticForm(const MatX& K, const Eigen::Ref<const VecX>& q) {
+  SmallVec Kq(q.size());
+  Kq.noalias() = K * q;
+  return q.dot(Kq);
+}
+
+}  // namespace
 
 double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, double omega) {
   double e = 0.0;
@@ -18,7 +28,7 @@ double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, dou
     if (tm.n_modes > 0) {
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
       const auto qd = u.segment(tm.dof_offset, tm.n_modes);
-      inertia += q.squaredNorm() - q.dot(tm.K_G * q);
+      inertia += q.squaredNorm() - quadraticForm(tm.K_G, q);
       e += omega * tm.p_inertia.dot(qd) + 0.5 * qd.squaredNorm() +
            0.5 * (tm.omega0_sq.array() * q.array().square()).sum();
     }
@@ -48,7 +58,7 @@ double angularMomentumOf(const Model& m, const VecX& z, const VecX& u, double om
     double inertia = tm.I0_kgm2;
     if (tm.n_modes > 0) {
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
-      inertia += q.squaredNorm() - q.dot(tm.K_G * q);
+      inertia += q.squaredNorm() - quadraticForm(tm.K_G, q);
       h += tm.p_inertia.dot(u.segment(tm.dof_offset, tm.n_modes));
     }
     h += omega * inertia;

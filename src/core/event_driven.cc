@@ -9,7 +9,6 @@
 // step length), the state is advanced to just past it, and the index sets are switched:
 // impacts are solved as a velocity-level complementarity problem, stick/slip/separation as
 // an acceleration-level one. Impacts slower than zeno_velocity are plastic (Zeno rule).
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -48,46 +47,126 @@ bool isActive(const PairMemory& mem) { return mem.state != ContactState::kSepara
 // Drum state at absolute time t (the target is fixed within a step).
 Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 
-// Evaluates every candidate pair at (z, u, t) into ws.geoms. Separated pairs whose gap is
-// surely above a quarter of the broad-phase margin get only that bound (their event function
-// needs just its sign).
-void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr) {
-  updateStations(c.m, z, dr.theta_rad, &c.ws);
+// How much of a separated pair evaluateAll computes.
+enum class SeparatedPairs {
+  kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts)
+  kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within 1 um by
+          // the supporting-line bound (event functions)
+  kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
+};
+
+// Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
+// says (a far pair gets only a lower bound of its gap).
+void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
+                 SeparatedPairs separated = SeparatedPairs::kNear) {
+  // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
+  // are sorted by kind, tooth pairs first, by tooth).
+  layoutStations(c.m, &c.ws);
+  int last_tooth = -1;
+  for (const PairId& p : c.ws.candidates) {
+    if (p.kind != PairKind::kToothKernel) break;
+    if (p.a == last_tooth) continue;
+    if (separated == SeparatedPairs::kNone &&
+        c.ws.memory[pairKey(p)].state == ContactState::kSeparated)
+      continue;
+    updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
+    last_tooth = p.a;
+  }
   c.ws.geoms.resize(c.ws.candidates.size());
-  const double far_m = 0.25 * c.m.broadphase_margin_m;
+  const double near_m = 0.25 * c.m.broadphase_margin_m;
   for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
     const PairId& p = c.ws.candidates[i];
-    const bool separated = c.ws.memory[pairKey(p)].state == ContactState::kSeparated;
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &c.ws.geoms[i], separated ? far_m : kInf);
+    ContactGeom& g = c.ws.geoms[i];
+    double far_m = kInf;
+    bool tight = false;
+    if (c.ws.memory[pairKey(p)].state == ContactState::kSeparated) {
+      if (separated == SeparatedPairs::kNone) {
+        // Not evaluated: marked far with no finite bound.
+        g.pair = p;
+        g.params = &c.m.contact[static_cast<int>(p.kind)];
+        g.far = true;
+        g.gap_m = kInf;
+        continue;
+      }
+      const bool tooth = p.kind == PairKind::kToothKernel;
+      far_m = separated == SeparatedPairs::kSign && !tooth ? 1e-6 : near_m;
+      tight = separated == SeparatedPairs::kSign && !tooth;
+    }
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight);
   }
 }
 
 // Relative velocity derivative along the motion with u frozen: (d/dt W)^T u + d(wtilde)/dt,
 // by a central difference over +-eps of time, for the normal (0) and tangential (1) rows.
+// Only the pair's own tooth has its stations moved (and left moved).
 Vec2 velocityDrift(const Ctx& c, const VecX& z, const VecX& u, double t, const PairId& pair) {
   const double eps = 1e-8;
+  const bool tooth = pair.kind == PairKind::kToothKernel;
   ContactGeom gp, gm;
   c.ws.z_mid = z + eps * u;
   Drive dp = driveAtTime(c, t + eps);
-  updateStations(c.m, c.ws.z_mid, dp.theta_rad, &c.ws);
+  if (tooth) updateToothStations(c.m, c.ws.z_mid, dp.theta_rad, pair.a, &c.ws);
   evaluateContact(c.m, c.ws.z_mid, u, dp, pair, &c.ws, &gp);
   c.ws.z_mid = z - eps * u;
   Drive dm = driveAtTime(c, t - eps);
-  updateStations(c.m, c.ws.z_mid, dm.theta_rad, &c.ws);
+  if (tooth) updateToothStations(c.m, c.ws.z_mid, dm.theta_rad, pair.a, &c.ws);
   evaluateContact(c.m, c.ws.z_mid, u, dm, pair, &c.ws, &gm);
   return Vec2((gp.vn - gm.vn) / (2 * eps), (gp.vt - gm.vt) / (2 * eps));
+}
+
+// Solves the leading n x n block of ws->ed_A for the right-hand side ws->ed_rc into ws->ed_lam
+// by Gaussian elimination with complete pivoting, in place (ed_A and ed_rc are overwritten).
+// Returns false if the matrix is singular: a pivot at or below n eps times the largest entry,
+// the rank test of Eigen's FullPivLU.
+bool solveSquare(Workspace* ws, int n) {
+  auto A = ws->ed_A.topLeftCorner(n, n);
+  auto r = ws->ed_rc.head(n);
+  growTo(&ws->ed_lam, n);
+  std::vector<int>& col_of = ws->ed_col_perm;  // unknown held by column j
+  col_of.resize(n);
+  for (int j = 0; j < n; ++j) col_of[j] = j;
+  double max_pivot = 0.0;
+  for (int k = 0; k < n; ++k) {
+    // Largest remaining entry as the pivot: swap it to (k, k).
+    Eigen::Index pr = 0, pc = 0;
+    const double p = A.bottomRightCorner(n - k, n - k).cwiseAbs().maxCoeff(&pr, &pc);
+    if (k == 0) max_pivot = p;
+    if (!(p > max_pivot * std::numeric_limits<double>::epsilon() * n)) return false;
+    pr += k;
+    pc += k;
+    A.row(k).swap(A.row(pr));
+    std::swap(r[k], r[pr]);
+    A.col(k).swap(A.col(pc));
+    std::swap(col_of[k], col_of[pc]);
+    // Eliminate below the pivot.
+    for (int i = k + 1; i < n; ++i) {
+      const double f = A(i, k) / A(k, k);
+      if (f == 0.0) continue;
+      A.row(i).tail(n - k - 1) -= f * A.row(k).tail(n - k - 1);
+      r[i] -= f * r[k];
+    }
+  }
+  // Back substitution, then undo the column permutation.
+  for (int k = n - 1; k >= 0; --k) {
+    double v = r[k];
+    for (int j = k + 1; j < n; ++j) v -= A(k, j) * r[j];
+    r[k] = v / A(k, k);
+  }
+  for (int k = 0; k < n; ++k) ws->ed_lam[col_of[k]] = r[k];
+  return true;
 }
 
 // Right-hand side under the current index sets: udot, the contact forces (stored in the pair
 // memory's normal/tangential force) and the contact torque on the drum. Returns false if the
 // constraint system is singular.
+// `separated` is passed to evaluateAll (the Runge-Kutta stages need no separated pair).
 bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, double* drum_torque,
-         bool store_forces) {
+         bool store_forces, SeparatedPairs separated = SeparatedPairs::kNear) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   const Drive dr = driveAtTime(c, t);
   smoothForces(m, c.d, z, u, dr, &ws.forces);
-  evaluateAll(c, z, u, dr);
+  evaluateAll(c, z, u, dr, separated);
 
   // Known forces: compliant normals and every sliding friction with a known normal.
   ws.active.clear();
@@ -110,8 +189,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
 
   // Constraint rows: closed rigid normals and sticking tangents, g'' = 0.
   const int k = static_cast<int>(ws.active.size());
-  ws.b.setZero(2 * k);
-  ws.lambda.setZero(2 * k);
+  growTo(&ws.lambda, 2 * k);
+  ws.lambda.head(2 * k).setZero();
   int nc = 0;
   for (int i = 0; i < k; ++i) {
     nc += ws.rows[i].normal_unknown ? 1 : 0;
@@ -142,9 +221,12 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   }
   if (nc > 0) {
     // Unknowns: per constraint row, lambda along a direction that may carry a slip coupling.
-    MatX A = MatX::Zero(nc, nc);
-    VecX rhs_c = VecX::Zero(nc);
-    std::vector<std::pair<int, int>> idx;  // (active contact, 0 = normal / 1 = tangent)
+    growTo(&ws.ed_A, nc, nc);
+    growTo(&ws.ed_rc, nc);
+    auto A = ws.ed_A.topLeftCorner(nc, nc);
+    auto rhs_c = ws.ed_rc.head(nc);
+    std::vector<std::pair<int, int>>& idx = ws.ed_idx;  // (active contact, 0 = N / 1 = T)
+    idx.clear();
     for (int i = 0; i < k; ++i) {
       if (ws.rows[i].normal_unknown) idx.push_back({i, 0});
       if (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) idx.push_back({i, 1});
@@ -191,9 +273,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
         A(r, col) = v;
       }
     }
-    const Eigen::FullPivLU<MatX> lu(A);
-    if (!lu.isInvertible()) return false;
-    const VecX lam = lu.solve(rhs_c);
+    if (!solveSquare(&ws, nc)) return false;
+    const auto lam = ws.ed_lam.head(nc);
     for (int r = 0; r < nc; ++r) {
       const int i = idx[r].first;
       const ContactGeom& g = ws.geoms[ws.active[i]];
@@ -220,8 +301,11 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
 
   // Contact torque on the drum (for the drive work) and, if asked, the forces for reporting.
   double torque = 0.0;
-  ws.ed_fn.setZero(ws.geoms.size());
-  ws.ed_ft.setZero(ws.geoms.size());
+  const int n_geoms = static_cast<int>(ws.geoms.size());
+  growTo(&ws.ed_fn, n_geoms);
+  growTo(&ws.ed_ft, n_geoms);
+  ws.ed_fn.head(n_geoms).setZero();
+  ws.ed_ft.head(n_geoms).setZero();
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     ws.ed_fn[ws.active[i]] = ws.lambda[2 * i];
@@ -247,9 +331,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
 void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
-  VecX udot;
   double torque;
-  rhs(c, t, z, u, &udot, &torque, true);
+  rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true, SeparatedPairs::kSign);
   vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
@@ -295,10 +378,15 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   Workspace& ws = c.ws;
   for (auto& k : ws.rk_k) k.resize(2 * n);
   ws.rk_tmp.resize(2 * n);
-  VecX zz(n), uu(n), udot(n);
+  VecX& zz = ws.ed_zz;
+  VecX& uu = ws.ed_uu;
+  VecX& udot = ws.ed_udot;
   double torque = 0;
-  ws.ed_imp_n.setZero(ws.candidates.size());
-  ws.ed_imp_t.setZero(ws.candidates.size());
+  const int n_pairs = static_cast<int>(ws.candidates.size());
+  growTo(&ws.ed_imp_n, n_pairs);
+  growTo(&ws.ed_imp_t, n_pairs);
+  ws.ed_imp_n.head(n_pairs).setZero();
+  ws.ed_imp_t.head(n_pairs).setZero();
   ws.ed_torque_impulse = 0;
   for (int s = 0; s < 7; ++s) {
     zz = z0;
@@ -308,13 +396,13 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
       zz += h * kA[s][j] * ws.rk_k[j].head(n);
       uu += h * kA[s][j] * ws.rk_k[j].tail(n);
     }
-    if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false)) return false;
+    if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false, SeparatedPairs::kNone)) return false;
     ws.rk_k[s].head(n) = uu;
     ws.rk_k[s].tail(n) = udot;
     // Contact impulses and drum torque integrated with the 5th-order weights (b = row 7 of A).
     if (s < 6 && kA[6][s] != 0.0) {
-      ws.ed_imp_n += h * kA[6][s] * ws.ed_fn;
-      ws.ed_imp_t += h * kA[6][s] * ws.ed_ft;
+      ws.ed_imp_n.head(n_pairs) += h * kA[6][s] * ws.ed_fn.head(n_pairs);
+      ws.ed_imp_t.head(n_pairs) += h * kA[6][s] * ws.ed_ft.head(n_pairs);
       ws.ed_torque_impulse += h * kA[6][s] * torque;
     }
   }
@@ -360,8 +448,8 @@ void solveImpact(const Ctx& c, double t, bool force_plastic) {
       ws.rows.push_back(row);
     }
     const int k = static_cast<int>(ws.active.size());
-    ws.b.resize(2 * k);
-    ws.b_offset.resize(k);
+    growTo(&ws.b, 2 * k);
+    growTo(&ws.b_offset, k);
     for (int i = 0; i < k; ++i) {
       const ContactGeom& g = ws.geoms[ws.active[i]];
       const bool slow = g.vn > -m.integrator.zeno_velocity_mps;
@@ -497,7 +585,7 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
     ws.rows.push_back(row);
   }
   const int k = static_cast<int>(ws.active.size());
-  ws.b.resize(2 * k);
+  growTo(&ws.b, 2 * k);
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     const Vec2 drift = velocityDrift(c, d.z, d.u, t, g.pair);
@@ -548,8 +636,10 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
 
 // Projects the state back onto closed rigid contacts (g = 0, dg/dt = 0) and sticking tangents
 // (dg_T/dt = 0) after a step, so that constraint drift never accumulates. Gauss-Seidel: each
-// contact is re-evaluated after the previous one's correction.
-void projectConstraints(const Ctx& c, double t) {
+// contact is re-evaluated after the previous one's correction. Returns whether any correction
+// was applied (the state is otherwise untouched).
+bool projectConstraints(const Ctx& c, double t) {
+  bool corrected = false;
   const Model& m = c.m;
   Workspace& ws = c.ws;
   Data& d = c.d;
@@ -565,8 +655,10 @@ void projectConstraints(const Ctx& c, double t) {
       if (!normal && !tangent) continue;
       // This contact at the current (already corrected) state.
       ContactGeom g;
-      updateStations(m, d.z, dr.theta_rad, &ws);
-      evaluateContact(m, d.z, d.u, dr, ws.candidates[i], &ws, &g);
+      const PairId& pair = ws.candidates[i];
+      if (pair.kind == PairKind::kToothKernel)
+        updateToothStations(m, d.z, dr.theta_rad, pair.a, &ws);
+      evaluateContact(m, d.z, d.u, dr, pair, &ws, &g);
       // Minimal mass-weighted correction of this contact alone.
       double gnn = 0, gtt = 0;
       for (const BodyJac& s : g.side) {
@@ -575,17 +667,25 @@ void projectConstraints(const Ctx& c, double t) {
         gtt += weightedDot(m, nullptr, s.body, s.w_t, s.w_t);
       }
       if (normal && gnn > 0) {
+        corrected = true;
         for (const BodyJac& s : g.side) {
           applyInverseMass(m, nullptr, s.body, s.w_n, -g.gap_m / gnn, &d.z);
           applyInverseMass(m, nullptr, s.body, s.w_n, -g.vn / gnn, &d.u);
         }
       }
       if (tangent && gtt > 0) {
+        corrected = true;
         for (const BodyJac& s : g.side)
           applyInverseMass(m, nullptr, s.body, s.w_t, -g.vt / gtt, &d.u);
       }
     }
   }
+  return corrected;
+}
+
+// Number of kernels still on their pedicels.
+long attachedCount(const Data& d) {
+  return std::count(d.kernel_attached.begin(), d.kernel_attached.end(), 1);
 }
 
 // Size of the next trial step: bounded by the broad-phase margin over the fastest motion.
@@ -672,12 +772,17 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   if (!(h > 0)) h = t_end_s - d->t_s;
 
   // Event values at the start of the step.
-  std::vector<double> ev0, ev1;
+  std::vector<double>& ev0 = ws.ed_ev0;
+  std::vector<double>& ev1 = ws.ed_ev1;
   eventValues(c, d->t_s, d->z, d->u, &ev0);
-  VecX udot0(n);
+  VecX& udot0 = ws.ed_udot_end;
+  udot0.resize(n);
 
   // Adaptive step until the error is within tolerance.
-  VecX z1(n), u1(n);
+  VecX& z1 = ws.ed_z1;
+  VecX& u1 = ws.ed_u1;
+  z1.resize(n);
+  u1.resize(n);
   double err = 0, torque1 = 0;
   bool rejected = false;
   for (int attempt = 0;; ++attempt) {
@@ -703,12 +808,13 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
     // Bisection on the step length (re-stepping from the start each time) to the tolerance.
     double lo = 0, hi = h;
     const double t_tol = std::max(1e-15, 1e-3 * m.integrator.tolerance * 1e-3);
-    VecX zt(n), ut(n);
+    VecX& zt = ws.ed_zt;
+    VecX& ut = ws.ed_ut;
     double et, tq;
     for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
       const double mid = 0.5 * (lo + hi);
       dopriStep(c, d->t_s, mid, d->z, d->u, &zt, &ut, &et, &tq);
-      std::vector<double> evm;
+      std::vector<double>& evm = ws.ed_evm;
       eventValues(c, d->t_s + mid, zt, ut, &evm);
       (evm.size() == ev0.size() && triggered(ev0, evm) ? hi : lo) = mid;
     }
@@ -723,7 +829,13 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   const double H0 = angularMomentumOf(m, d->z, d->u, d->omega_radps);
   const double H1 = angularMomentumOf(m, z1, u1, end.omega_radps);
   d->stats.drive_work_J += mid.omega_radps * (H1 - H0 - ws.ed_torque_impulse);
-  const VecX imp_n = ws.ed_imp_n, imp_t = ws.ed_imp_t;
+  const int n_geoms = static_cast<int>(ws.candidates.size());
+  growTo(&ws.ed_imp_n_step, n_geoms);
+  growTo(&ws.ed_imp_t_step, n_geoms);
+  ws.ed_imp_n_step.head(n_geoms) = ws.ed_imp_n.head(n_geoms);
+  ws.ed_imp_t_step.head(n_geoms) = ws.ed_imp_t.head(n_geoms);
+  const VecX& imp_n = ws.ed_imp_n_step;
+  const VecX& imp_t = ws.ed_imp_t_step;
   d->z = z1;
   d->u = u1;
   d->t_s = end.t_s;
@@ -752,10 +864,12 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   }
 
   // Switch the index sets for every event function at or past zero.
+  const long attached_before = attachedCount(*d);
   if (event) {
     const double e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
     bool rigid_impact = false;
-    std::vector<int> forced_slip;
+    std::vector<int>& forced_slip = ws.ed_forced_slip;
+    forced_slip.clear();
     for (size_t i = 0; i < ws.geoms.size(); ++i) {
       if (!(ev0[4 * i] > 0 || ev0[4 * i + 1] > 0 || ev0[4 * i + 2] > 0)) continue;
       const ContactGeom& g = ws.geoms[i];
@@ -804,8 +918,11 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   } else {
     updatePedicels(m, d);
   }
-  projectConstraints(c, t);
-  rhs(c, t, d->z, d->u, &udot0, &torque1, true);
+  // The forces and geometry of the end state: the statistics' evaluation above holds them
+  // unless an event, a broken pedicel or a projection changed the state or the index sets.
+  const bool projected = projectConstraints(c, t);
+  if (event || projected || attached_before != attachedCount(*d))
+    rhs(c, t, d->z, d->u, &udot0, &torque1, true);
   publishContacts(d, &ws);
   return StepStatus::kOk;
 }

@@ -42,6 +42,7 @@ constexpr int kMaxRefineIterations = 60;
 // Rotation between an ellipse frame E and world W.
 struct Rotation {
   explicit Rotation(double angle_rad) : c(std::cos(angle_rad)), s(std::sin(angle_rad)) {}
+  Rotation(double cos_angle, double sin_angle) : c(cos_angle), s(sin_angle) {}
   Vec2 toWorld(const Vec2& v_E) const {
     return {c * v_E.x() - s * v_E.y(), s * v_E.x() + c * v_E.y()};
   }
@@ -275,6 +276,11 @@ Proximity pointEllipse(const Vec2& p, const Ellipse& e) {
   return projectOntoEllipse(p, e, Rotation(e.angle_rad));
 }
 
+Proximity pointEllipse(const Vec2& p, const Ellipse& e, double cos_angle, double sin_angle) {
+  if (e.a_m == e.b_m) return projectOntoCircle(p, e);
+  return projectOntoEllipse(p, e, Rotation(cos_angle, sin_angle));
+}
+
 Proximity segmentEllipse(const Vec2& p0, const Vec2& p1, const Ellipse& e) {
   const Vec2 d_m = p1 - p0;
   const double length_sq_m2 = d_m.squaredNorm();
@@ -410,8 +416,16 @@ Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
 
   // Refine every candidate inside its neighbours' bracket and keep the best (psi constant over
   // all directions has no strict local maximum: then any direction, here theta = 0, is optimal).
+  // A candidate whose bracket cannot beat the best refined value is skipped: with
+  // |psi''| <= C = |c2 - c1| + a1^2/b1 + a2^2/b2 (psi'' = -n.dc - h1'' - h2'' and |h''| =
+  // |rho - h| <= a^2/b), psi stays below its largest sample plus C step^2 / 8 between samples,
+  // and a candidate is the largest of its three samples. Candidates come in decreasing order.
+  const double curvature_bound_m =
+      gap.dc_m.norm() + e1.a_m * e1.a_m / e1.b_m + e2.a_m * e2.a_m / e2.b_m;
+  const double rise_bound_m = curvature_bound_m * step_rad * step_rad / 8.0;
   GapMaximum best{0.0, -std::numeric_limits<double>::infinity()};
   for (int i = 0; i < n_candidates; ++i) {
+    if (candidates[i].value_m + rise_bound_m < best.value_m) break;
     const double theta_rad = candidates[i].index * step_rad;
     const GapMaximum refined =
         maximiseGap(gap, theta_rad - step_rad, theta_rad, theta_rad + step_rad);

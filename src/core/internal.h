@@ -2,9 +2,12 @@
 // Not installed; nothing outside src/core includes it.
 #pragma once
 
+#include <Eigen/LU>
+#include <algorithm>
 #include <cstdint>
+#include <cstring>
 #include <limits>
-#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "threshing_sim/core/data.h"
@@ -18,6 +21,16 @@ namespace internal {
 
 // A short vector that never touches the heap (a tooth has at most 12 modes, a kernel 3 dofs).
 using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1>;
+
+// Grow-only sizing of scratch storage: the size rises to the largest request seen and stays,
+// so that steady stepping allocates nothing; callers use the leading n entries (head, block).
+inline void growTo(VecX* v, Eigen::Index n) {
+  if (v->size() < n) v->resize(n);
+}
+inline void growTo(MatX* m, Eigen::Index rows, Eigen::Index cols) {
+  if (m->rows() < rows || m->cols() < cols)
+    m->resize(std::max(m->rows(), rows), std::max(m->cols(), cols));
+}
 
 // Rheonomic drum state at one instant.
 struct Drive {
@@ -86,21 +99,86 @@ struct PairMemory {
 
 std::uint64_t pairKey(const PairId& p);
 
+// Pair memory by pair key: open addressing over a dense array of entries. Lookups and inserts
+// allocate nothing while the reserved capacity holds (reserve() at reset sizes it from the
+// model); entries are never removed except by clear(). Iteration visits entries in insertion
+// order, so it is deterministic.
+class PairTable {
+ public:
+  using Entry = std::pair<std::uint64_t, PairMemory>;
+  // Room for n entries without allocating.
+  void reserve(size_t n);
+  // The memory of a pair, default-constructed on first use.
+  PairMemory& operator[](std::uint64_t key);
+  // Index of the entry of key in the dense array (inserting it if new).
+  int indexOf(std::uint64_t key);
+  Entry& entry(int index) { return entries_[index]; }
+  void clear();
+  size_t size() const { return entries_.size(); }
+  std::vector<Entry>::iterator begin() { return entries_.begin(); }
+  std::vector<Entry>::iterator end() { return entries_.end(); }
+
+ private:
+  void rehash(size_t n_slots);
+  std::vector<Entry> entries_;  // dense, insertion order
+  std::vector<int> slots_;      // hash table of indices into entries_ (-1 = empty), 2^k long
+};
+
+// Energy and angular momentum of one state, remembered with a copy of the state so that the
+// next step can reuse them only if the state is bit for bit the same (nothing moved it).
+class StateValues {
+ public:
+  void store(const Data& d, double energy_J, double momentum_kgm2ps) {
+    z_ = d.z;
+    u_ = d.u;
+    attached_ = d.kernel_attached;
+    omega_radps_ = d.omega_radps;
+    energy_J_ = energy_J;
+    momentum_kgm2ps_ = momentum_kgm2ps;
+    valid_ = true;
+  }
+  bool lookup(const Data& d, double* energy_J, double* momentum_kgm2ps) const {
+    if (!valid_ || d.omega_radps != omega_radps_ || d.z.size() != z_.size() ||
+        d.u.size() != u_.size() || d.kernel_attached != attached_ ||
+        std::memcmp(d.z.data(), z_.data(), sizeof(double) * z_.size()) != 0 ||
+        std::memcmp(d.u.data(), u_.data(), sizeof(double) * u_.size()) != 0)
+      return false;
+    *energy_J = energy_J_;
+    *momentum_kgm2ps = momentum_kgm2ps_;
+    return true;
+  }
+
+ private:
+  VecX z_, u_;                          // the state [m or -, m/s or -]
+  std::vector<std::uint8_t> attached_;  // its pedicels [-]
+  double omega_radps_ = 0;              // its drum speed [rad/s]
+  double energy_J_ = 0;                 // mechanical energy [J]
+  double momentum_kgm2ps_ = 0;          // teeth's angular momentum [kg m^2/s]
+  bool valid_ = false;                  // something is stored
+};
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
 struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
-  std::unordered_map<std::uint64_t, internal::PairMemory> memory;
-  std::vector<int> sort_index;      // sweep-and-prune order
-  std::vector<Vec2> stations_W;     // deformed tooth centrelines, all teeth [m]
-  std::vector<int> station_offset;  // first station of each tooth in stations_W
-  VecX forces;                      // generalised forces [N or sqrt(kg) m/s^2]
+  internal::PairTable memory;
+  std::vector<int> sort_index;       // sweep-and-prune order
+  std::vector<Vec2> stations_W;      // deformed tooth centrelines, all teeth [m]
+  std::vector<int> station_offset;   // first station of each tooth in stations_W
+  std::vector<double> station_wc_m;  // foreshortening w_c at each station [m]
+  MatX station_Hq;                   // H(x_s) q, one column per station [1/sqrt(kg)]
+  VecX forces;                       // generalised forces [N or sqrt(kg) m/s^2]
   VecX u_free, z_mid, u_old, z_old, du;
-  VecX guard_z, guard_u;                // last good state for the non-finite guard
-  std::vector<MatX> iteration_inverse;  // time stepping: (I + h theta D + h^2 theta^2 K)^-1
-  double iteration_omega = -1;          // drum speed the matrices above were built at
+  VecX guard_z, guard_u;                  // last good state for the non-finite guard
+  std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues ts_end_values;    // time stepping: energy and momentum at the last end
+  std::vector<MatX> iteration_stiffness;  // time stepping: K(Omega) of each tooth [1/s^2]
+  std::vector<MatX> iteration_matrix;     // time stepping: I + h theta D + h^2 theta^2 K [-]
+  std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
+  double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
+  double iteration_h = -1;      // and the step [s]
   std::vector<int> island_of_body, island_contacts, island_start, island_parent;
   MatX G_island;
   VecX b_island, lambda_island, y_island;
@@ -119,6 +197,19 @@ struct Workspace {
   VecX ed_fn, ed_ft;             // contact forces per geom at the last rhs [N]
   VecX ed_imp_n, ed_imp_t;       // their integrals over the last trial step [N s]
   double ed_torque_impulse = 0;  // integral of the drum contact torque [N m s]
+  // Event-driven scratch, reused so that a step allocates nothing after warm-up.
+  VecX ed_z1, ed_u1, ed_zt, ed_ut;             // trial end states [m or -, m/s or -]
+  VecX ed_zz, ed_uu, ed_udot;                  // Runge-Kutta stage state and acceleration
+  VecX ed_udot_end, ed_udot_ev;                // accelerations at the step end / event checks
+  VecX ed_imp_n_step, ed_imp_t_step;           // impulses of the accepted step per geom [N s]
+  std::vector<double> ed_ev0, ed_ev1, ed_evm;  // event function values (see eventValues)
+  std::vector<int> ed_forced_slip;             // geoms forced into slip by a stick-slip event
+  std::vector<std::pair<int, int>> ed_idx;     // constraint rows: (active contact, 0 N / 1 T)
+  MatX ed_A;                                   // constraint matrix of those rows (grow-only)
+  VecX ed_rc, ed_lam;                          // its right-hand side and solution
+  std::vector<int> ed_row_perm, ed_col_perm;   // pivoting of the elimination
+  // Pair-table indices of the candidates of the previous step that were in contact.
+  std::vector<int> prev_active;
 };
 
 namespace internal {
@@ -131,8 +222,13 @@ Drive driveAt(const Model& m, const Data& d, double dt_s);
 double timeToTarget(const Model& m, const Data& d);
 
 // --- kinematics ----------------------------------------------------------------------------
-// Deformed centreline of every tooth at its stations, in world, for configuration z.
+// Deformed centreline of every tooth at its stations, in world, for configuration z (with the
+// stations' foreshortening and H q, which the narrow phase interpolates).
 void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* ws);
+// Sizes the station arrays for the model (updateStations does it too).
+void layoutStations(const Model& m, Workspace* ws);
+// The same for one tooth only; the arrays must be laid out.
+void updateToothStations(const Model& m, const VecX& z, double theta_rad, int tooth, Workspace* ws);
 // Kernel as a geometric ellipse.
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 
@@ -141,10 +237,16 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
 
 // Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
 // Requires updateStations for z first. If a cheap lower bound of the gap exceeds far_m, only
-// that bound is stored (g->far = true): enough for the sign of a separated pair's gap.
+// that bound is stored (g->far = true): enough for the sign of a separated pair's gap. The
+// bound is that of the bounding circles (which pairs count as near, and are reported in
+// Data::contacts, follows from it), or with tight_bound, for pairs of exact shapes (kernels,
+// obstacles), the supporting-line gap along the line of centres, a far better bound for
+// elongated kernels; tooth pairs always use the bounding circles (the polyline of stations only
+// approximates the deformed tooth, and the margin covers the difference).
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g,
-                     double far_m = std::numeric_limits<double>::infinity());
+                     double far_m = std::numeric_limits<double>::infinity(),
+                     bool tight_bound = false);
 
 // Adds w * scale to the generalised vector f for each side of the contact.
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f);

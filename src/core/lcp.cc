@@ -231,6 +231,15 @@ bool solveLcpLemke(const MatX& M, const VecX& q, VecX* z, LcpWorkspace* ws, int 
 
 bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<ContactRow>& rows,
                          VecX* lambda, VecX* y, LcpWorkspace* ws) {
+  lambda->resize(2 * static_cast<Index>(rows.size()));
+  y->resize(lambda->size());
+  return solveContactProblem(Eigen::Ref<const MatX>(G), Eigen::Ref<const VecX>(b), rows,
+                             Eigen::Ref<VecX>(*lambda), Eigen::Ref<VecX>(*y), ws);
+}
+
+bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const VecX>& b,
+                         const std::vector<ContactRow>& rows, Eigen::Ref<VecX> lambda,
+                         Eigen::Ref<VecX> y, LcpWorkspace* ws) {
   const Index k = static_cast<Index>(rows.size());
 
   // Number the LCP unknowns contact by contact: ivec[2i] is the normal unknown (-1: fixed),
@@ -334,19 +343,17 @@ bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<Contact
 
   // Map the unknowns back to lambda (lambda_T+ and lambda_T- may both be positive; only their
   // difference matters), clip round-off outside the friction cone, and evaluate y = G lambda + b.
-  lambda->resize(2 * k);
   for (Index i = 0; i < k; ++i) {
     const int ni = idx[2 * i];
     const int ti = idx[2 * i + 1];
     const double ln = ni >= 0 ? x(ni) : rows[i].lambda_n_fixed;
     double lt = slipCoefficient(rows[i]) * ln;
     if (ti >= 0) lt = std::clamp(x(ti) - x(ti + 1), -rows[i].mu * ln, rows[i].mu * ln);
-    (*lambda)(2 * i) = ln;
-    (*lambda)(2 * i + 1) = lt;
+    lambda(2 * i) = ln;
+    lambda(2 * i + 1) = lt;
   }
-  y->resize(2 * k);
-  y->noalias() = G * (*lambda);
-  *y += b;
+  y.noalias() = G * lambda;
+  y += b;
   return true;
 }
 

@@ -221,6 +221,11 @@ void resetBodies(const Model& m, Data* d) {
   d->kernel_attached.assign(m.kernels.size(), 1);
   d->omega_target_radps = m.drum.initial_speed_radps;
   d->ws->memory.clear();
+  // Room for the pairs a run typically meets (each kernel with every tooth and a few kernels
+  // and obstacles), so that pair memory is not allocated while stepping.
+  const size_t n_kernels = m.kernels.size();
+  d->ws->memory.reserve(n_kernels * (m.teeth.size() + 16) + 64);
+  d->ws->prev_active.clear();
   d->ws->geoms.clear();
   d->contacts.clear();
   d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);
@@ -242,6 +247,8 @@ void resetData(const Model& model, Data* data) {
   data->omega_radps = model.drum.initial_speed_radps;
   data->alpha_radps2 = 0;
   data->events.clear();
+  // Events are appended while stepping: room for many before the vector must grow.
+  data->events.reserve(4096);
   data->stats = RunStats();
   data->ws->iteration_omega = -1;
   data->ws->ed_h = 0;

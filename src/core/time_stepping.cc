@@ -14,18 +14,39 @@ namespace threshing_sim {
 namespace internal {
 namespace {
 
-// (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega changes.
+// (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega or h changes
+// (a recovery crosses an interval with smaller steps).
 void updateIterationMatrices(const Model& m, double omega, double h, Workspace* ws) {
-  if (ws->iteration_omega == omega && ws->iteration_inverse.size() == m.teeth.size()) return;
+  if (ws->iteration_omega == omega && ws->iteration_h == h &&
+      ws->iteration_inverse.size() == m.teeth.size())
+    return;
   const double th = m.integrator.theta;
-  ws->iteration_inverse.resize(m.teeth.size());
-  for (size_t k = 0; k < m.teeth.size(); ++k) {
+  const size_t T = m.teeth.size();
+  ws->iteration_inverse.resize(T);
+  ws->iteration_stiffness.resize(T);
+  ws->iteration_matrix.resize(T);
+  ws->iteration_lu.resize(T);
+  for (size_t k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
-    MatX W = (h * h * th * th) * toothStiffness(tm, omega);
+    const int n = tm.n_modes;
+    // K(Omega) = Lambda + Omega^2 (K_G - I), written into storage of a fixed size per tooth so
+    // that a drum ramp (new Omega every step) allocates nothing.
+    MatX& K = ws->iteration_stiffness[k];
+    K.resize(n, n);
+    K = (omega * omega) * tm.K_G;
+    K.diagonal().array() =
+        (omega * omega) * (tm.K_G.diagonal().array() - 1.0) + tm.omega0_sq.array();
+    MatX& W = ws->iteration_matrix[k];
+    W.resize(n, n);
+    W = (h * h * th * th) * K;
     W.diagonal().array() += 1.0 + h * th * tm.damping_coeff.array();
-    ws->iteration_inverse[k] = W.inverse();
+    ws->iteration_inverse[k].resize(n, n);
+    if (n == 0) continue;
+    ws->iteration_lu[k].compute(W);
+    ws->iteration_inverse[k] = ws->iteration_lu[k].inverse();
   }
   ws->iteration_omega = omega;
+  ws->iteration_h = h;
 }
 
 // Largest speed of any material point, to widen the broad phase over one step [m/s].
@@ -54,9 +75,14 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   Drive forcing = mid;
   forcing.alpha_radps2 = (end.omega_radps - d->omega_radps) / h;
   updateIterationMatrices(m, mid.omega_radps, h, &ws);
-  const double energy_net_before =
-      energyOf(m, *d, d->z, d->u, d->omega_radps) - d->stats.drive_work_J;
-  const double H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  // Energy and angular momentum at the step start: those the previous step ended with, if the
+  // state is still exactly that one.
+  double energy_before = 0.0, H_before = 0.0;
+  if (!ws.ts_end_values.lookup(*d, &energy_before, &H_before)) {
+    energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
+    H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  }
+  const double energy_net_before = energy_before - d->stats.drive_work_J;
 
   // Contact detection at the midpoint configuration z_M = z + h/2 u.
   ws.z_mid = d->z + 0.5 * h * d->u;
@@ -77,8 +103,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
     auto f = ws.forces.segment(tm.dof_offset, tm.n_modes);
-    f.noalias() -= h * (th - 0.5) *
-                   (toothStiffness(tm, mid.omega_radps) * d->u.segment(tm.dof_offset, tm.n_modes));
+    f.noalias() -=
+        (h * (th - 0.5)) * (ws.iteration_stiffness[k] * d->u.segment(tm.dof_offset, tm.n_modes));
   }
   ws.u_free = d->u;
   for (int k = 0; k < T; ++k) {
@@ -115,8 +141,9 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     ws.rows.push_back(row);
   }
   const int k = static_cast<int>(ws.active.size());
-  ws.b.resize(2 * k);
-  ws.b_offset.setZero(k);
+  growTo(&ws.b, 2 * k);
+  growTo(&ws.b_offset, k);
+  ws.b_offset.head(k).setZero();
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     double bn = g.wtilde_n, bt = g.wtilde_t;
@@ -205,8 +232,8 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  const double energy_net_after =
-      energyOf(m, *d, d->z, d->u, d->omega_radps) - d->stats.drive_work_J;
+  const double energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
+  const double energy_net_after = energy_after - d->stats.drive_work_J;
 
   // Contact states, episodes, events and statistics.
   for (auto& kv : ws.memory) kv.second.seen = false;
@@ -292,6 +319,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     endEpisode(m, d, &mem, g_far, d->t_s, energy_net_after);
   }
   updatePedicels(m, d);
+  ws.ts_end_values.store(*d, energy_after, H_after);
   publishContacts(d, &ws);
   return solved ? StepStatus::kOk : StepStatus::kRecovered;
 }

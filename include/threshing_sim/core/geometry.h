@@ -28,6 +28,8 @@ struct Proximity {
 // Closest point on the ellipse boundary to p (Eberly's robust bisection).
 // Body 1 is the point p, body 2 the ellipse: distance > 0 outside, < 0 inside.
 Proximity pointEllipse(const Vec2& p, const Ellipse& e);
+// The same with the ellipse's cos(angle_rad) and sin(angle_rad) given (repeated queries).
+Proximity pointEllipse(const Vec2& p, const Ellipse& e, double cos_angle, double sin_angle);
 
 // Segment [p0, p1] (body 1) against the ellipse (body 2).
 Proximity segmentEllipse(const Vec2& p0, const Vec2& p1, const Ellipse& e);

@@ -45,5 +45,10 @@ struct ContactRow {
 // Returns false if Lemke fails (ray termination, e.g. the Painleve case at acceleration level).
 bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<ContactRow>& rows,
                          VecX* lambda, VecX* y, LcpWorkspace* ws);
+// The same on views (blocks of larger scratch storage); lambda and y must have size 2k. No heap
+// allocation once ws has grown to the problem size.
+bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const VecX>& b,
+                         const std::vector<ContactRow>& rows, Eigen::Ref<VecX> lambda,
+                         Eigen::Ref<VecX> y, LcpWorkspace* ws);
 
 }  // namespace threshing_sim

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Instruction counts (valgrind callgrind, Ir) of the stepping loop of `simulate` on the default
+# scene and the kernel stream, both integrators. Ir are stable on a noisy shared machine where
+# wall times are not. Prints one table row per case: the Ir of advanceTo (stepping only, scene
+# loading excluded), steps, and Ir per step; with --keep DIR the callgrind files stay in DIR for
+# callgrind_annotate. Usage: scripts/profile_core.sh [--simulate PATH] [--keep DIR]
+# (after scripts/setup.sh; needs valgrind: apt-get install -y valgrind)
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+SIMULATE="$ROOT/.build/ws/devel/lib/threshing_sim/simulate"
+KEEP=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --simulate) SIMULATE=$2; shift 2 ;;
+    --keep) KEEP=$2; shift 2 ;;
+    *) echo "usage: $0 [--simulate PATH] [--keep DIR]" >&2; exit 2 ;;
+  esac
+done
+OUT=${KEEP:-$(mktemp -d)}
+mkdir -p "$OUT"
+# name | scene | options (the stream runs are shortened; its first kernel is met at 1 ms)
+CASES=(
+  "default_event_driven|config/default_scene.yaml|--integrator event_driven --tolerance 1e-6"
+  "default_time_stepping|config/default_scene.yaml|--integrator time_stepping --dt 1e-6"
+  "stream_event_driven_1.5ms|config/scenes/stream.yaml|--integrator event_driven --duration 0.0015"
+  "stream_time_stepping_4ms|config/scenes/stream.yaml|--integrator time_stepping --dt 1e-6 --duration 0.004"
+)
+echo "| case | stepping Ir (advanceTo) | steps | Ir per step |"
+echo "|---|---|---|---|"
+for c in "${CASES[@]}"; do
+  IFS='|' read -r name scene opts <<<"$c"
+  # shellcheck disable=SC2086
+  valgrind --tool=callgrind --callgrind-out-file="$OUT/$name.cg" "$SIMULATE" "$ROOT/$scene" \
+    $opts --quiet --summary "$OUT/$name.json" >"$OUT/$name.log" 2>&1
+  ir=$(callgrind_annotate --inclusive=yes "$OUT/$name.cg" 2>/dev/null |
+       awk '/threshing_sim::advanceTo/ && !done {gsub(",", "", $1); print $1; done = 1}')
+  steps=$(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['steps'])" \
+          "$OUT/$name.json")
+  echo "| $name | $ir | $steps | $((ir / steps)) |"
+done
+[ -n "$KEEP" ] || rm -rf "$OUT"

@@ -1,0 +1,217 @@
+// Zero heap allocations per step after warm-up (issue 4): both integrators, with contact, the
+// complementarity solver, event location and the broad phase on the path.
+//
+// The test replaces the global operator new / delete and, underneath them, malloc and its
+// relatives (Eigen allocates with malloc, not new), so that every heap allocation of this
+// process goes through one counting hook. The hook counts only inside a window opened around
+// the steps under test; on a non-zero count the call stack of the first allocation in the window
+// is printed (addresses resolve with addr2line or gdb).
+#include <execinfo.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <new>
+#include <string>
+#include <vector>
+
+#include "threshing_sim/core/simulator.h"
+#include "threshing_sim/scene/scene_loader.h"
+
+// glibc's own allocator entry points, which the replacements below forward to.
+extern "C" {
+void* __libc_malloc(size_t size);
+void __libc_free(void* ptr);
+void* __libc_calloc(size_t count, size_t size);
+void* __libc_realloc(void* ptr, size_t size);
+void* __libc_memalign(size_t alignment, size_t size);
+}
+
+namespace {
+
+// Counting state: only allocations inside an open window are counted.
+bool g_window_open = false;  // counting enabled [-]
+long g_allocations = 0;      // allocations counted in the window [-]
+bool g_have_trace = false;   // the first counted allocation's stack is stored [-]
+void* g_trace[48];           // return addresses of that stack
+int g_trace_depth = 0;       // entries used in g_trace [-]
+bool g_in_hook = false;      // re-entrancy guard (backtrace may allocate on first use)
+
+void countAllocation() {
+  if (!g_window_open || g_in_hook) return;
+  ++g_allocations;
+  if (!g_have_trace) {
+    g_in_hook = true;
+    g_trace_depth = backtrace(g_trace, 48);
+    g_have_trace = true;
+    g_in_hook = false;
+  }
+}
+
+void* allocateOrThrow(size_t size) {
+  countAllocation();
+  void* p = __libc_malloc(size == 0 ? 1 : size);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+
+void* allocateAlignedOrThrow(size_t size, std::align_val_t alignment) {
+  countAllocation();
+  void* p = __libc_memalign(static_cast<size_t>(alignment), size == 0 ? 1 : size);
+  if (p == nullptr) throw std::bad_alloc();
+  return p;
+}
+
+}  // namespace
+
+// --- the C allocator (glibc supports replacing it in the executable) ---------------------------
+extern "C" {
+void* malloc(size_t size) {
+  countAllocation();
+  return __libc_malloc(size);
+}
+void free(void* ptr) { __libc_free(ptr); }
+void* calloc(size_t count, size_t size) {
+  countAllocation();
+  return __libc_calloc(count, size);
+}
+void* realloc(void* ptr, size_t size) {
+  countAllocation();
+  return __libc_realloc(ptr, size);
+}
+void* memalign(size_t alignment, size_t size) {
+  countAllocation();
+  return __libc_memalign(alignment, size);
+}
+void* aligned_alloc(size_t alignment, size_t size) {
+  countAllocation();
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, size_t alignment, size_t size) {
+  countAllocation();
+  *out = __libc_memalign(alignment, size);
+  return *out != nullptr ? 0 : ENOMEM;
+}
+}
+
+// --- the C++ allocator ---------------------------------------------------------------------------
+void* operator new(size_t size) { return allocateOrThrow(size); }
+void* operator new[](size_t size) { return allocateOrThrow(size); }
+void* operator new(size_t size, const std::nothrow_t&) noexcept {
+  countAllocation();
+  return __libc_malloc(size == 0 ? 1 : size);
+}
+void* operator new[](size_t size, const std::nothrow_t&) noexcept {
+  countAllocation();
+  return __libc_malloc(size == 0 ? 1 : size);
+}
+void* operator new(size_t size, std::align_val_t a) { return allocateAlignedOrThrow(size, a); }
+void* operator new[](size_t size, std::align_val_t a) { return allocateAlignedOrThrow(size, a); }
+void operator delete(void* p) noexcept { __libc_free(p); }
+void operator delete[](void* p) noexcept { __libc_free(p); }
+void operator delete(void* p, size_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, size_t) noexcept { __libc_free(p); }
+void operator delete(void* p, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete(void* p, size_t, std::align_val_t) noexcept { __libc_free(p); }
+void operator delete[](void* p, size_t, std::align_val_t) noexcept { __libc_free(p); }
+
+namespace threshing_sim {
+namespace {
+
+// Opens the counting window; closing it returns the count.
+void openWindow() {
+  g_allocations = 0;
+  g_have_trace = false;
+  g_window_open = true;
+}
+long closeWindow() {
+  g_window_open = false;
+  return g_allocations;
+}
+
+// Prints the stack of the first allocation in the last window.
+void printFirstAllocation() {
+  if (!g_have_trace) return;
+  std::fprintf(stderr, "first allocation in the window, call stack:\n");
+  backtrace_symbols_fd(g_trace, g_trace_depth, STDERR_FILENO);
+}
+
+Model loadConfig(const std::string& relative, const std::vector<std::string>& overrides) {
+  return loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/" + relative, overrides);
+}
+
+// Warm-up is one pass over the very steps that are then measured: the scene runs
+// warm_steps + measured_steps steps, is reset (resetData keeps the workspace and its capacity),
+// runs warm_steps steps again, and the allocations of the following measured_steps steps are
+// counted. The rerun is bit-identical, so every scratch buffer has already grown to the sizes
+// those steps need; any allocation counted is one the stepping makes per step.
+// The measured steps must include contact: at least min_events contact events (impacts and
+// state transitions) fall in the window.
+long allocationsAfterWarmUp(const Model& m, int warm_steps, int measured_steps, int min_events) {
+  Data d;
+  resetData(m, &d);
+  for (int i = 0; i < warm_steps + measured_steps; ++i) {
+    EXPECT_NE(step(m, &d), StepStatus::kFailed) << "warm-up step " << i;
+  }
+  const double t_end = d.t_s;
+  resetData(m, &d);
+  for (int i = 0; i < warm_steps; ++i) step(m, &d);
+  // Warm the backtrace machinery outside the window (its first call loads libgcc).
+  void* probe[2];
+  backtrace(probe, 2);
+  const size_t events_before = d.events.size();
+  openWindow();
+  int failed = 0;
+  for (int i = 0; i < measured_steps; ++i) failed += step(m, &d) == StepStatus::kFailed ? 1 : 0;
+  const long count = closeWindow();
+  EXPECT_EQ(failed, 0);
+  EXPECT_GE(d.events.size() - events_before, static_cast<size_t>(min_events))
+      << "window [" << warm_steps << ", " << warm_steps + measured_steps
+      << ") steps ends at t = " << d.t_s << " s";
+  EXPECT_EQ(d.t_s, t_end) << "the measured pass must repeat the warm-up pass";
+  if (count != 0) printFirstAllocation();
+  return count;
+}
+
+// Default scene: one tooth strikes one kernel at about 0.25-0.35 ms; the windows below cover
+// the contact (impact, stick/slip) and the free flight after it.
+TEST(Allocations, DefaultSceneEventDriven) {
+  const Model m = loadConfig("config/default_scene.yaml", {"integrator.type=event_driven"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 20, 600, 2), 0);
+}
+
+TEST(Allocations, DefaultSceneTimeStepping) {
+  const Model m = loadConfig("config/default_scene.yaml",
+                             {"integrator.type=time_stepping", "integrator.dt=1e-6"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 50, 1000, 2), 0);
+}
+
+// Persistent contact: the knead scene presses a kernel between the tooth and a bar.
+TEST(Allocations, KneadEventDriven) {
+  const Model m = loadConfig("config/scenes/knead.yaml", {"integrator.type=event_driven"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 20, 800, 2), 0);
+}
+
+TEST(Allocations, KneadTimeStepping) {
+  const Model m = loadConfig("config/scenes/knead.yaml",
+                             {"integrator.type=time_stepping", "integrator.dt=1e-6"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 50, 1500, 2), 0);
+}
+
+// A multi-kernel stream: six teeth, kernels on pedicels, a grate of bars.
+TEST(Allocations, StreamEventDriven) {
+  const Model m = loadConfig("config/scenes/stream.yaml", {"integrator.type=event_driven"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 20, 600, 2), 0);
+}
+
+TEST(Allocations, StreamTimeStepping) {
+  const Model m = loadConfig("config/scenes/stream.yaml",
+                             {"integrator.type=time_stepping", "integrator.dt=1e-6"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 50, 2000, 2), 0);
+}
+
+}  // namespace
+}  // namespace threshing_sim
