@@ -131,11 +131,10 @@ SCENES = [
           note="simulate has no drum command schedule: the long run turns at the commanded "
                "1500 rpm from the start; the ramps 0 -> 1500 -> 0 rpm run in CI only"),
     Scene("10", "10_long_run.yaml", 750.0, "long run, 800 rpm",
-          checks=[("no sinking", check_resting_on_floor)], quick_duration_s=45.0,
-          note="the long run covers 600 revolutions (45 s) with both integrators unless --full "
-               "is given (10 000 revolutions, 750 s: about an hour of wall time for time "
-               "stepping at 1e6 steps per simulated second, half that event-driven); 600 "
-               "revolutions keep the whole table near 10 minutes of wall time on one core"),
+          checks=[("no sinking", check_resting_on_floor)], quick_duration_s=22.5,
+          note="the long run covers 300 revolutions (22.5 s) with both integrators unless --full "
+               "is given (10 000 revolutions, 750 s: about 1.5 hours of wall time on one "
+               "core); 300 revolutions keep the whole table near 10 minutes"),
 ]
 
 
@@ -430,7 +429,7 @@ def main():
                         help="multiply every long duration by this (e.g. 0.01 for a quick look)")
     parser.add_argument("--full", action="store_true",
                         help="run every scene's full long duration (scene 10: 10 000 revolutions "
-                        "instead of 600, about 1.5 h of wall time)")
+                        "instead of 300, about 1.5 h of wall time)")
     parser.add_argument("--output", help="write the markdown document here (default: stdout)")
     parser.add_argument("--save", metavar="FILE.json",
                         help="also write the results (rows, notes, command) as JSON")
