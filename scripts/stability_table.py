@@ -16,7 +16,7 @@ Usage:
       --output docs/stability.md --readme README.md    # the table in docs and README
   scripts/stability_table.py --scenes 01 03 --integrators time_stepping   # a subset, to stdout
   scripts/stability_table.py --scale 0.01                                 # 1 % of each run
-  scripts/stability_table.py --full ...     # scene 10 over 10 000 revolutions (~1.5 h)
+  scripts/stability_table.py --full ...     # scene 10 over 10 000 revolutions (hours)
   scripts/stability_table.py ... --save results.json    # also keep the results
   scripts/stability_table.py --render results.json --output docs/stability.md  # re-render only
 
@@ -133,8 +133,8 @@ SCENES = [
     Scene("10", "10_long_run.yaml", 750.0, "long run, 800 rpm",
           checks=[("no sinking", check_resting_on_floor)], quick_duration_s=22.5,
           note="the long run covers 300 revolutions (22.5 s) with both integrators unless --full "
-               "is given (10 000 revolutions, 750 s: about 1.5 hours of wall time on one "
-               "core); 300 revolutions keep the whole table near 10 minutes"),
+               "is given (10 000 revolutions, 750 s: about 33 times the wall time of the "
+               "scene 10 rows); 300 revolutions keep the whole table near 10 minutes"),
 ]
 
 
@@ -343,8 +343,10 @@ Properties checked on each long run (all must hold):
   (3), one model-validity warning for the rubber tooth's deflection beyond 0.1 L (7), kernels on
   the floor not sunk into it (10).
 
-"Worst energy error" is the larger of the largest energy gain at an impact and the gain over
-the run beyond the drive's work (negative: the run only dissipated). "Worst penetration" is
+"Worst energy error" is the larger of the largest energy gain at an impact (never below 0) and
+the gain over the run beyond the drive's work, so 0 means that neither an impact nor the run as
+a whole gained energy (the script prints each run's balance, E(end) - E(0) - drive work, on
+stderr). "Worst penetration" is
 `max_penetration_m` over closed contacts (compliant contacts indent by design). Contacts are
 sampled by `simulate` every millisecond (`--sample-interval 1e-3`), so the step rates are the
 integrators' own.
@@ -429,7 +431,7 @@ def main():
                         help="multiply every long duration by this (e.g. 0.01 for a quick look)")
     parser.add_argument("--full", action="store_true",
                         help="run every scene's full long duration (scene 10: 10 000 revolutions "
-                        "instead of 300, about 1.5 h of wall time)")
+                        "instead of 300, 33 times as long)")
     parser.add_argument("--output", help="write the markdown document here (default: stdout)")
     parser.add_argument("--save", metavar="FILE.json",
                         help="also write the results (rows, notes, command) as JSON")
