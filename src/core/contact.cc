@@ -376,11 +376,19 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       if (xb == xa) xb = xa - 1e-6 * tm.length_m;
       Proximity pa, pb;
       double ha = slopeAt(xa, &pa), hb = slopeAt(xb, &pb);
-      for (int it = 0; it < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m; ++it) {
+      int iterations = 0;
+      for (; iterations < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m; ++iterations) {
         const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
         xa = xb, ha = hb;
         xb = xn;
         hb = slopeAt(xb, &pb);
+      }
+      // No secant step (equal slopes at both points, e.g. a flank square to the axis at the
+      // tip): xb is only the probe; keep the polyline's point if it is the closer one, and
+      // evaluate there again so that r_x and the mode values in scratch_phi/dphi describe it.
+      if (iterations == 0 && pa.distance_m < pb.distance_m) {
+        xb = xa;
+        slopeAt(xb, &pb);
       }
       // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
       g->tooth_x_m = xb;

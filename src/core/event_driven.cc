@@ -5,12 +5,16 @@
 // integrated by Dormand-Prince 5(4) to the tolerance; the multipliers of closed normals and
 // sticking tangents come from g'' = 0 at every right-hand side. After each accepted step the
 // event functions are checked (gap, normal force, friction limit, slip velocity, pedicel
-// force); a sign change is located by re-stepping from the step start (secant/Illinois on the
-// step length), the state is advanced to just past it, and the index sets are switched:
-// impacts are solved as a velocity-level complementarity problem, stick/slip/separation as
-// an acceleration-level one. Impacts slower than zeno_velocity are plastic (Zeno rule).
+// force); a gap that dips below zero and back inside the step is found from the cubic Hermite
+// interpolant of its values and rates at the step ends (checked at the predicted minimum), and
+// a just-bounced gap (at or below zero, opening) is armed to fire when it closes again. A
+// sign change is located by re-stepping from the step start (bisection on the step length), the
+// state is advanced to just past it, and the index sets are switched: impacts are solved as a
+// velocity-level complementarity problem, stick/slip/separation as an acceleration-level one.
+// Impacts slower than zeno_velocity are plastic (Zeno rule).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "internal.h"
@@ -327,13 +331,17 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
 
 // Event functions: positive while the current index sets stay valid. Fills vals in the
 // order of ws.geoms (4 per pair) followed by one per kernel (pedicel). Uses the forces the
-// last rhs() call stored for (z, u) at time t.
-void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals) {
+// last rhs() call stored for (z, u) at time t. If rates is given it receives the time
+// derivative of each function where it is known cheaply (the gap functions: +-dg_N/dt of a
+// pair whose geometry was evaluated in full) and NaN elsewhere [unit of the function / s].
+void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals,
+                 std::vector<double>* rates = nullptr) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   double torque;
   rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true, SeparatedPairs::kSign);
   vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
+  if (rates) rates->assign(vals->size(), std::numeric_limits<double>::quiet_NaN());
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
     const PairMemory& mem = ws.memory[pairKey(g.pair)];
@@ -341,6 +349,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
     if (!isActive(mem)) {
       // Separated: the gap closes.
       v[0] = g.gap_m;
+      if (rates && !g.far) (*rates)[4 * i] = g.vn;
       continue;
     }
     const double mu = g.params->friction;
@@ -348,6 +357,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
     if (g.params->law == ContactLaw::kCompliant) {
       // Compliant: the bodies part, or the damped force would pull.
       v[0] = -g.gap_m;
+      if (rates) (*rates)[4 * i] = -g.vn;
       const double delta = std::max(-g.gap_m, 0.0);
       v[1] = mem.hertz_K * delta * std::sqrt(delta) *
              (1.0 - g.params->hc_damping_factor /
@@ -701,6 +711,28 @@ double motionBound(const Ctx& c) {
   return v;
 }
 
+// Arming of one event function over a step: off, fires on reaching zero, or fires on falling
+// below its value at the step start.
+enum class Arm : std::uint8_t { kOff, kAtZero, kBelowStart };
+
+// Interior minimum of the cubic Hermite interpolant of a function over a step of length h [s],
+// from its values g0, g1 and rates r0 < 0 < r1 at the ends: returns the value and sets s_min,
+// the position in (0, 1) as a fraction of h.
+double hermiteMinimum(double g0, double r0, double g1, double r1, double h, double* s_min) {
+  // p(s) = c0 + c1 s + c2 s^2 + c3 s^3 on s in [0, 1].
+  const double c1 = h * r0;
+  const double c2 = 3.0 * (g1 - g0) - 2.0 * h * r0 - h * r1;
+  const double c3 = 2.0 * (g0 - g1) + h * r0 + h * r1;
+  // p'(0) < 0 < p'(1): bisection on p' (60 halvings, exact to round-off, deterministic).
+  double lo = 0.0, hi = 1.0;
+  for (int it = 0; it < 60; ++it) {
+    const double s = 0.5 * (lo + hi);
+    (c1 + s * (2.0 * c2 + 3.0 * c3 * s) < 0 ? lo : hi) = s;
+  }
+  *s_min = 0.5 * (lo + hi);
+  return g0 + *s_min * (c1 + *s_min * (c2 + *s_min * c3));
+}
+
 }  // namespace
 
 StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
@@ -771,10 +803,37 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   if (ramp > 1e-15 && ramp < h) h = ramp;
   if (!(h > 0)) h = t_end_s - d->t_s;
 
-  // Event values at the start of the step.
+  // Event values at the start of the step, and which of them are armed over it. A function
+  // positive at the start fires when it reaches zero. A gap function at or below zero whose
+  // rate points to positive (a pair that just bounced apart, a compliant contact that just
+  // closed) is armed as well: it fires when it falls below its start value again, so that a
+  // flight shorter than the step is not seen one step late, inside the plate.
   std::vector<double>& ev0 = ws.ed_ev0;
   std::vector<double>& ev1 = ws.ed_ev1;
-  eventValues(c, d->t_s, d->z, d->u, &ev0);
+  std::vector<double>& rate0 = ws.ed_rate0;
+  std::vector<double>& rate1 = ws.ed_rate1;
+  eventValues(c, d->t_s, d->z, d->u, &ev0, &rate0);
+  std::vector<std::uint8_t>& arm = ws.ed_arm;  // Arm per event function
+  arm.assign(ev0.size(), static_cast<std::uint8_t>(Arm::kOff));
+  for (size_t i = 0; i < ev0.size(); ++i) {
+    if (ev0[i] > 0) {
+      arm[i] = static_cast<std::uint8_t>(Arm::kAtZero);
+    } else if (rate0[i] > 0) {  // NaN (rate unknown) stays off
+      arm[i] = static_cast<std::uint8_t>(Arm::kBelowStart);
+    }
+  }
+  auto armOf = [&](size_t i) { return static_cast<Arm>(arm[i]); };
+  auto fires = [&](size_t i, double value) {
+    return armOf(i) == Arm::kAtZero ? value <= 0 : armOf(i) == Arm::kBelowStart && value < ev0[i];
+  };
+  // Whether any armed function fired at values b; function `deep` (if given) only counts
+  // when it went below -depth.
+  auto triggered = [&](const std::vector<double>& b, size_t deep = SIZE_MAX, double depth = 0) {
+    if (b.size() != ev0.size()) return false;
+    for (size_t i = 0; i < b.size(); ++i)
+      if (i == deep ? fires(i, b[i] + depth) : fires(i, b[i])) return true;
+    return false;
+  };
   VecX& udot0 = ws.ed_udot_end;
   udot0.resize(n);
 
@@ -796,27 +855,57 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   const double h_next = h * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2));
 
   // Events: did any function change sign over the step?
-  eventValues(c, d->t_s + h, z1, u1, &ev1);
-  auto triggered = [&](const std::vector<double>& a, const std::vector<double>& b) {
-    for (size_t i = 0; i < a.size() && i < b.size(); ++i)
-      if (a[i] > 0 && b[i] <= 0) return true;
-    return false;
-  };
+  eventValues(c, d->t_s + h, z1, u1, &ev1, &rate1);
   double h_take = h;
-  bool event = ev0.size() == ev1.size() && triggered(ev0, ev1);
+  double h_fired = h;  // a step length at whose end an event function is known to have fired
+  bool event = triggered(ev1);
+  VecX& zt = ws.ed_zt;
+  VecX& ut = ws.ed_ut;
+  zt.resize(n);
+  ut.resize(n);
+  double et, tq;
+  std::vector<double>& evm = ws.ed_evm;
+  if (!event && ev1.size() == ev0.size()) {
+    // Grazes: a separated pair whose gap falls and rises again within the step shows no sign
+    // change at the ends. The cubic Hermite interpolant of the gap (values and rates at both
+    // ends) predicts the interior minimum; where it comes near zero the state there is
+    // computed (a step from the start) and the gap checked. A dip counts once it is deeper than
+    // the position error scale of the integrator (tolerance x 1e-2 m): shallower ones are
+    // below what the step resolves, and a path that exactly touches gives no contact.
+    const double depth_m = m.integrator.tolerance * 1e-2;
+    for (size_t i = 0; i < ws.geoms.size() && !event; ++i) {
+      const size_t j = 4 * i;
+      if (armOf(j) != Arm::kAtZero || isActive(ws.memory[pairKey(ws.geoms[i].pair)])) continue;
+      if (!(rate0[j] < 0 && rate1[j] > 0)) continue;  // no interior minimum (or rate unknown)
+      double s_min = 0;
+      const double g_min = hermiteMinimum(ev0[j], rate0[j], ev1[j], rate1[j], h, &s_min);
+      if (!(g_min < std::max(depth_m, 1e-3 * (ev0[j] + ev1[j])))) continue;
+      // The probe step overwrites the step's contact impulses and drum torque impulse; they
+      // are restored unless the event is confirmed (then the located step recomputes them).
+      ws.ed_imp_n_saved = ws.ed_imp_n;
+      ws.ed_imp_t_saved = ws.ed_imp_t;
+      const double torque_impulse_saved = ws.ed_torque_impulse;
+      dopriStep(c, d->t_s, s_min * h, d->z, d->u, &zt, &ut, &et, &tq);
+      eventValues(c, d->t_s + s_min * h, zt, ut, &evm);
+      if (triggered(evm, j, depth_m)) {
+        event = true;
+        h_fired = s_min * h;
+      } else {
+        ws.ed_imp_n = ws.ed_imp_n_saved;
+        ws.ed_imp_t = ws.ed_imp_t_saved;
+        ws.ed_torque_impulse = torque_impulse_saved;
+      }
+    }
+  }
   if (event) {
     // Bisection on the step length (re-stepping from the start each time) to the tolerance.
-    double lo = 0, hi = h;
+    double lo = 0, hi = h_fired;
     const double t_tol = std::max(1e-15, 1e-3 * m.integrator.tolerance * 1e-3);
-    VecX& zt = ws.ed_zt;
-    VecX& ut = ws.ed_ut;
-    double et, tq;
     for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
       const double mid = 0.5 * (lo + hi);
       dopriStep(c, d->t_s, mid, d->z, d->u, &zt, &ut, &et, &tq);
-      std::vector<double>& evm = ws.ed_evm;
       eventValues(c, d->t_s + mid, zt, ut, &evm);
-      (evm.size() == ev0.size() && triggered(ev0, evm) ? hi : lo) = mid;
+      (triggered(evm) ? hi : lo) = mid;
     }
     h_take = hi;
     dopriStep(c, d->t_s, h_take, d->z, d->u, &z1, &u1, &err, &torque1);
@@ -871,12 +960,13 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
     std::vector<int>& forced_slip = ws.ed_forced_slip;
     forced_slip.clear();
     for (size_t i = 0; i < ws.geoms.size(); ++i) {
-      if (!(ev0[4 * i] > 0 || ev0[4 * i + 1] > 0 || ev0[4 * i + 2] > 0)) continue;
+      const size_t j = 4 * i;
+      if (armOf(j) == Arm::kOff && armOf(j + 1) == Arm::kOff && armOf(j + 2) == Arm::kOff) continue;
       const ContactGeom& g = ws.geoms[i];
       PairMemory& mem = ws.memory[pairKey(g.pair)];
-      const bool fired0 = ev0[4 * i] > 0 && ev1[4 * i] <= 0;
-      const bool fired1 = ev0[4 * i + 1] > 0 && ev1[4 * i + 1] <= 0;
-      const bool fired2 = ev0[4 * i + 2] > 0 && ev1[4 * i + 2] <= 0;
+      const bool fired0 = fires(j, ev1[j]);
+      const bool fired1 = fires(j + 1, ev1[j + 1]);
+      const bool fired2 = fires(j + 2, ev1[j + 2]);
       if (!isActive(mem)) {
         if (!fired0 || g.vn >= 0) continue;
         if (g.params->law == ContactLaw::kRigid) {

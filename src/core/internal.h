@@ -203,6 +203,9 @@ struct Workspace {
   VecX ed_udot_end, ed_udot_ev;                // accelerations at the step end / event checks
   VecX ed_imp_n_step, ed_imp_t_step;           // impulses of the accepted step per geom [N s]
   std::vector<double> ed_ev0, ed_ev1, ed_evm;  // event function values (see eventValues)
+  std::vector<double> ed_rate0, ed_rate1;      // their rates at the step ends [unit / s]
+  std::vector<std::uint8_t> ed_arm;            // arming of each function over the step
+  VecX ed_imp_n_saved, ed_imp_t_saved;         // impulses kept across a graze probe [N s]
   std::vector<int> ed_forced_slip;             // geoms forced into slip by a stick-slip event
   std::vector<std::pair<int, int>> ed_idx;     // constraint rows: (active contact, 0 N / 1 T)
   MatX ed_A;                                   // constraint matrix of those rows (grow-only)

@@ -489,6 +489,8 @@ void ThreshingSimNode::publishCounters() {
   impacts_ = data_.stats.impacts;
   peak_force_N_ = data_.stats.peak_normal_force_N;
   recoveries_ = data_.stats.numerical_recoveries;
+  max_deflection_ratio_ = data_.stats.max_tip_deflection_ratio;
+  deflection_warning_s_ = data_.stats.deflection_warning_time_s;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -596,6 +598,9 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "numerical recoveries");
   else if (!paused_ && !finished_ && target > 0 && rtf < kSlowFraction * target)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "slower than the target real time");
+  else if (deflection_warning_s_ >= 0)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "tooth deflection outside the small-deflection range of the beam model");
   else
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, finished_ ? "finished"
                                                         : paused_ ? "paused"
@@ -612,6 +617,8 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("impacts", impacts_.load());
   stat.add("peak normal force [N]", peak_force_N_.load());
   stat.add("paused", static_cast<bool>(paused_));
+  stat.add("max tip deflection / length", max_deflection_ratio_.load());
+  stat.add("first deflection warning [s]", deflection_warning_s_.load());
 }
 
 ros::Time ThreshingSimNode::stampOf(long step) const {

@@ -113,6 +113,7 @@ const KeySpec kSchema[] = {
     {"duration", KeyKind::kValue},
     {"broadphase_margin", KeyKind::kValue},
     {"macro_collision_gap", KeyKind::kValue},
+    {"deflection_validity", KeyKind::kValue},
     {"damage", KeyKind::kSection},
     {"damage.plastic_force", KeyKind::kValue},
     {"damage.fracture_force", KeyKind::kValue},
@@ -940,6 +941,8 @@ Model modelFromYaml(const YAML::Node& root) {
       scene.number("broadphase_margin", model.broadphase_margin_m, kNonNegative);
   model.macro_collision_gap_s =
       scene.number("macro_collision_gap", model.macro_collision_gap_s, kPositive);
+  model.deflection_validity_fraction =
+      scene.number("deflection_validity", model.deflection_validity_fraction, kPositive);
   readDamage(scene);  // validated here; damageFromYaml() returns it
 
   // Start configuration, then the core's own checks and derived quantities.

@@ -190,14 +190,19 @@ TEST(Allocations, DefaultSceneTimeStepping) {
 }
 
 // Persistent contact: the knead scene presses a kernel between the tooth and a bar.
+// The soft tooth of this scene bends past the small-deflection range once; the one-time
+// validity warning (RunStats::warnings) allocates its text, which is not a per-step cost, so
+// the threshold is raised out of the way here.
 TEST(Allocations, KneadEventDriven) {
-  const Model m = loadConfig("config/scenes/knead.yaml", {"integrator.type=event_driven"});
+  const Model m = loadConfig("config/scenes/knead.yaml",
+                             {"integrator.type=event_driven", "deflection_validity=1"});
   EXPECT_EQ(allocationsAfterWarmUp(m, 20, 800, 2), 0);
 }
 
 TEST(Allocations, KneadTimeStepping) {
-  const Model m = loadConfig("config/scenes/knead.yaml",
-                             {"integrator.type=time_stepping", "integrator.dt=1e-6"});
+  const Model m = loadConfig("config/scenes/knead.yaml", {"integrator.type=time_stepping",
+                                                          "integrator.dt=1e-6",
+                                                          "deflection_validity=1"});
   EXPECT_EQ(allocationsAfterWarmUp(m, 50, 1500, 2), 0);
 }
 

@@ -90,6 +90,7 @@ TEST(SceneLoader, BaseSceneLoadsWithDefaults) {
   EXPECT_DOUBLE_EQ(m.integrator.tolerance, 1e-9);
   EXPECT_DOUBLE_EQ(m.duration_s, 0.03);
   EXPECT_DOUBLE_EQ(m.broadphase_margin_m, 2e-3);
+  EXPECT_DOUBLE_EQ(m.deflection_validity_fraction, 0.1);
 
   // Contact defaults from physics.md section 10.
   const ContactParams& tk = m.contact[static_cast<int>(PairKind::kToothKernel)];
@@ -277,6 +278,7 @@ TEST(SceneLoader, RefusesBadValues) {
       {"teeth.0.poisson_ratio=0.5", {"teeth.0.poisson_ratio", "0.5"}},
       {"integrator.theta=0.4", {"integrator.theta", "0.4"}},
       {"broadphase_margin=-0.001", {"broadphase_margin", "-0.001"}},
+      {"deflection_validity=0", {"deflection_validity", "0"}},
       // Words.
       {"contact.tooth_kernel.law=elastic", {"contact.tooth_kernel.law", "elastic", "compliant"}},
       {"integrator.type=implicit", {"integrator.type", "implicit", "event_driven"}},
@@ -517,6 +519,7 @@ TEST_F(ReportTest, SummaryJsonHasKeysAndNoNaN) {
                           "\"energy_final_J\": 2",
                           "\"drive_work_J\"",
                           "\"numerical_recoveries\"",
+                          "\"max_tip_deflection_ratio\"",
                           "\"warnings\": []",
                           "\"kernels\"",
                           "\"position_m\": [0, 0.24",

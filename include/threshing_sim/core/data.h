@@ -45,7 +45,7 @@ struct ContactInfo {
   double slip_velocity_mps = 0;    // dg_T/dt along t = J n [m/s]
   double normal_force_N = 0;       // lambda_N on the kernel (impulse / h under time stepping) [N]
   double tangential_force_N = 0;   // lambda_T on the kernel along t = J n [N]
-  double impulse_normal_Ns = 0;  // normal impulse of this pair since reset (running sum) [N s]
+  double impulse_normal_Ns = 0;    // normal impulse of this pair since reset (running sum) [N s]
   double impulse_tangential_Ns = 0;  // tangential impulse likewise [N s]
 };
 
@@ -88,6 +88,9 @@ struct RunStats {
   std::vector<long> kernel_impacts;                // per kernel
   std::vector<double> kernel_detach_time_s;        // per kernel; < 0 = still attached [s]
   std::vector<std::string> warnings;               // model-validity warnings (deduplicated)
+  double max_tip_deflection_ratio = 0;    // largest |w(L)| / L of any tooth at a step end [-]
+  double deflection_warning_time_s = -1;  // first step end with |w(L)| / L above
+                                          // model.deflection_validity_fraction; < 0 = never [s]
 };
 
 struct Workspace;  // integrator scratch memory, opaque

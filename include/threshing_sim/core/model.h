@@ -141,6 +141,9 @@ struct Model {
   double hc_min_impact_speed_mps = 1e-2;  // floor on v_in in chi = c*/v_in [m/s]
   double macro_collision_gap_s = 2e-3;    // contacts of one pair closer than this in time belong
                                           // to the same macro-collision [s]
+  double deflection_validity_fraction =
+      0.1;  // |w(L)| / L beyond which the small-deflection (linear) beam model is left and the
+            // simulator warns (once per run) [-]
 
   // --- derived ---
   int n_dof = 0;  // size of the generalised coordinate vector (tooth modes, then kernel x,y,psi)

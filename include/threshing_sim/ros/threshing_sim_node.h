@@ -151,6 +151,9 @@ class ThreshingSimNode {
   std::atomic<long> rejected_commands_{0}, impacts_{0}, recoveries_{0};
   std::atomic<long> overruns_{0}, resyncs_{0};
   std::atomic<double> measured_rtf_{0}, step_rate_hz_{0}, peak_force_N_{0};
+  std::atomic<double> max_deflection_ratio_{0};  // largest |w(L)| / L of the run [-]
+  std::atomic<double> deflection_warning_s_{
+      -1};  // first time beyond the valid range; < 0 never [s]
 
   // --- output thread state ---
   ContactStateBuilder contact_builder_;
