@@ -45,7 +45,7 @@ struct ContactInfo {
   double slip_velocity_mps = 0;    // dg_T/dt along t = J n [m/s]
   double normal_force_N = 0;       // lambda_N on the kernel (impulse / h under time stepping) [N]
   double tangential_force_N = 0;   // lambda_T on the kernel along t = J n [N]
-  double impulse_normal_Ns = 0;  // normal impulse of this pair since reset (running sum) [N s]
+  double impulse_normal_Ns = 0;    // normal impulse of this pair since reset (running sum) [N s]
   double impulse_tangential_Ns = 0;  // tangential impulse likewise [N s]
 };
 
@@ -68,6 +68,16 @@ struct ContactEvent {
   int sub_collision = -1;          // index of this impact within its macro-collision (0-based)
 };
 
+// Peak tooth contact forces on one kernel over a run, and when they occurred. Updated at every
+// force evaluation an integrator accepts: at the end of every accepted step, and at a located
+// event both before and after the contact modes switch (time stepping: once per step).
+struct KernelToothPeaks {
+  double normal_force_N = 0;         // largest normal force of any tooth on the kernel [N]
+  double time_of_normal_s = -1;      // when it first occurred; < 0 = no tooth force yet [s]
+  double tangential_force_N = 0;     // largest |tangential force| of any tooth (knead force) [N]
+  double time_of_tangential_s = -1;  // when it first occurred; < 0 = none yet [s]
+};
+
 // Running statistics over a run (reset by resetData).
 struct RunStats {
   long impacts = 0;                      // completed impacts, all pairs
@@ -84,10 +94,12 @@ struct RunStats {
   double energy_initial_J = 0;    // mechanical energy at reset [J]
   long numerical_recoveries = 0;  // steps redone after a non-finite result
   long rejected_steps = 0;        // event-driven: rejected trial steps
-  std::vector<double> kernel_peak_normal_force_N;  // per kernel [N]
+  std::vector<double> kernel_peak_normal_force_N;  // per kernel, any contact [N]
   std::vector<long> kernel_impacts;                // per kernel
   std::vector<double> kernel_detach_time_s;        // per kernel; < 0 = still attached [s]
   std::vector<std::string> warnings;               // model-validity warnings (deduplicated)
+  // Per kernel: peak tooth contact forces [N] and their times [s] (sized by resetData).
+  std::vector<KernelToothPeaks> kernel_tooth_peaks;
 };
 
 struct Workspace;  // integrator scratch memory, opaque
