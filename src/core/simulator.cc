@@ -81,10 +81,18 @@ int kernelOf(const PairId& p) { return p.kind == PairKind::kKernelObstacle ? p.a
 }  // namespace
 
 namespace {
-// Per-kernel force peaks of one closed contact's forces fn, ft [N] at time t [s]: the largest
+// Magnitude of the tangential force a statistic records [N]: |ft| projected on the friction cone
+// |ft| <= mu fn. At a located stick -> slip event the stick force evaluated just past the
+// crossing can lie far outside the cone (a wedged kernel's stick solution may run through a
+// pole instead of reaching the cone); the force at that transition is the sliding one, mu fn.
+double coneTangential(const ContactGeom& g, double fn, double ft) {
+  return std::min(std::abs(ft), g.params->friction * std::max(fn, 0.0));
+}
+
+// Per-kernel force peaks of one closed contact's forces fn, |ft| [N] at time t [s]: the largest
 // normal force of any contact on each kernel of the pair, and the tooth force peaks with their
 // times (the first time a peak value is reached is kept).
-void recordKernelPeaks(RunStats* st, const PairId& pair, double fn, double ft, double t) {
+void recordKernelPeaks(RunStats* st, const PairId& pair, double fn, double ft_abs, double t) {
   const int kb = kernelOf(pair);
   st->kernel_peak_normal_force_N[kb] = std::max(st->kernel_peak_normal_force_N[kb], fn);
   if (pair.kind == PairKind::kKernelKernel)
@@ -95,8 +103,8 @@ void recordKernelPeaks(RunStats* st, const PairId& pair, double fn, double ft, d
     peaks.normal_force_N = fn;
     peaks.time_of_normal_s = t;
   }
-  if (std::abs(ft) > peaks.tangential_force_N) {
-    peaks.tangential_force_N = std::abs(ft);
+  if (ft_abs > peaks.tangential_force_N) {
+    peaks.tangential_force_N = ft_abs;
     peaks.time_of_tangential_s = t;
   }
 }
@@ -105,15 +113,16 @@ void recordKernelPeaks(RunStats* st, const PairId& pair, double fn, double ft, d
 void recordForce(const Model& m, Data* d, const ContactGeom& g, double fn, double ft, double t) {
   (void)m;
   RunStats& st = d->stats;
+  const double ft_abs = coneTangential(g, fn, ft);
   if (fn > st.peak_normal_force_N) {
     st.peak_normal_force_N = fn;
     st.time_of_peak_normal_s = t;
   }
-  if (std::abs(ft) > st.peak_tangential_force_N) {
-    st.peak_tangential_force_N = std::abs(ft);
+  if (ft_abs > st.peak_tangential_force_N) {
+    st.peak_tangential_force_N = ft_abs;
     st.time_of_peak_tangential_s = t;
   }
-  recordKernelPeaks(&st, g.pair, fn, ft, t);
+  recordKernelPeaks(&st, g.pair, fn, ft_abs, t);
   st.max_penetration_m = std::max(st.max_penetration_m, -g.gap_m);
 }
 
@@ -209,7 +218,8 @@ void publishContacts(Data* d, Workspace* ws) {
     // The published forces count for the per-kernel peaks too: after a located event they are
     // those of the switched contact modes, which recordForce (called before the switch) missed.
     if (mem.state != ContactState::kSeparated) {
-      recordKernelPeaks(&d->stats, g.pair, mem.normal_force_N, mem.tangential_force_N, d->t_s);
+      recordKernelPeaks(&d->stats, g.pair, mem.normal_force_N,
+                        coneTangential(g, mem.normal_force_N, mem.tangential_force_N), d->t_s);
     }
   }
 }

@@ -298,6 +298,19 @@ TEST(ThreshingScenes, KneadNormalAndTangentialPeaksAreSeparated) {
       << k.time_of_peak_tangential_s << " s";
 }
 
+// The knead force is a Coulomb friction force: at most mu times the normal force. At 1000 rpm
+// the wedged kernel's stick -> slip event is located where the stick solution has run far out
+// of the friction cone (kilonewtons); the recorded force at that transition is mu fn.
+TEST(ThreshingScenes, KneadForceStaysWithinTheFrictionCone) {
+  for (const char* variant : {"polyurethane", "nylon"}) {
+    const Model m = scene("knead", variant, {"drum.speed=104.71975511965977"});
+    const double mu = m.contact[static_cast<int>(PairKind::kToothKernel)].friction;
+    const KernelOutcome k = run(m).outcomes.at(0);
+    ASSERT_GT(k.peak_normal_force_N, 0.0) << variant;
+    EXPECT_LE(k.peak_tangential_force_N, mu * k.peak_normal_force_N) << variant;
+  }
+}
+
 // Claim 3: on the same knead scene the polyurethane tooth kneads with less force than the rigid.
 TEST(ThreshingScenes, PolyurethaneKneadsLessThanRigid) {
   const KernelOutcome rigid = run(scene("knead", "rigid")).outcomes.at(0);

@@ -74,7 +74,8 @@ struct ContactEvent {
 struct KernelToothPeaks {
   double normal_force_N = 0;         // largest normal force of any tooth on the kernel [N]
   double time_of_normal_s = -1;      // when it first occurred; < 0 = no tooth force yet [s]
-  double tangential_force_N = 0;     // largest |tangential force| of any tooth (knead force) [N]
+  double tangential_force_N = 0;     // largest |tangential force| (at most mu times the normal
+                                     // force) of any tooth (knead force) [N]
   double time_of_tangential_s = -1;  // when it first occurred; < 0 = none yet [s]
 };
 
@@ -83,7 +84,7 @@ struct RunStats {
   long impacts = 0;                      // completed impacts, all pairs
   long contact_episodes = 0;             // separated -> contact transitions
   double peak_normal_force_N = 0;        // max normal force seen, any pair [N]
-  double peak_tangential_force_N = 0;    // max |tangential force| [N]
+  double peak_tangential_force_N = 0;    // max |tangential force|, at most mu fn [N]
   double time_of_peak_normal_s = 0;      // [s]
   double time_of_peak_tangential_s = 0;  // [s]
   double total_normal_impulse_Ns = 0;    // integral of all normal forces plus impulses [N s]
