@@ -6,9 +6,10 @@
 // or command line.
 //
 // Sampling: the state trace is written every kChunk_s (times --trace-every). Contacts are
-// sampled for the outcomes and --forces after every advanceTo(): every --sample-interval while
-// some tooth-kernel pair is within the broad-phase margin, otherwise at least every time the
-// fastest body could cover the margin (and at every trace chunk).
+// sampled for --forces (and the outcomes' accumulated impulses) after every advanceTo(): every
+// --sample-interval while some tooth-kernel pair is within the broad-phase margin, otherwise at
+// least every time the fastest body could cover the margin (and at every trace chunk). The
+// outcomes' force peaks are the core's (RunStats), taken at every accepted step and event.
 #include <unistd.h>
 
 #include <algorithm>

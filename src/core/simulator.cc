@@ -81,21 +81,49 @@ namespace {
 int kernelOf(const PairId& p) { return p.kind == PairKind::kKernelObstacle ? p.a : p.b; }
 }  // namespace
 
+namespace {
+// Magnitude of the tangential force a statistic records [N]: |ft| projected on the friction cone
+// |ft| <= mu fn. At a located stick -> slip event the stick force evaluated just past the
+// crossing can lie far outside the cone (a wedged kernel's stick solution may run through a
+// pole instead of reaching the cone); the force at that transition is the sliding one, mu fn.
+double coneTangential(const ContactGeom& g, double fn, double ft) {
+  return std::min(std::abs(ft), g.params->friction * std::max(fn, 0.0));
+}
+
+// Per-kernel force peaks of one closed contact's forces fn, |ft| [N] at time t [s]: the largest
+// normal force of any contact on each kernel of the pair, and the tooth force peaks with their
+// times (the first time a peak value is reached is kept).
+void recordKernelPeaks(RunStats* st, const PairId& pair, double fn, double ft_abs, double t) {
+  const int kb = kernelOf(pair);
+  st->kernel_peak_normal_force_N[kb] = std::max(st->kernel_peak_normal_force_N[kb], fn);
+  if (pair.kind == PairKind::kKernelKernel)
+    st->kernel_peak_normal_force_N[pair.a] = std::max(st->kernel_peak_normal_force_N[pair.a], fn);
+  if (pair.kind != PairKind::kToothKernel) return;
+  KernelToothPeaks& peaks = st->kernel_tooth_peaks[kb];
+  if (fn > peaks.normal_force_N) {
+    peaks.normal_force_N = fn;
+    peaks.time_of_normal_s = t;
+  }
+  if (ft_abs > peaks.tangential_force_N) {
+    peaks.tangential_force_N = ft_abs;
+    peaks.time_of_tangential_s = t;
+  }
+}
+}  // namespace
+
 void recordForce(const Model& m, Data* d, const ContactGeom& g, double fn, double ft, double t) {
   (void)m;
   RunStats& st = d->stats;
+  const double ft_abs = coneTangential(g, fn, ft);
   if (fn > st.peak_normal_force_N) {
     st.peak_normal_force_N = fn;
     st.time_of_peak_normal_s = t;
   }
-  if (std::abs(ft) > st.peak_tangential_force_N) {
-    st.peak_tangential_force_N = std::abs(ft);
+  if (ft_abs > st.peak_tangential_force_N) {
+    st.peak_tangential_force_N = ft_abs;
     st.time_of_peak_tangential_s = t;
   }
-  const int kb = kernelOf(g.pair);
-  st.kernel_peak_normal_force_N[kb] = std::max(st.kernel_peak_normal_force_N[kb], fn);
-  if (g.pair.kind == PairKind::kKernelKernel)
-    st.kernel_peak_normal_force_N[g.pair.a] = std::max(st.kernel_peak_normal_force_N[g.pair.a], fn);
+  recordKernelPeaks(&st, g.pair, fn, ft_abs, t);
   st.max_penetration_m = std::max(st.max_penetration_m, -g.gap_m);
 }
 
@@ -188,6 +216,12 @@ void publishContacts(Data* d, Workspace* ws) {
     c.tangential_force_N = mem.tangential_force_N;
     c.impulse_normal_Ns = mem.impulse_n_acc;
     c.impulse_tangential_Ns = mem.impulse_t_acc;
+    // The published forces count for the per-kernel peaks too: after a located event they are
+    // those of the switched contact modes, which recordForce (called before the switch) missed.
+    if (mem.state != ContactState::kSeparated) {
+      recordKernelPeaks(&d->stats, g.pair, mem.normal_force_N,
+                        coneTangential(g, mem.normal_force_N, mem.tangential_force_N), d->t_s);
+    }
   }
 }
 
@@ -230,6 +264,7 @@ void resetBodies(const Model& m, Data* d) {
   d->ws->geoms.clear();
   d->contacts.clear();
   d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);
+  d->stats.kernel_tooth_peaks.assign(m.kernels.size(), KernelToothPeaks());
   d->stats.kernel_impacts.assign(m.kernels.size(), 0);
   d->stats.kernel_detach_time_s.assign(m.kernels.size(), -1.0);
 }

@@ -1,4 +1,4 @@
-// Per-kernel outcomes from the event stream, contact samples and run statistics.
+// Per-kernel outcomes from the run statistics, the event stream and contact samples.
 #include "threshing_sim/scene/outcomes.h"
 
 #include <algorithm>
@@ -75,14 +75,6 @@ void OutcomeTracker::sample(const Data& data) {
   for (const ContactInfo& c : data.contacts) {
     PairImpulse& impulse = impulses_[c.pair];
     impulse.sampled_Ns = std::max(impulse.sampled_Ns, c.impulse_normal_Ns);
-    if (c.state == ContactState::kSeparated) continue;
-    for (const int k : kernelsOf(c.pair)) {
-      KernelTally& tally = kernels_[k];
-      tally.max_contact_force_N = std::max(tally.max_contact_force_N, c.normal_force_N);
-      if (c.pair.kind != PairKind::kToothKernel) continue;
-      tally.normal.update(c.normal_force_N, data.t_s);
-      tally.tangential.update(std::abs(c.tangential_force_N), data.t_s);
-    }
   }
 }
 
@@ -93,12 +85,14 @@ std::vector<KernelOutcome> OutcomeTracker::outcomes(const Data& data) const {
     const KernelTally& tally = kernels_[i];
     KernelOutcome& o = out[i];
 
-    // Tooth force peaks from the samples; the largest contact force also from every accepted
-    // step (the core's statistic).
-    o.peak_normal_force_N = tally.normal.force_N;
-    o.time_of_peak_normal_s = tally.normal.t_s;
-    o.peak_tangential_force_N = tally.tangential.force_N;
-    o.time_of_peak_tangential_s = tally.tangential.t_s;
+    // Tooth force peaks and their times: the core's, at every accepted force evaluation.
+    if (i < stats.kernel_tooth_peaks.size()) {
+      const KernelToothPeaks& peaks = stats.kernel_tooth_peaks[i];
+      o.peak_normal_force_N = peaks.normal_force_N;
+      o.time_of_peak_normal_s = peaks.time_of_normal_s;
+      o.peak_tangential_force_N = peaks.tangential_force_N;
+      o.time_of_peak_tangential_s = peaks.time_of_tangential_s;
+    }
     if (o.time_of_peak_normal_s >= 0 && o.time_of_peak_tangential_s >= 0) {
       o.peak_separation_s = o.time_of_peak_tangential_s - o.time_of_peak_normal_s;
     }
@@ -112,9 +106,9 @@ std::vector<KernelOutcome> OutcomeTracker::outcomes(const Data& data) const {
       o.max_sub_collisions = std::max(o.max_sub_collisions, macro.second);
     }
 
-    const double stats_peak_N =
+    // Largest normal force of any contact on the kernel (the core's statistic).
+    o.max_contact_force_N =
         i < stats.kernel_peak_normal_force_N.size() ? stats.kernel_peak_normal_force_N[i] : 0.0;
-    o.max_contact_force_N = std::max(stats_peak_N, tally.max_contact_force_N);
 
     // Detachment and damage.
     o.detach_time_s = i < stats.kernel_detach_time_s.size() ? stats.kernel_detach_time_s[i] : -1;

@@ -1,5 +1,7 @@
 // End-to-end test of scripts/compare_teeth.py: its tiny sweep (--quick) runs the built simulate
-// on every scene and writes the markdown report and its plots.
+// on every scene and writes the markdown report and its plots, and (--findings, redirected to
+// the output folder) the findings page and a copy of the README with its findings section
+// rewritten.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -22,10 +24,15 @@ std::string readFile(const fs::path& path) {
 TEST(CompareTeeth, QuickSweepWritesReportAndPlots) {
   const fs::path out = COMPARE_OUT_DIR;
   fs::remove_all(out);
-  const std::string command = std::string("/usr/bin/python3 ") + THRESHING_SIM_SOURCE_DIR +
-                              "/scripts/compare_teeth.py --quick --simulate " +
-                              THRESHING_SIM_SIMULATE + " --out " + out.string() + " > " +
-                              (out.string() + ".log") + " 2>&1";
+  fs::create_directories(out);
+  const std::string readme_before = readFile(fs::path(THRESHING_SIM_SOURCE_DIR) / "README.md");
+  ASSERT_FALSE(readme_before.empty());
+  fs::copy_file(fs::path(THRESHING_SIM_SOURCE_DIR) / "README.md", out / "README.md");
+  const std::string command =
+      std::string("/usr/bin/python3 ") + THRESHING_SIM_SOURCE_DIR +
+      "/scripts/compare_teeth.py --quick --findings --simulate " + THRESHING_SIM_SIMULATE +
+      " --out " + out.string() + " --docs " + (out / "docs").string() + " --readme " +
+      (out / "README.md").string() + " > " + (out.string() + ".log") + " 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << command << "\n" << readFile(out.string() + ".log");
 
   // The report names every plot, and every plot is a non-empty PNG.
@@ -45,6 +52,39 @@ TEST(CompareTeeth, QuickSweepWritesReportAndPlots) {
     EXPECT_NE(report.find(std::string("## Scene ") + scene), std::string::npos) << scene;
   }
   EXPECT_NE(report.find("| polyurethane |"), std::string::npos);
+
+  // The findings page judges the three claims.
+  const std::string findings = readFile(out / "docs" / "findings.md");
+  for (const char* claim : {"## Claim 1:", "## Claim 2:", "## Claim 3:"}) {
+    EXPECT_NE(findings.find(claim), std::string::npos) << claim;
+  }
+
+  // The README's findings section: rewritten between the markers, the rest untouched; it holds
+  // the three verdicts, the agreement paragraph and the command, and its plots exist.
+  const std::string begin = "<!-- findings -->", end = "<!-- findings-end -->";
+  const std::string readme = readFile(out / "README.md");
+  const size_t b0 = readme_before.find(begin), e0 = readme_before.find(end);
+  const size_t b1 = readme.find(begin), e1 = readme.find(end);
+  ASSERT_NE(b0, std::string::npos);
+  ASSERT_NE(e0, std::string::npos);
+  ASSERT_NE(b1, std::string::npos);
+  ASSERT_NE(e1, std::string::npos);
+  EXPECT_EQ(readme.substr(0, b1), readme_before.substr(0, b0));
+  EXPECT_EQ(readme.substr(e1), readme_before.substr(e0));
+  const std::string section = readme.substr(b1, e1 - b1);
+  for (const char* part :
+       {"**Claim 1 (", "**Claim 2 (", "**Claim 3 (", "**Threshing force and contact time.**",
+        "43.9-71.9 N", "compare_teeth.py --findings"}) {
+    EXPECT_NE(section.find(part), std::string::npos) << part;
+  }
+  size_t images = 0;
+  for (size_t at = section.find("]("); at != std::string::npos; at = section.find("](", at + 2)) {
+    const std::string link = section.substr(at + 2, section.find(')', at) - at - 2);
+    if (link.size() < 4 || link.substr(link.size() - 4) != ".png") continue;
+    ++images;
+    EXPECT_TRUE(fs::is_regular_file(out / link)) << link;
+  }
+  EXPECT_GE(images, 4u);
 }
 
 }  // namespace

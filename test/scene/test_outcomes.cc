@@ -53,11 +53,16 @@ ContactInfo contact(PairKind kind, int a, int b, double fn_N, double ft_N,
   return c;
 }
 
-// Data as the tracker sees it at the end of a run with the given per-kernel statistics.
-Data endOfRun(const std::vector<double>& stats_peak_N, const std::vector<double>& detach_s) {
+// Data as the tracker sees it at the end of a run with the given per-kernel statistics: the
+// largest normal force of any contact and the detach time of each kernel, and optionally the
+// tooth force peaks.
+Data endOfRun(const std::vector<double>& stats_peak_N, const std::vector<double>& detach_s,
+              const std::vector<KernelToothPeaks>& tooth_peaks = {}) {
   Data d;
   d.stats.kernel_peak_normal_force_N = stats_peak_N;
   d.stats.kernel_detach_time_s = detach_s;
+  d.stats.kernel_tooth_peaks = tooth_peaks;
+  if (tooth_peaks.empty()) d.stats.kernel_tooth_peaks.resize(stats_peak_N.size());
   return d;
 }
 
@@ -112,43 +117,31 @@ TEST(Outcomes, DamageThresholds) {
   EXPECT_EQ(classifyDamage(60.0, custom), DamageClass::kPlastic);
   EXPECT_STREQ(toString(DamageClass::kFracture), "fracture");
 
-  // The class comes from the largest force of any contact: here the core's per-step statistic
-  // (140 N) beats the samples (tooth 30 N, bar 120 N).
+  // The class comes from the largest force of any contact, the core's statistic (here 140 N
+  // on kernel 0, of which a tooth contributed only 30 N), not from the tooth peak.
   const Model m = twoKernelModel();
   OutcomeTracker tracker(m, rice);
-  Data d;
-  d.t_s = 1e-3;
-  d.contacts = {contact(PairKind::kToothKernel, 0, 0, 30.0, 5.0),
-                contact(PairKind::kKernelObstacle, 0, 0, 120.0, 60.0),
-                contact(PairKind::kKernelObstacle, 1, 0, 150.0, 0.0)};
-  tracker.sample(d);
-  const std::vector<KernelOutcome> out = tracker.outcomes(endOfRun({140.0, 0.0}, {-1, -1}));
+  const std::vector<KernelOutcome> out =
+      tracker.outcomes(endOfRun({140.0, 150.0}, {-1, -1}, {{30.0, 1e-3, 5.0, 1e-3}, {}}));
   EXPECT_DOUBLE_EQ(out[0].peak_normal_force_N, 30.0);
   EXPECT_DOUBLE_EQ(out[0].max_contact_force_N, 140.0);
   EXPECT_EQ(out[0].damage, DamageClass::kPlastic);
+  EXPECT_DOUBLE_EQ(out[1].peak_normal_force_N, 0.0);
   EXPECT_DOUBLE_EQ(out[1].max_contact_force_N, 150.0);
   EXPECT_EQ(out[1].damage, DamageClass::kFracture);
 }
 
-TEST(Outcomes, PeakSeparationFromToothSamples) {
+TEST(Outcomes, PeaksAndSeparationFromCoreStatistics) {
   const Model m = twoKernelModel();
   OutcomeTracker tracker(m, DamageThresholds());
-  // Tooth force history of kernel 0: the tangential peak (-8 N) 30 us before the normal peak;
-  // a larger bar force must not count as a tooth peak.
-  const std::vector<std::vector<double>> samples = {// t, fn, ft, bar fn
-                                                    {100e-6, 10.0, 3.0, 0.0},
-                                                    {130e-6, 20.0, -8.0, 90.0},
-                                                    {160e-6, 40.0, 4.0, 0.0},
-                                                    {190e-6, 25.0, 2.0, 0.0},
-                                                    {220e-6, 0.0, 0.0, 0.0}};
-  for (const std::vector<double>& s : samples) {
-    Data d;
-    d.t_s = s[0];
-    d.contacts = {contact(PairKind::kToothKernel, 0, 0, s[1], s[2]),
-                  contact(PairKind::kKernelObstacle, 0, 1, s[3], 0.0)};
-    tracker.sample(d);
-  }
-  const std::vector<KernelOutcome> out = tracker.outcomes(endOfRun({0, 0}, {-1, -1}));
+  // Kernel 0: tangential peak (8 N) 30 us before the normal peak (40 N); contact samples do not
+  // change the peaks any more (a larger sampled tooth force is ignored).
+  Data d;
+  d.t_s = 190e-6;
+  d.contacts = {contact(PairKind::kToothKernel, 0, 0, 99.0, 50.0)};
+  tracker.sample(d);
+  const std::vector<KernelOutcome> out =
+      tracker.outcomes(endOfRun({90.0, 0.0}, {-1, -1}, {{40.0, 160e-6, 8.0, 130e-6}, {}}));
   EXPECT_DOUBLE_EQ(out[0].peak_normal_force_N, 40.0);
   EXPECT_DOUBLE_EQ(out[0].time_of_peak_normal_s, 160e-6);
   EXPECT_DOUBLE_EQ(out[0].peak_tangential_force_N, 8.0);
@@ -178,6 +171,81 @@ TEST(Outcomes, ImpulseAndDetachment) {
   EXPECT_DOUBLE_EQ(out[0].detach_time_s, 2.5e-3);
   EXPECT_FALSE(out[1].detached);
   EXPECT_DOUBLE_EQ(out[1].total_normal_impulse_Ns, 0.0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The core's tooth force peaks (RunStats::kernel_tooth_peaks) on the default scene: a nylon tooth
+// strikes a free kernel; the contact slides, sticks at t = 291.5 us and slides again before it
+// parts. The knead peak is the sliding force mu N just before the stick, between two samples.
+
+Model defaultScene(std::vector<std::string> overrides = {}) {
+  return loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/default_scene.yaml", overrides);
+}
+
+// Per step: the peaks are at least every published tooth force, and under time stepping
+// (forces once per step) exactly the largest of them, at the step it occurred.
+TEST(ToothPeaks, AreTheLargestForceOfEveryAcceptedStep) {
+  for (const char* integrator : {"event_driven", "time_stepping"}) {
+    const Model m = defaultScene({std::string("integrator.type=") + integrator, "duration=4e-4"});
+    Data d;
+    resetData(m, &d);
+    KernelToothPeaks seen;  // largest published tooth forces and when
+    while (d.t_s < m.duration_s) {
+      ASSERT_NE(step(m, &d), StepStatus::kFailed);
+      for (const ContactInfo& c : d.contacts) {
+        if (c.pair.kind != PairKind::kToothKernel || c.state == ContactState::kSeparated) continue;
+        if (c.normal_force_N > seen.normal_force_N)
+          seen = {c.normal_force_N, d.t_s, seen.tangential_force_N, seen.time_of_tangential_s};
+        if (std::abs(c.tangential_force_N) > seen.tangential_force_N) {
+          seen.tangential_force_N = std::abs(c.tangential_force_N);
+          seen.time_of_tangential_s = d.t_s;
+        }
+      }
+    }
+    const KernelToothPeaks& core = d.stats.kernel_tooth_peaks.at(0);
+    ASSERT_GT(seen.normal_force_N, 10.0) << integrator;
+    EXPECT_GE(core.normal_force_N, seen.normal_force_N) << integrator;
+    EXPECT_GE(core.tangential_force_N, seen.tangential_force_N) << integrator;
+    if (m.integrator.type == IntegratorType::kTimeStepping) {
+      EXPECT_EQ(core.normal_force_N, seen.normal_force_N);
+      EXPECT_EQ(core.time_of_normal_s, seen.time_of_normal_s);
+      EXPECT_EQ(core.tangential_force_N, seen.tangential_force_N);
+      EXPECT_EQ(core.time_of_tangential_s, seen.time_of_tangential_s);
+    }
+  }
+}
+
+// Event-driven: the knead peak sits on the located slip -> stick event, and neither it nor the
+// normal peak depends on how often the caller stops the integrator (1 us or 100 us).
+TEST(ToothPeaks, DoNotDependOnTheSamplingInterval) {
+  const Model m = defaultScene({"duration=4e-4"});
+  std::vector<KernelToothPeaks> peaks;
+  for (const double interval_s : {1e-6, 1e-4}) {
+    Data d;
+    resetData(m, &d);
+    double stick_s = -1;  // first slip -> stick transition of the tooth contact
+    const long n = std::lround(m.duration_s / interval_s);
+    for (long i = 1; i <= n; ++i) {
+      ASSERT_NE(advanceTo(m, &d, i * interval_s), StepStatus::kFailed);
+      for (const ContactEvent& e : d.events) {
+        if (stick_s < 0 && e.pair.kind == PairKind::kToothKernel && e.from == ContactState::kSlip &&
+            e.to == ContactState::kStick) {
+          stick_s = e.t_s;
+        }
+      }
+      d.events.clear();
+    }
+    const KernelToothPeaks& p = d.stats.kernel_tooth_peaks.at(0);
+    ASSERT_GT(stick_s, 0.0) << "interval " << interval_s;
+    EXPECT_EQ(p.time_of_tangential_s, stick_s) << "interval " << interval_s;
+    EXPECT_LT(p.time_of_tangential_s, p.time_of_normal_s);
+    peaks.push_back(p);
+  }
+  EXPECT_NEAR(peaks[1].tangential_force_N, peaks[0].tangential_force_N,
+              1e-4 * peaks[0].tangential_force_N);
+  EXPECT_NEAR(peaks[1].time_of_tangential_s, peaks[0].time_of_tangential_s, 1e-9);
+  // The normal peak is smooth: the accepted steps around it bound the error.
+  EXPECT_NEAR(peaks[1].normal_force_N, peaks[0].normal_force_N, 1e-2 * peaks[0].normal_force_N);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -228,6 +296,19 @@ TEST(ThreshingScenes, KneadNormalAndTangentialPeaksAreSeparated) {
   EXPECT_GT(std::abs(k.peak_separation_s), 10 * kSample_s)
       << "normal peak at " << k.time_of_peak_normal_s << " s, tangential at "
       << k.time_of_peak_tangential_s << " s";
+}
+
+// The knead force is a Coulomb friction force: at most mu times the normal force. At 1000 rpm
+// the wedged kernel's stick -> slip event is located where the stick solution has run far out
+// of the friction cone (kilonewtons); the recorded force at that transition is mu fn.
+TEST(ThreshingScenes, KneadForceStaysWithinTheFrictionCone) {
+  for (const char* variant : {"polyurethane", "nylon"}) {
+    const Model m = scene("knead", variant, {"drum.speed=104.71975511965977"});
+    const double mu = m.contact[static_cast<int>(PairKind::kToothKernel)].friction;
+    const KernelOutcome k = run(m).outcomes.at(0);
+    ASSERT_GT(k.peak_normal_force_N, 0.0) << variant;
+    EXPECT_LE(k.peak_tangential_force_N, mu * k.peak_normal_force_N) << variant;
+  }
 }
 
 // Claim 3: on the same knead scene the polyurethane tooth kneads with less force than the rigid.

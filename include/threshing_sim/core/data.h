@@ -68,12 +68,23 @@ struct ContactEvent {
   int sub_collision = -1;          // index of this impact within its macro-collision (0-based)
 };
 
+// Peak tooth contact forces on one kernel over a run, and when they occurred. Updated at every
+// force evaluation an integrator accepts: at the end of every accepted step, and at a located
+// event both before and after the contact modes switch (time stepping: once per step).
+struct KernelToothPeaks {
+  double normal_force_N = 0;         // largest normal force of any tooth on the kernel [N]
+  double time_of_normal_s = -1;      // when it first occurred; < 0 = no tooth force yet [s]
+  double tangential_force_N = 0;     // largest |tangential force| (at most mu times the normal
+                                     // force) of any tooth (knead force) [N]
+  double time_of_tangential_s = -1;  // when it first occurred; < 0 = none yet [s]
+};
+
 // Running statistics over a run (reset by resetData).
 struct RunStats {
   long impacts = 0;                      // completed impacts, all pairs
   long contact_episodes = 0;             // separated -> contact transitions
   double peak_normal_force_N = 0;        // max normal force seen, any pair [N]
-  double peak_tangential_force_N = 0;    // max |tangential force| [N]
+  double peak_tangential_force_N = 0;    // max |tangential force|, at most mu fn [N]
   double time_of_peak_normal_s = 0;      // [s]
   double time_of_peak_tangential_s = 0;  // [s]
   double total_normal_impulse_Ns = 0;    // integral of all normal forces plus impulses [N s]
@@ -84,13 +95,15 @@ struct RunStats {
   double energy_initial_J = 0;    // mechanical energy at reset [J]
   long numerical_recoveries = 0;  // steps redone after a non-finite result
   long rejected_steps = 0;        // event-driven: rejected trial steps
-  std::vector<double> kernel_peak_normal_force_N;  // per kernel [N]
+  std::vector<double> kernel_peak_normal_force_N;  // per kernel, any contact [N]
   std::vector<long> kernel_impacts;                // per kernel
   std::vector<double> kernel_detach_time_s;        // per kernel; < 0 = still attached [s]
   std::vector<std::string> warnings;               // model-validity warnings (deduplicated)
   double max_tip_deflection_ratio = 0;    // largest |w(L)| / L of any tooth at a step end [-]
   double deflection_warning_time_s = -1;  // first step end with |w(L)| / L above
                                           // model.deflection_validity_fraction; < 0 = never [s]
+  // Per kernel: peak tooth contact forces [N] and their times [s] (sized by resetData).
+  std::vector<KernelToothPeaks> kernel_tooth_peaks;
 };
 
 struct Workspace;  // integrator scratch memory, opaque

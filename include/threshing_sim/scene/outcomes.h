@@ -5,14 +5,14 @@
 // other kernels, concave) and the damage class it gives against force thresholds, total normal
 // impulse, impacts, tooth-kernel macro-collisions and their sub-collisions, largest impact
 // energy, and detachment. Computed from three sources, none of which needs ROS:
+//   - the run statistics of the core (RunStats): per kernel, the tooth force peaks with their
+//     times and the largest normal force of any contact, updated at every force evaluation the
+//     integrator accepts (every accepted step, and both sides of a located event), so they do
+//     not depend on how often the caller looks; and the detach times;
 //   - the ContactEvent stream (impacts, macro-/sub-collision indices, impulses, approach
 //     speeds), fed with addEvents() before the caller clears Data::events;
-//   - samples of Data::contacts taken with sample() after each advanceTo() (times of the force
-//     peaks, the tangential peak, accumulated impulses of persistent contacts);
-//   - the run statistics (per-kernel largest normal force of any contact at every accepted
-//     step, detach times).
-// The tooth force peaks and their times are therefore as fine as the sampling; the core records
-// its own per-kernel statistic at every accepted step.
+//   - samples of Data::contacts taken with sample() after each advanceTo(), for the accumulated
+//     impulses of pairs in persistent contact (rigid law), which have no impact event.
 //
 // Macro-collision rule (the core's, Model::macro_collision_gap_s, scene key
 // `macro_collision_gap`): the contact episodes of one tooth-kernel pair belong to the same
@@ -42,9 +42,9 @@ DamageClass classifyDamage(double peak_normal_force_N, const DamageThresholds& t
 
 struct KernelOutcome {
   double peak_normal_force_N = 0;           // max normal force of a tooth on the kernel [N]
-  double time_of_peak_normal_s = -1;        // sampled time of that peak; < 0 = no tooth contact [s]
+  double time_of_peak_normal_s = -1;        // time of that peak; < 0 = no tooth contact [s]
   double peak_tangential_force_N = 0;       // max |tangential force| of a tooth (knead force) [N]
-  double time_of_peak_tangential_s = -1;    // sampled time of that peak; < 0 = none [s]
+  double time_of_peak_tangential_s = -1;    // time of that peak; < 0 = none [s]
   double peak_separation_s = 0;             // time_of_peak_tangential - time_of_peak_normal [s]
                                             // (0 unless both peaks exist)
   double max_contact_force_N = 0;           // max normal force of any contact on the kernel [N]
@@ -73,11 +73,11 @@ class OutcomeTracker {
   // Every event of the run, in order; call before Data::events is cleared.
   void addEvents(const std::vector<ContactEvent>& events);
 
-  // One sample of Data::contacts (forces and accumulated impulses) at data.t_s.
+  // One sample of Data::contacts (accumulated impulses) at data.t_s.
   void sample(const Data& data);
 
-  // Outcomes per kernel; data supplies the run statistics (per-step peak normal forces, detach
-  // times). Pass the same data the samples came from, at the end of the run.
+  // Outcomes per kernel; data supplies the run statistics (force peaks, detach times). Pass the
+  // same data the samples came from, at the end of the run.
   std::vector<KernelOutcome> outcomes(const Data& data) const;
 
   const DamageThresholds& thresholds() const { return thresholds_; }
@@ -89,20 +89,7 @@ class OutcomeTracker {
     double events_Ns = 0;
     double sampled_Ns = 0;
   };
-  // A force peak and the time it was sampled.
-  struct Peak {
-    double force_N = 0;
-    double t_s = -1;
-    void update(double force, double t) {
-      if (force > force_N) {
-        force_N = force;
-        t_s = t;
-      }
-    }
-  };
   struct KernelTally {
-    Peak normal, tangential;  // tooth contacts
-    double max_contact_force_N = 0;
     long impacts = 0;
     double max_impact_energy_J = 0;
     std::map<std::pair<int, int>, int> subs_per_macro;  // (tooth, macro index) -> sub-collisions

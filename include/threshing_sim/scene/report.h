@@ -18,7 +18,7 @@ namespace threshing_sim {
 struct OutcomeReport {
   std::vector<KernelOutcome> kernels;
   DamageThresholds thresholds;
-  double sample_interval_s = 0;  // contact sampling interval the peak times come from [s]
+  double sample_interval_s = 0;  // contact sampling interval near teeth (--forces samples) [s]
 };
 
 // Summary of a run as one JSON object: status, times, step and impact counts, force peaks,
