@@ -12,7 +12,7 @@ PACKAGES=(
   python3-rostest googletest libgtest-dev libbenchmark-dev
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure
   libdiagnostic-updater-dev python3-diagnostic-msgs rviz libgl1-mesa-dri
-  xvfb xauth imagemagick python3-numpy python3-matplotlib
+  xvfb xauth imagemagick python3-numpy python3-matplotlib python3-yaml
   python3-std-srvs python3-geometry-msgs python3-visualization-msgs python3-tf2-msgs
 )
 
