@@ -35,14 +35,20 @@ def main():
     print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         summary = os.path.join(tmp, "s.json")
+        speeds = []
         for name, extra in settings:
             runs = [run(args.simulate, args.scene, extra, summary) for _ in range(args.repeat)]
             wall = statistics.median(r["wall_time_s"] for r in runs)
             r = runs[0]
             v = r["kernels"][0]["velocity_mps"] if r["kernels"] else [0, 0]
+            speeds.append((v[0] ** 2 + v[1] ** 2) ** 0.5)
             print(f"| {name} | {r['sim_time_s']:.4g} | {r['steps']} | {1e3 * wall:.1f} | "
                   f"{r['sim_time_s'] / wall:.3g} | {(v[0] ** 2 + v[1] ** 2) ** 0.5:.4f} | "
                   f"{r['peak_normal_force_N']:.2f} |")
+    if len(speeds) == 2 and speeds[0] > 0:
+        print()
+        print(f"The two integrators agree on the kernel's exit speed to "
+              f"{100 * abs(speeds[1] - speeds[0]) / speeds[0]:.2g} %.")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Regenerates every measured figure and table of README.md and docs/ from a Release build:
+#   default-timing   scripts/time_default_scene.py            (README, "Using the headless simulator")
+#   default-output   simulate config/default_scene.yaml        (README, same section)
+#   node-rtf         scripts/measure_node_rtf.sh               (README, ROS node section)
+#   profile          scripts/profile_core.sh                   (README, "Performance")
+#   stability        scripts/stability_table.py                (README + docs/stability.md)
+#   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
+#   bench            scripts/bench.py                          (README + docs/bench*)
+# Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
+# 45 minutes on 2 cores). Timings are medians on a possibly shared machine: compare them as
+# ratios within one run.
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$ROOT"
+PY=/usr/bin/python3
+BIN="$ROOT/.build/ws/devel/lib/threshing_sim"
+parts=("$@")
+[ ${#parts[@]} -gt 0 ] || parts=(default-timing default-output node-rtf profile stability findings bench)
+
+bash scripts/setup.sh
+for part in "${parts[@]}"; do
+  echo "regenerate_docs: $part ($(date -u +%H:%M:%S))"
+  case "$part" in
+    default-timing) $PY scripts/time_default_scene.py | $PY scripts/readme_section.py "$part" ;;
+    default-output) "$BIN/simulate" config/default_scene.yaml |
+                      $PY scripts/readme_section.py "$part" --fence "" ;;
+    node-rtf) bash scripts/measure_node_rtf.sh | $PY scripts/readme_section.py "$part" --fence "" ;;
+    profile) bash scripts/profile_core.sh | $PY scripts/readme_section.py "$part" ;;
+    stability) $PY scripts/stability_table.py --simulate "$BIN/simulate" \
+                 --output docs/stability.md --readme README.md ;;
+    findings) $PY scripts/compare_teeth.py --findings ;;
+    bench) $PY scripts/bench.py ;;
+    *) echo "regenerate_docs: unknown part '$part'" >&2; exit 2 ;;
+  esac
+done
+echo "regenerate_docs: done ($(date -u +%H:%M:%S))"
