@@ -300,25 +300,35 @@ bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPr
   prop->n_modes = n;
   prop->valid = false;
   if (n == 0) return false;
-  // State matrix of the free tooth, as smoothForces forms its acceleration (unit modal mass).
+  // State matrix of the free tooth, as smoothForces forms its acceleration (unit modal mass),
+  // in balanced coordinates y_s = diag(s) y with s = [sqrt|S_ii|; 1]: the entries of A grow
+  // with omega_i^2 (~1e10 for a fourth nylon mode), those of A_s only with omega_i, which keeps
+  // its eigenvectors well conditioned.
   const int n2 = 2 * n;
+  const MatX S = toothStiffness(tm, omega_radps);
+  VecX s = VecX::Ones(n2);
+  for (int i = 0; i < n; ++i) s[i] = std::sqrt(std::max(std::abs(S(i, i)), 1.0));
   MatX A = MatX::Zero(n2, n2);
   A.topRightCorner(n, n).setIdentity();
-  A.bottomLeftCorner(n, n) = -toothStiffness(tm, omega_radps);
+  A.bottomLeftCorner(n, n) = -S;
   A.bottomRightCorner(n, n).diagonal() = -tm.damping_coeff;
-  // Eigendecomposition A = V diag(lambda) V^-1 (complex conjugate pairs of damped modes).
-  const Eigen::EigenSolver<MatX> solver(A, true);
+  const MatX A_s = s.asDiagonal() * A * s.cwiseInverse().asDiagonal();
+  // Eigendecomposition A_s = V_s diag(lambda) V_s^-1 (complex conjugate pairs of damped modes).
+  const Eigen::EigenSolver<MatX> solver(A_s, true);
   if (solver.info() != Eigen::Success) return false;
   prop->lambda = solver.eigenvalues();
-  prop->V = solver.eigenvectors();
-  const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(prop->V);
-  prop->V_inv = lu.inverse();
+  const Eigen::MatrixXcd V_s = solver.eigenvectors();
+  const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(V_s);
+  const Eigen::MatrixXcd V_s_inv = lu.inverse();
   prop->c.resize(n2);
-  // Usable only if the factors rebuild A (a defective, e.g. critically damped, A would not).
-  const Eigen::MatrixXcd rebuilt = prop->V * prop->lambda.asDiagonal() * prop->V_inv;
-  const double scale = A.cwiseAbs().maxCoeff();
-  const double residual = (rebuilt - A.cast<std::complex<double>>()).cwiseAbs().maxCoeff();
-  prop->valid = prop->V_inv.allFinite() && residual <= 1e-9 * scale;
+  // Usable only if the factors rebuild A_s (a defective, e.g. critically damped, A would not).
+  const Eigen::MatrixXcd rebuilt = V_s * prop->lambda.asDiagonal() * V_s_inv;
+  const double scale = A_s.cwiseAbs().maxCoeff();
+  const double residual = (rebuilt - A_s.cast<std::complex<double>>()).cwiseAbs().maxCoeff();
+  // The balancing folded in: exp(A h) = diag(1/s) V_s exp(lambda h) V_s^-1 diag(s).
+  prop->V = s.cwiseInverse().cast<std::complex<double>>().asDiagonal() * V_s;
+  prop->V_inv = V_s_inv * s.cast<std::complex<double>>().asDiagonal();
+  prop->valid = prop->V_inv.allFinite() && prop->V.allFinite() && residual <= 1e-9 * scale;
   return prop->valid;
 }
 

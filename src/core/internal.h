@@ -160,9 +160,9 @@ class StateValues {
 
 // Exact propagator of one tooth's free linear modal equations at a constant drum speed:
 // y = [q; qdot] obeys y' = A y with A = [0 I; -S -D], S = Lambda + Omega^2 (K_G - I) and
-// D = diag(2 zeta omega_i), so y(t + h) = V diag(exp(lambda_i h)) V^-1 y(t). Built once per drum
-// speed; propagating is O(n^2) and allocates nothing. q is in sqrt(kg) m, qdot in sqrt(kg) m/s,
-// so V and V^-1 mix those units.
+// D = diag(2 zeta omega_i), so y(t + h) = V diag(exp(lambda_i h)) V^-1 y(t) (decomposed in
+// balanced coordinates, see buildToothPropagator). Built once per drum speed; propagating is O(n^2)
+// and allocates nothing. q is in sqrt(kg) m, qdot in sqrt(kg) m/s, so V and V^-1 mix those units.
 struct ToothPropagator {
   double omega_radps = std::numeric_limits<double>::quiet_NaN();  // drum speed built at [rad/s]
   int n_modes = -1;         // n of the tooth it was built for [-]
@@ -175,8 +175,8 @@ struct ToothPropagator {
 
 // Builds (or keeps, if already built at this drum speed) the propagator of tooth `tooth` at drum
 // speed omega_radps. Returns prop->valid: false for a rigid tooth or an eigendecomposition that
-// does not reproduce A to 1e-9 relative (defective or ill-conditioned), where the caller must
-// integrate the tooth instead. Allocates only when it (re)builds.
+// does not reproduce (the balanced) A to 1e-9 relative (defective or ill-conditioned), where the
+// caller must integrate the tooth instead. Allocates only when it (re)builds.
 bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPropagator* prop);
 
 // Free motion of a tooth over h [s] from (q0, qd0) to (q1, qd1) by a valid propagator (its
