@@ -6,16 +6,22 @@ Runs bench_work_precision (the bare stepping loop, median of --reps runs in one 
 (`integrated`, tolerance --ref-tolerance), and prints per variant: steps, rejected steps,
 median wall time, real-time factor, and the errors against the reference of the kernels' exit
 velocity, the tooth tip deflection history (--samples points; from a separate sampled run) and
-the peak normal force.
+the peak normal force. With --callgrind it also counts the instructions of the stepping loop
+(valgrind callgrind, advanceTo only: stable on a shared machine where wall times are not) of one
+run of each variant, over the whole run and up to --contact-start and --contact-end [s] (their
+difference is the cost of the window between, e.g. a strike).
 Usage: scripts/compare_free_teeth.py [--scene FILE] [--tolerance X] [--ref-tolerance X]
        [--reps R] [--samples N] [--cpu K] [--bench PATH]
+       [--callgrind [--contact-start S --contact-end S]]
 """
 import argparse
 import json
 import math
 import os
+import re
 import subprocess
 import sys
+import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -33,6 +39,26 @@ def run(bench, scene, free_teeth, tolerance, reps, samples, cpu):
     if result["status"] != "ok" or not result["deterministic"]:
         sys.exit("compare_free_teeth: run failed or not deterministic: " + " ".join(cmd))
     return result
+
+
+def stepping_instructions(bench, scene, free_teeth, tolerance, duration=None):
+    """Instructions (callgrind Ir) of advanceTo in one bare run of bench_work_precision."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "callgrind.out")
+        cmd = ["valgrind", "--tool=callgrind", "--toggle-collect=threshing_sim::advanceTo*",
+               "--callgrind-out-file=" + out, bench, scene,
+               "--set", "integrator.type=event_driven",
+               "--set", "integrator.free_teeth=" + free_teeth,
+               "--set", "integrator.tolerance=%r" % tolerance, "--reps", "1", "--samples", "0"]
+        if duration is not None:
+            cmd += ["--set", "duration=%r" % duration]
+        subprocess.run(cmd, check=True, capture_output=True)
+        with open(out) as f:
+            for line in f:
+                m = re.match(r"(?:summary|totals):\s+(\d+)", line)
+                if m:
+                    return int(m.group(1))
+    sys.exit("compare_free_teeth: no instruction count in the callgrind output")
 
 
 def exit_velocity_error(run_, ref):
@@ -65,6 +91,9 @@ def main():
     ap.add_argument("--reps", type=int, default=7)
     ap.add_argument("--samples", type=int, default=200)
     ap.add_argument("--cpu", type=int, default=-1)
+    ap.add_argument("--callgrind", action="store_true")
+    ap.add_argument("--contact-start", type=float, default=2.8e-4)
+    ap.add_argument("--contact-end", type=float, default=5e-4)
     ap.add_argument("--bench", default=os.path.join(
         ROOT, ".build", "ws", "devel", "lib", "threshing_sim", "bench_work_precision"))
     args = ap.parse_args()
@@ -92,6 +121,19 @@ def main():
     print()
     print("exact against integrated at the same tolerance: exit velocity %.2g, tip history %.2g" %
           (exit_velocity_error(exact, integrated), tip_error(exact, integrated)))
+    if args.callgrind:
+        print()
+        print("| free teeth | stepping Ir, whole run | up to %g s | up to %g s | between |" %
+              (args.contact_start, args.contact_end))
+        print("|---|---|---|---|---|")
+        for name, _ in rows:
+            total = stepping_instructions(args.bench, args.scene, name, args.tolerance)
+            ir0 = stepping_instructions(args.bench, args.scene, name, args.tolerance,
+                                        args.contact_start)
+            ir1 = stepping_instructions(args.bench, args.scene, name, args.tolerance,
+                                        args.contact_end)
+            print("| %s | %.3g M | %.3g M | %.3g M | %.3g M |" %
+                  (name, total / 1e6, ir0 / 1e6, ir1 / 1e6, (ir1 - ir0) / 1e6))
 
 
 if __name__ == "__main__":
