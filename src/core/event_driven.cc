@@ -381,7 +381,39 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
   }
 }
 
+// Marks in ws.ed_tooth_exact the teeth that the step from the data's time may advance exactly:
+// the option is on, the drum is at its target speed (no ramp, so dOmega/dt = 0 all through the
+// step), the tooth has modes and a valid propagator, and none of its pairs is in contact (a
+// separated pair exerts no force within a step). Returns the number of teeth marked.
+int markExactTeeth(const Ctx& c) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  const int T = static_cast<int>(m.teeth.size());
+  ws.ed_tooth_exact.assign(T, 0);
+  if (!m.integrator.exact_free_teeth || c.d.omega_radps != c.d.omega_target_radps) return 0;
+  if (ws.ed_prop.size() != static_cast<size_t>(T)) ws.ed_prop.resize(T);
+  // Teeth with a mode and a usable propagator at this drum speed.
+  int marked = 0;
+  for (int k = 0; k < T; ++k) {
+    if (m.teeth[k].n_modes == 0) continue;
+    if (!buildToothPropagator(m, k, c.d.omega_radps, &ws.ed_prop[k])) continue;
+    ws.ed_tooth_exact[k] = 1;
+    ++marked;
+  }
+  // Minus the teeth in contact.
+  for (const PairId& p : ws.candidates) {
+    if (p.kind != PairKind::kToothKernel || !ws.ed_tooth_exact[p.a]) continue;
+    if (isActive(ws.memory[pairKey(p)])) {
+      ws.ed_tooth_exact[p.a] = 0;
+      --marked;
+    }
+  }
+  return marked;
+}
+
 // One Dormand-Prince step of length h from (t0, y0 = [z; u]); y1 and its error estimate.
+// Teeth marked by markExactTeeth take the exact solution of their free modal equations at the
+// step end instead, and stay out of the error estimate (their stages affect no other body).
 bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0, VecX* z1,
                VecX* u1, double* err, double* torque1) {
   const int n = c.m.n_dof;
@@ -420,9 +452,28 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   *z1 = zz;
   *u1 = uu;
   *torque1 = torque;
-  // Error estimate scaled per component: positions by 1e-2 m, velocities by 1 m/s.
+  // Free teeth: the exact end state replaces the Runge-Kutta one; their dofs are left out of
+  // the error estimate (own_error = 0).
+  std::vector<std::uint8_t>& own_error = ws.ed_own_error;  // per dof: in the error estimate
+  own_error.assign(n, 1);
+  const int n_exact = markExactTeeth(c);
+  if (n_exact > 0) {
+    for (size_t k = 0; k < c.m.teeth.size(); ++k) {
+      if (!ws.ed_tooth_exact[k]) continue;
+      const ToothModel& tm = c.m.teeth[k];
+      propagateTooth(&ws.ed_prop[k], h, z0.segment(tm.dof_offset, tm.n_modes),
+                     u0.segment(tm.dof_offset, tm.n_modes), z1->segment(tm.dof_offset, tm.n_modes),
+                     u1->segment(tm.dof_offset, tm.n_modes));
+      std::fill_n(own_error.begin() + tm.dof_offset, tm.n_modes, 0);
+    }
+  }
+  // Error estimate scaled per component: positions by 1e-2 m, velocities by 1 m/s; the RMS over
+  // the components it covers.
   double e2 = 0.0;
+  int n_err = 0;
   for (int i = 0; i < 2 * n; ++i) {
+    if (!own_error[i < n ? i : i - n]) continue;
+    ++n_err;
     double ei = 0.0;
     for (int s = 0; s < 7; ++s) ei += kE[s] * ws.rk_k[s][i];
     ei *= h;
@@ -431,7 +482,7 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
     const double scale = c.m.integrator.tolerance * ((i < n ? 1e-2 : 1.0) + y);
     e2 += (ei / scale) * (ei / scale);
   }
-  *err = std::sqrt(e2 / std::max(1, 2 * n));
+  *err = std::sqrt(e2 / std::max(1, n_err));
   return z1->allFinite() && u1->allFinite();
 }
 

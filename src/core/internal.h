@@ -4,6 +4,7 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <complex>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -157,6 +158,32 @@ class StateValues {
   bool valid_ = false;                  // something is stored
 };
 
+// Exact propagator of one tooth's free linear modal equations at a constant drum speed:
+// y = [q; qdot] obeys y' = A y with A = [0 I; -S -D], S = Lambda + Omega^2 (K_G - I) and
+// D = diag(2 zeta omega_i), so y(t + h) = V diag(exp(lambda_i h)) V^-1 y(t) (decomposed in
+// balanced coordinates, see buildToothPropagator). Built once per drum speed; propagating is O(n^2)
+// and allocates nothing. q is in sqrt(kg) m, qdot in sqrt(kg) m/s, so V and V^-1 mix those units.
+struct ToothPropagator {
+  double omega_radps = std::numeric_limits<double>::quiet_NaN();  // drum speed built at [rad/s]
+  int n_modes = -1;         // n of the tooth it was built for [-]
+  bool valid = false;       // the eigendecomposition reproduces A (else: Dormand-Prince) [-]
+  Eigen::VectorXcd lambda;  // eigenvalues of A, 2n [1/s]
+  Eigen::MatrixXcd V;       // right eigenvectors of A as columns, 2n x 2n [mixed]
+  Eigen::MatrixXcd V_inv;   // V^-1, 2n x 2n [mixed]
+  Eigen::VectorXcd c;       // scratch: modal amplitudes V^-1 y, then scaled, 2n [mixed]
+};
+
+// Builds (or keeps, if already built at this drum speed) the propagator of tooth `tooth` at drum
+// speed omega_radps. Returns prop->valid: false for a rigid tooth or an eigendecomposition that
+// does not reproduce (the balanced) A to 1e-9 relative (defective or ill-conditioned), where the
+// caller must integrate the tooth instead. Allocates only when it (re)builds.
+bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPropagator* prop);
+
+// Free motion of a tooth over h [s] from (q0, qd0) to (q1, qd1) by a valid propagator (its
+// scratch is used); the outputs must not alias the inputs.
+void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const VecX>& q0,
+                    const Eigen::Ref<const VecX>& qd0, Eigen::Ref<VecX> q1, Eigen::Ref<VecX> qd1);
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
@@ -211,6 +238,10 @@ struct Workspace {
   MatX ed_A;                                   // constraint matrix of those rows (grow-only)
   VecX ed_rc, ed_lam;                          // its right-hand side and solution
   std::vector<int> ed_row_perm, ed_col_perm;   // pivoting of the elimination
+  // Event-driven exact propagation of free teeth (IntegratorParams::exact_free_teeth).
+  std::vector<internal::ToothPropagator> ed_prop;  // per tooth, keyed on the drum speed
+  std::vector<std::uint8_t> ed_tooth_exact;        // per tooth: exact over the current trial [-]
+  std::vector<std::uint8_t> ed_own_error;          // per dof: counted in the error estimate [-]
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
 };

@@ -314,6 +314,8 @@ void resetData(const Model& model, Data* data) {
   data->stats = RunStats();
   data->ws->iteration_omega = -1;
   data->ws->ed_h = 0;
+  // The free-tooth propagators are rebuilt for this model on first use.
+  for (internal::ToothPropagator& prop : data->ws->ed_prop) prop.n_modes = -1;
   resetBodies(model, data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
 }

@@ -110,6 +110,7 @@ const KeySpec kSchema[] = {
     {"integrator.theta", KeyKind::kValue},
     {"integrator.zeno_velocity", KeyKind::kValue},
     {"integrator.max_step", KeyKind::kValue},
+    {"integrator.free_teeth", KeyKind::kValue},
     {"duration", KeyKind::kValue},
     {"broadphase_margin", KeyKind::kValue},
     {"macro_collision_gap", KeyKind::kValue},
@@ -533,6 +534,10 @@ void readIntegrator(const Section& scene, IntegratorParams* integrator) {
   integrator->zeno_velocity_mps =
       s.number("zeno_velocity", integrator->zeno_velocity_mps, kPositive);
   integrator->max_step_s = s.number("max_step", integrator->max_step_s, kPositive);
+  const std::string free_teeth =
+      s.word("free_teeth", integrator->exact_free_teeth ? "exact" : "integrated",
+             "free tooth propagation", {"exact", "integrated"});
+  integrator->exact_free_teeth = free_teeth == "exact";
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -126,6 +126,10 @@ struct IntegratorParams {
   double zeno_velocity_mps =
       1e-3;                  // event-driven: impacts slower than this close the contact [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
+  bool exact_free_teeth =
+      true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
+             // is advanced by the exact solution of its linear modal equations, outside the
+             // error control (false: every tooth by Dormand-Prince) [-]
 };
 
 struct Model {
