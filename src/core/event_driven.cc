@@ -756,10 +756,14 @@ double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& 
          (1.5 * sq * rate_mps * (1.0 + chi_spm * rate_mps) - delta_m * sq * chi_spm * acc_mps2);
 }
 
+// Whether a pair is in compliant contact.
+bool inCompliantContact(const ContactGeom& g, const PairMemory& mem) {
+  return isActive(mem) && g.params->law == ContactLaw::kCompliant;
+}
+
 // Normal force [N] and its rate [N/s] of every pair in compliant contact, from the last rhs()
 // call, made at the state (z, u) at time t [s] with accelerations udot (ws.geoms, ws.ed_fn), into
-// f and r (per geom, zero for other pairs); if on is given, it flags those pairs. Returns
-// whether any pair is in compliant contact.
+// f and r (per geom, zero for other pairs); `on` flags those pairs. Returns whether there is any.
 bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u,
                             const VecX& udot, std::vector<double>* f, std::vector<double>* r,
                             std::vector<std::uint8_t>* on) {
@@ -767,14 +771,14 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
   const size_t n_geoms = ws.geoms.size();
   f->assign(n_geoms, 0.0);
   r->assign(n_geoms, 0.0);
-  if (on) on->assign(n_geoms, 0);
+  on->assign(n_geoms, 0);
   bool any = false;
   for (size_t i = 0; i < n_geoms; ++i) {
     const ContactGeom& g = ws.geoms[i];
     const PairMemory& mem = ws.memory[pairKey(g.pair)];
-    if (!isActive(mem) || g.params->law != ContactLaw::kCompliant) continue;
+    if (!inCompliantContact(g, mem)) continue;
     any = true;
-    if (on) (*on)[i] = 1;
+    (*on)[i] = 1;
     (*f)[i] = ws.ed_fn[i];
     (*r)[i] = compliantForceRate(c, g, mem, z, u, udot, t);
   }
@@ -782,14 +786,15 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
 }
 
 // Located maxima of the compliant normal forces over an accepted step of length h [s] from
-// (t0, z0, u0) to (z1, u1), before the index sets are switched. A pair in compliant contact over
-// the whole step whose force rises at the start and falls at the end (values and rates from
-// ws.ed_pk_f0/r0 and the end) has an interior maximum: the cubic Hermite interpolant predicts its
-// time, one Dormand-Prince step from the start gives the state there, and the force and its rate
-// at that state narrow the bracket, until the prediction matches the probed force to 1e-2 x
-// tolerance (at most 4 probes). Every probed force counts for the peak statistics (with the
-// tangential force of the same state: in slip |F_T| = mu F_N peaks with F_N). A maximum at a
-// step boundary (a kink from an impact elsewhere) is an end value, recorded with the step.
+// (t0, z0, u0) to (z1, u1), before the index sets are switched. A force that rises at the start
+// and falls at the end of the step (values and rates from ws.ed_pk_* at both ends) has an
+// interior maximum: the cubic Hermite interpolant predicts its time, one Dormand-Prince step from
+// the start gives the state there, and the force and its rate at that state narrow the bracket,
+// until the prediction matches the probed force to 1e-2 x tolerance (at most 4 probes). Every
+// probed state's forces count for the peak statistics: in slip |F_T| = mu F_N peaks with F_N.
+// (A sticking |F_T| is a multiplier without a closed-form rate: its peak stays sampled at step
+// ends and at located events.) A maximum at a step boundary (a kink from an impact elsewhere)
+// is an end value, recorded with the step.
 // end_evaluated: the last rhs() call was at (z1, u1), so ws.geoms and ws.ed_udot_ev hold the end.
 void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0,
                       const VecX& z1, const VecX& u1, bool end_evaluated) {
@@ -799,21 +804,20 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
   if (!end_evaluated &&
       !rhs(c, t0 + h, z1, u1, &ws.ed_udot_ev, &torque_unused, false, SeparatedPairs::kNone))
     return;
-  compliantForceSnapshot(c, t0 + h, z1, u1, ws.ed_udot_ev, &ws.ed_pk_f1, &ws.ed_pk_r1, nullptr);
-  const size_t n_geoms = std::min(ws.ed_pk_on.size(), ws.ed_pk_f1.size());
+  std::vector<std::uint8_t>& on_end = ws.ed_pk_on_end;
+  compliantForceSnapshot(c, t0 + h, z1, u1, ws.ed_udot_ev, &ws.ed_pk_f1, &ws.ed_pk_r1, &on_end);
+  const size_t n_geoms = std::min(ws.ed_pk_on.size(), on_end.size());
   // The probe steps overwrite the step's contact impulses and drum torque impulse: kept here.
   bool saved = false;
   double torque_impulse_saved = 0;
   const double rel_tol = 1e-2 * c.m.integrator.tolerance;
   for (size_t i = 0; i < n_geoms; ++i) {
-    if (!ws.ed_pk_on[i]) continue;
-    PairMemory& mem = ws.memory[pairKey(ws.candidates[i])];
-    if (!isActive(mem)) continue;
-    // Bracket [a, b] of the step (from its start) with a rising and a falling end.
+    if (!ws.ed_pk_on[i] || !on_end[i]) continue;
+    // Bracket [a, b] of the step (from its start) with a rising and a falling end. A force at
+    // zero at an end (the episode opens or closes there, where F ~ delta^{3/2} has a zero rate)
+    // counts as rising from the start or falling to the end.
     double a = 0, b = h;
     double fa = ws.ed_pk_f0[i], ra = ws.ed_pk_r0[i], fb = ws.ed_pk_f1[i], rb = ws.ed_pk_r1[i];
-    // A force at zero at an end (the episode opens or closes there, where F ~ delta^{3/2} has a
-    // zero rate) counts as rising from the start or falling to the end.
     const bool rising = ra > 0 || (fa <= 0 && fb > 0);
     const bool falling = rb < 0 || (fb <= 0 && fa > 0);
     if (!(rising && falling)) continue;
@@ -829,17 +833,17 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
       const double f_pred = -hermiteMinimum(-fa, -ra, -fb, -rb, b - a, &s_max);
       const double tp = a + s_max * (b - a);
       // The state there, one step from the start, and its forces.
-      if (!dopriStep(c, t0, tp, z0, u0, &ws.ed_zt, &ws.ed_ut, &err_unused, &torque_unused))
-        break;
-      if (!rhs(c, t0 + tp, ws.ed_zt, ws.ed_ut, &ws.ed_pk_udot, &torque_unused, false,
+      if (!dopriStep(c, t0, tp, z0, u0, &ws.ed_zt, &ws.ed_ut, &err_unused, &torque_unused) ||
+          !rhs(c, t0 + tp, ws.ed_zt, ws.ed_ut, &ws.ed_pk_udot, &torque_unused, false,
                SeparatedPairs::kNone))
         break;
       const ContactGeom& g = ws.geoms[i];
+      PairMemory& mem = ws.memory[pairKey(g.pair)];
       const double fp = ws.ed_fn[i];
       recordForce(c.m, &c.d, g, fp, ws.ed_ft[i], t0 + tp);
       mem.episode_peak_N = std::max(mem.episode_peak_N, fp);
       if (std::abs(f_pred - fp) <= rel_tol * fp) break;
-      // Narrow the bracket to the side where the force still rises.
+      // Its rate; the bracket shrinks to the side where the force still rises.
       const double rp = compliantForceRate(c, g, mem, ws.ed_zt, ws.ed_ut, ws.ed_pk_udot, t0 + tp);
       if (rp > 0) {
         a = tp;

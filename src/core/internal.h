@@ -205,11 +205,10 @@ struct Workspace {
   std::vector<double> ed_ev0, ed_ev1, ed_evm;  // event function values (see eventValues)
   std::vector<double> ed_rate0, ed_rate1;      // their rates at the step ends [unit / s]
   // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
-  // step start (f0, r0) and end (f1, r1); whether the pair is in compliant contact over the
-  // step (pk_on); the acceleration at a peak probe [m/s^2 or 1/s^2 modal].
+  // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
   std::vector<double> ed_pk_f0, ed_pk_r0, ed_pk_f1, ed_pk_r1;
-  std::vector<std::uint8_t> ed_pk_on;
-  VecX ed_pk_udot;
+  std::vector<std::uint8_t> ed_pk_on, ed_pk_on_end;
+  VecX ed_pk_udot;  // accelerations at a peak probe [m/s^2 or modal 1/s^2]
   std::vector<std::uint8_t> ed_arm;            // arming of each function over the step
   VecX ed_imp_n_saved, ed_imp_t_saved;         // impulses kept across a graze probe [N s]
   std::vector<int> ed_forced_slip;             // geoms forced into slip by a stick-slip event
