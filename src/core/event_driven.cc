@@ -738,8 +738,8 @@ double hermiteMinimum(double g0, double r0, double g1, double r1, double h, doub
 // that state: dF/dt = K [3/2 delta^{1/2} delta' (1 + chi delta') + delta^{3/2} chi delta''],
 // delta'' = -(w_N . udot + velocity drift). Zero where the force is zero (apart, or clamped:
 // no adhesion).
-double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& mem,
-                          const VecX& z, const VecX& u, const VecX& udot, double t) {
+double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& mem, const VecX& z,
+                          const VecX& u, const VecX& udot, double t) {
   const double delta_m = -g.gap_m;
   const double rate_mps = -g.vn;
   const double chi_spm =
@@ -764,8 +764,8 @@ bool inCompliantContact(const ContactGeom& g, const PairMemory& mem) {
 // Normal force [N] and its rate [N/s] of every pair in compliant contact, from the last rhs()
 // call, made at the state (z, u) at time t [s] with accelerations udot (ws.geoms, ws.ed_fn), into
 // f and r (per geom, zero for other pairs); `on` flags those pairs. Returns whether there is any.
-bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u,
-                            const VecX& udot, std::vector<double>* f, std::vector<double>* r,
+bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u, const VecX& udot,
+                            std::vector<double>* f, std::vector<double>* r,
                             std::vector<std::uint8_t>* on) {
   Workspace& ws = c.ws;
   const size_t n_geoms = ws.geoms.size();

@@ -204,11 +204,6 @@ struct Workspace {
   VecX ed_imp_n_step, ed_imp_t_step;           // impulses of the accepted step per geom [N s]
   std::vector<double> ed_ev0, ed_ev1, ed_evm;  // event function values (see eventValues)
   std::vector<double> ed_rate0, ed_rate1;      // their rates at the step ends [unit / s]
-  // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
-  // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
-  std::vector<double> ed_pk_f0, ed_pk_r0, ed_pk_f1, ed_pk_r1;
-  std::vector<std::uint8_t> ed_pk_on, ed_pk_on_end;
-  VecX ed_pk_udot;  // accelerations at a peak probe [m/s^2 or modal 1/s^2]
   std::vector<std::uint8_t> ed_arm;            // arming of each function over the step
   VecX ed_imp_n_saved, ed_imp_t_saved;         // impulses kept across a graze probe [N s]
   std::vector<int> ed_forced_slip;             // geoms forced into slip by a stick-slip event
@@ -216,6 +211,12 @@ struct Workspace {
   MatX ed_A;                                   // constraint matrix of those rows (grow-only)
   VecX ed_rc, ed_lam;                          // its right-hand side and solution
   std::vector<int> ed_row_perm, ed_col_perm;   // pivoting of the elimination
+  // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
+  // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
+  std::vector<double> ed_pk_f0, ed_pk_r0, ed_pk_f1, ed_pk_r1;
+  std::vector<std::uint8_t> ed_pk_on, ed_pk_on_end;
+  // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
+  VecX ed_pk_udot;
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
 };
