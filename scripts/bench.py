@@ -799,7 +799,8 @@ Every error is relative to the event-driven reference of its scene (tolerance {c
 - final pose: ‖P − P_ref‖ / ‖P_ref − P_0‖ over the final positions of all kernels and their angles
   times the semi-major axis a (so the pose error is relative to how far the kernels moved);
 - peak normal / tangential force: relative error of the largest normal / tangential contact force
-  of the run (the core's running maxima over accepted steps);
+  of the run (the core's maxima over accepted steps and located events; event-driven, a compliant
+  normal force's maximum inside a step is located to the tolerance);
 - normal impulse: relative error of the total normal impulse;
 - impacts: absolute difference of the completed-impact count;
 - tip RMS: RMS over the teeth and {cfg['samples']} fixed sample times of the tip deflection

@@ -242,6 +242,12 @@ struct Workspace {
   std::vector<internal::ToothPropagator> ed_prop;  // per tooth, keyed on the drum speed
   std::vector<std::uint8_t> ed_tooth_exact;        // per tooth: exact over the current trial [-]
   std::vector<std::uint8_t> ed_own_error;          // per dof: counted in the error estimate [-]
+  // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
+  // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
+  std::vector<double> ed_pk_f0, ed_pk_r0, ed_pk_f1, ed_pk_r1;
+  std::vector<std::uint8_t> ed_pk_on, ed_pk_on_end;
+  // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
+  VecX ed_pk_udot;
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
 };
