@@ -11,16 +11,13 @@
 #include <sstream>
 #include <string>
 
+#include "script_test_util.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
-std::string readFile(const fs::path& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
+using threshing_sim::test::readFile;
 
 TEST(Bench, QuickRunWritesTablesAndPlots) {
   const fs::path out = BENCH_OUT_DIR;
