@@ -6,10 +6,12 @@
 // or command line.
 //
 // Sampling: the state trace is written every kChunk_s (times --trace-every). Contacts are
-// sampled for --forces (and the outcomes' accumulated impulses) after every advanceTo(): every
-// --sample-interval while some tooth-kernel pair is within the broad-phase margin, otherwise at
-// least every time the fastest body could cover the margin (and at every trace chunk). The
-// outcomes' force peaks are the core's (RunStats), taken at every accepted step and event.
+// sampled after every advanceTo(), at least every time the fastest body could cover the
+// broad-phase margin (and at every trace chunk), so that the outcomes see every pair's
+// accumulated impulse before it leaves the candidate set. With --forces, the samples are every
+// --sample-interval while some tooth-kernel pair is within the margin, for the force histories;
+// without it the run is not cut into sample intervals near contacts, as the outcomes' force
+// peaks are the core's (RunStats: every accepted step, located peaks and events).
 #include <unistd.h>
 
 #include <algorithm>
@@ -303,7 +305,7 @@ int run(const Model& model, const DamageThresholds& damage, const Options& optio
     const double t_chunk_s = chunk == n_chunks ? model.duration_s : chunk * kChunk_s;
     // Sampling intervals within the chunk; the last one lands on the chunk's end.
     for (bool last = false; !last && !failed;) {
-      const double interval_s = nearContact(data)
+      const double interval_s = forces.is_open() && nearContact(data)
                                     ? sample_interval_s
                                     : std::max(coarseInterval(model, data), min_interval_s);
       const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
