@@ -231,10 +231,105 @@ void updateStations(const Model& m, const VecX& z, double theta_rad, Workspace* 
     updateToothStations(m, z, theta_rad, static_cast<int>(k), ws);
 }
 
+void prepareBroadPhase(const Model& m, Workspace* ws) {
+  // Obstacles by the lower end of their extent along x; planes have no extent and are always
+  // tested.
+  const size_t n_obs = m.obstacles.size();
+  ws->obstacle_order.clear();
+  ws->obstacle_planes.clear();
+  ws->obstacle_order.reserve(n_obs);
+  ws->obstacle_xmin_m.assign(n_obs, 0.0);
+  ws->obstacle_xmax_m.assign(n_obs, 0.0);
+  ws->obstacle_max_width_m = 0.0;
+  for (size_t j = 0; j < n_obs; ++j) {
+    const ObstacleModel& o = m.obstacles[j];
+    if (o.type == ObstacleType::kPlane) {
+      ws->obstacle_planes.push_back(static_cast<int>(j));
+      continue;
+    }
+    const double lo = o.type == ObstacleType::kCircle ? o.center_m.x()
+                                                      : std::min(o.point_m.x(), o.point_b_m.x());
+    const double hi = o.type == ObstacleType::kCircle ? o.center_m.x()
+                                                      : std::max(o.point_m.x(), o.point_b_m.x());
+    ws->obstacle_xmin_m[j] = lo - o.radius_m;
+    ws->obstacle_xmax_m[j] = hi + o.radius_m;
+    ws->obstacle_max_width_m =
+        std::max(ws->obstacle_max_width_m, ws->obstacle_xmax_m[j] - ws->obstacle_xmin_m[j]);
+    ws->obstacle_order.push_back(static_cast<int>(j));
+  }
+  std::sort(ws->obstacle_order.begin(), ws->obstacle_order.end(), [&](int a, int b) {
+    return ws->obstacle_xmin_m[a] < ws->obstacle_xmin_m[b] ||
+           (ws->obstacle_xmin_m[a] == ws->obstacle_xmin_m[b] && a < b);
+  });
+  ws->obstacle_sorted_xmin_m.resize(ws->obstacle_order.size());
+  for (size_t i = 0; i < ws->obstacle_order.size(); ++i)
+    ws->obstacle_sorted_xmin_m[i] = ws->obstacle_xmin_m[ws->obstacle_order[i]];
+  // The kernel order of the sweep starts afresh.
+  ws->sort_index.clear();
+  ws->sort_xmin_m.clear();
+  ws->candidates.reserve(4 * m.kernels.size() * (m.teeth.size() + 4) + 64);
+}
+
+namespace {
+// Whether kernel i (centre c, bounding radius r = a + margin) is within reach of obstacle o:
+// the exact test of the broad phase.
+bool obstacleInReach(const ObstacleModel& o, const Vec2& c, double r) {
+  double dist = 0.0;
+  if (o.type == ObstacleType::kPlane) {
+    dist = o.normal.dot(c - o.point_m);
+  } else if (o.type == ObstacleType::kCircle) {
+    // A bar clearly out of reach along either axis is rejected without a square root (the
+    // slack keeps the decision that of the exact test below).
+    const double reach_m = (r + o.radius_m) * (1.0 + 1e-9) + 1e-12;
+    if (std::abs(c.x() - o.center_m.x()) > reach_m || std::abs(c.y() - o.center_m.y()) > reach_m)
+      return false;
+    dist = (c - o.center_m).norm() - o.radius_m;
+  } else {
+    const Vec2 ab = o.point_b_m - o.point_m;
+    const double s = std::clamp((c - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    dist = (c - (o.point_m + s * ab)).norm() - o.radius_m;
+  }
+  return dist <= r;
+}
+// Round-off slack of the interval searches below: they only pre-select, the exact tests decide,
+// so a pre-selection a little too wide changes nothing [m].
+double slackOf(double x_m) { return 1e-9 * (std::abs(x_m) + 1.0); }
+}  // namespace
+
 void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
   ws->candidates.clear();
   const int K = static_cast<int>(m.kernels.size());
-  // Teeth against kernels: the deformed centreline's bounding circle against the kernel's.
+  if (ws->obstacle_xmin_m.size() != m.obstacles.size()) prepareBroadPhase(m, ws);
+  // Kernels by the lower end of their bounding circle along x. The order of the previous call
+  // is the starting point: kernels move little between steps, so insertion sort finishes in
+  // about K comparisons. The order (xmin, then index) is total, so the result is the unique
+  // sorted order whatever the start.
+  std::vector<int>& order = ws->sort_index;
+  std::vector<double>& xmin = ws->sort_xmin_m;
+  if (static_cast<int>(order.size()) != K) {
+    order.resize(K);
+    for (int i = 0; i < K; ++i) order[i] = i;
+  }
+  xmin.resize(K);
+  auto kernelXmin = [&](int i) { return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m; };
+  double a_max = 0.0;
+  for (int i = 0; i < K; ++i) a_max = std::max(a_max, m.kernels[i].semi_axis_a_m);
+  for (int ia = 0; ia < K; ++ia) {
+    const int a = order[ia];
+    const double xa = kernelXmin(a);
+    int ib = ia;
+    while (ib > 0 && (xmin[ib - 1] > xa || (xmin[ib - 1] == xa && order[ib - 1] > a))) {
+      order[ib] = order[ib - 1];
+      xmin[ib] = xmin[ib - 1];
+      --ib;
+    }
+    order[ib] = a;
+    xmin[ib] = xa;
+  }
+
+  // Teeth against kernels: the deformed centreline's bounding box against the kernel's bounding
+  // circle; only the kernels whose xmin lies in the box's x range (widened by the largest
+  // kernel) are tested.
   for (size_t k = 0; k < m.teeth.size(); ++k) {
     const ToothModel& tm = m.teeth[k];
     const int s0 = ws->station_offset[k], s1 = ws->station_offset[k + 1];
@@ -244,7 +339,11 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
       hi = hi.cwiseMax(ws->stations_W[s]);
     }
     const double pad = 0.5 * tm.diameter_m + margin_m;
-    for (int i = 0; i < K; ++i) {
+    const double from = lo.x() - pad - 2.0 * a_max, to = hi.x() + pad;
+    const int first = static_cast<int>(
+        std::lower_bound(xmin.begin(), xmin.end(), from - slackOf(from)) - xmin.begin());
+    for (int ia = first; ia < K && xmin[ia] <= to + slackOf(to); ++ia) {
+      const int i = order[ia];
       const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
       const double r = m.kernels[i].semi_axis_a_m + pad;
       if (c.x() + r < lo.x() || c.x() - r > hi.x() || c.y() + r < lo.y() || c.y() - r > hi.y())
@@ -253,48 +352,78 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
     }
   }
   // Kernels against kernels: sweep and prune along x over bounding circles.
-  ws->sort_index.resize(K);
-  for (int i = 0; i < K; ++i) ws->sort_index[i] = i;
-  auto xmin = [&](int i) { return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m; };
-  std::sort(ws->sort_index.begin(), ws->sort_index.end(),
-            [&](int a, int b) { return xmin(a) < xmin(b) || (xmin(a) == xmin(b) && a < b); });
   for (int ia = 0; ia < K; ++ia) {
-    const int a = ws->sort_index[ia];
+    const int a = order[ia];
     const Vec2 ca = z.segment<2>(m.kernels[a].dof_offset);
     const double ra = m.kernels[a].semi_axis_a_m;
     for (int ib = ia + 1; ib < K; ++ib) {
-      const int b = ws->sort_index[ib];
-      if (xmin(b) > ca.x() + ra + margin_m) break;
+      if (xmin[ib] > ca.x() + ra + margin_m) break;
+      const int b = order[ib];
       const Vec2 cb = z.segment<2>(m.kernels[b].dof_offset);
       const double rr = ra + m.kernels[b].semi_axis_a_m + margin_m;
       if ((cb - ca).squaredNorm() > rr * rr) continue;
       ws->candidates.push_back({PairKind::kKernelKernel, std::min(a, b), std::max(a, b)});
     }
   }
-  // Kernels against obstacles.
+  // Kernels against obstacles: planes always; bars and plates only those whose x extent can
+  // meet the kernel's reach (found by bisection in the obstacles' xmin order).
+  const std::vector<double>& obs_xmin = ws->obstacle_sorted_xmin_m;
   for (int i = 0; i < K; ++i) {
     const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
     const double r = m.kernels[i].semi_axis_a_m + margin_m;
-    for (size_t j = 0; j < m.obstacles.size(); ++j) {
-      const ObstacleModel& o = m.obstacles[j];
-      double dist = 0.0;
-      if (o.type == ObstacleType::kPlane) {
-        dist = o.normal.dot(c - o.point_m);
-      } else if (o.type == ObstacleType::kCircle) {
-        // A bar clearly out of reach along either axis is rejected without a square root (the
-        // slack keeps the decision that of the exact test below).
-        const double reach_m = (r + o.radius_m) * (1.0 + 1e-9) + 1e-12;
-        if (std::abs(c.x() - o.center_m.x()) > reach_m ||
-            std::abs(c.y() - o.center_m.y()) > reach_m)
-          continue;
-        dist = (c - o.center_m).norm() - o.radius_m;
-      } else {
-        const Vec2 ab = o.point_b_m - o.point_m;
-        const double s = std::clamp((c - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-        dist = (c - (o.point_m + s * ab)).norm() - o.radius_m;
-      }
-      if (dist <= r) ws->candidates.push_back({PairKind::kKernelObstacle, i, static_cast<int>(j)});
+    for (int j : ws->obstacle_planes)
+      if (obstacleInReach(m.obstacles[j], c, r))
+        ws->candidates.push_back({PairKind::kKernelObstacle, i, j});
+    const double reach_lo = c.x() - r, to = c.x() + r;
+    const double from = reach_lo - ws->obstacle_max_width_m;
+    const size_t first = static_cast<size_t>(
+        std::lower_bound(obs_xmin.begin(), obs_xmin.end(), from - slackOf(from)) -
+        obs_xmin.begin());
+    for (size_t jo = first; jo < obs_xmin.size() && obs_xmin[jo] <= to + slackOf(to); ++jo) {
+      const int j = ws->obstacle_order[jo];
+      if (ws->obstacle_xmax_m[j] < reach_lo - slackOf(reach_lo)) continue;
+      if (obstacleInReach(m.obstacles[j], c, r))
+        ws->candidates.push_back({PairKind::kKernelObstacle, i, j});
     }
+  }
+  std::sort(ws->candidates.begin(), ws->candidates.end());
+}
+
+void broadPhaseBruteForce(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
+  ws->candidates.clear();
+  const int K = static_cast<int>(m.kernels.size());
+  // Every tooth against every kernel, bounding box against bounding circle.
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const int s0 = ws->station_offset[k], s1 = ws->station_offset[k + 1];
+    Vec2 lo = ws->stations_W[s0], hi = lo;
+    for (int s = s0 + 1; s < s1; ++s) {
+      lo = lo.cwiseMin(ws->stations_W[s]);
+      hi = hi.cwiseMax(ws->stations_W[s]);
+    }
+    const double pad = 0.5 * m.teeth[k].diameter_m + margin_m;
+    for (int i = 0; i < K; ++i) {
+      const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
+      const double r = m.kernels[i].semi_axis_a_m + pad;
+      if (c.x() + r < lo.x() || c.x() - r > hi.x() || c.y() + r < lo.y() || c.y() - r > hi.y())
+        continue;
+      ws->candidates.push_back({PairKind::kToothKernel, static_cast<int>(k), i});
+    }
+  }
+  // Every kernel pair, bounding circles.
+  for (int a = 0; a < K; ++a) {
+    for (int b = a + 1; b < K; ++b) {
+      const Vec2 d = z.segment<2>(m.kernels[b].dof_offset) - z.segment<2>(m.kernels[a].dof_offset);
+      const double rr = m.kernels[a].semi_axis_a_m + m.kernels[b].semi_axis_a_m + margin_m;
+      if (d.squaredNorm() <= rr * rr) ws->candidates.push_back({PairKind::kKernelKernel, a, b});
+    }
+  }
+  // Every kernel against every obstacle.
+  for (int i = 0; i < K; ++i) {
+    const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
+    const double r = m.kernels[i].semi_axis_a_m + margin_m;
+    for (size_t j = 0; j < m.obstacles.size(); ++j)
+      if (obstacleInReach(m.obstacles[j], c, r))
+        ws->candidates.push_back({PairKind::kKernelObstacle, i, static_cast<int>(j)});
   }
   std::sort(ws->candidates.begin(), ws->candidates.end());
 }

@@ -164,7 +164,13 @@ struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;
-  std::vector<int> sort_index;       // sweep-and-prune order
+  std::vector<int> sort_index;       // sweep-and-prune order of the kernels (kept across steps)
+  std::vector<double> sort_xmin_m;   // their bounding circles' lower x, in that order [m]
+  std::vector<int> obstacle_order;   // bars and plates (not planes) by increasing xmin
+  std::vector<double> obstacle_sorted_xmin_m;  // their xmin in that order [m]
+  std::vector<double> obstacle_xmin_m, obstacle_xmax_m;  // x extent per obstacle [m]
+  double obstacle_max_width_m = 0;   // largest xmax - xmin of a bar or plate [m]
+  std::vector<int> obstacle_planes;  // planes (unbounded: tested against every kernel)
   std::vector<Vec2> stations_W;      // deformed tooth centrelines, all teeth [m]
   std::vector<int> station_offset;   // first station of each tooth in stations_W
   std::vector<double> station_wc_m;  // foreshortening w_c at each station [m]
@@ -236,7 +242,17 @@ void updateToothStations(const Model& m, const VecX& z, double theta_rad, int to
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 
 // Broad phase: pairs whose bounding shapes are within margin_m; fills ws->candidates, sorted.
+// Requires updateStations for z first. Sweep and prune along x: the kernels' order is kept
+// from the previous call and repaired by insertion sort (O(K) while kernels move little);
+// teeth and obstacles find their kernels by bisection in that order or in the obstacles' x
+// order. The cost per call is O(K + candidates), not O(K^2) nor O(K x obstacles).
 void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
+// The same candidates by testing every pair (O(K^2 + K x obstacles)); the reference of the
+// broad phase's tests.
+void broadPhaseBruteForce(const Model& m, const VecX& z, double margin_m, Workspace* ws);
+// Per-model set-up of the broad phase (obstacles' x order, a fresh kernel order); resetData
+// calls it, and broadPhase when the obstacle count changed.
+void prepareBroadPhase(const Model& m, Workspace* ws);
 
 // Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
 // Requires updateStations for z first. If a cheap lower bound of the gap exceeds far_m, only

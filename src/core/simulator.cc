@@ -261,6 +261,7 @@ void resetBodies(const Model& m, Data* d) {
   const size_t n_kernels = m.kernels.size();
   d->ws->memory.reserve(n_kernels * (m.teeth.size() + 16) + 64);
   d->ws->prev_active.clear();
+  internal::prepareBroadPhase(m, d->ws.get());
   d->ws->geoms.clear();
   d->contacts.clear();
   d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);
