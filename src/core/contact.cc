@@ -264,6 +264,19 @@ void prepareBroadPhase(const Model& m, Workspace* ws) {
   ws->obstacle_sorted_xmin_m.resize(ws->obstacle_order.size());
   for (size_t i = 0; i < ws->obstacle_order.size(); ++i)
     ws->obstacle_sorted_xmin_m[i] = ws->obstacle_xmin_m[ws->obstacle_order[i]];
+  // Per tooth, bounds of the stations' displacement from the rigid centreline: the largest
+  // |phi_i(x_s)| per mode and the largest Frobenius norm of H(x_s) (>= its largest eigenvalue).
+  ws->tooth_phi_max.assign(m.teeth.size(), SmallVec());
+  ws->tooth_H_max.assign(m.teeth.size(), 0.0);
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    SmallVec& phi_max = ws->tooth_phi_max[k];
+    phi_max.setZero(tm.n_modes);
+    for (int st = 0; st < tm.n_stations && tm.n_modes > 0; ++st) {
+      phi_max = phi_max.cwiseMax(tm.phi_s.row(st).transpose().cwiseAbs());
+      ws->tooth_H_max[k] = std::max(ws->tooth_H_max[k], tm.H_s[st].norm());
+    }
+  }
   // The kernel order of the sweep starts afresh.
   ws->sort_index.clear();
   ws->sort_xmin_m.clear();
@@ -296,10 +309,13 @@ bool obstacleInReach(const ObstacleModel& o, const Vec2& c, double r) {
 double slackOf(double x_m) { return 1e-9 * (std::abs(x_m) + 1.0); }
 }  // namespace
 
-void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
+void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
+                const double* stations_theta_rad) {
   ws->candidates.clear();
   const int K = static_cast<int>(m.kernels.size());
-  if (ws->obstacle_xmin_m.size() != m.obstacles.size()) prepareBroadPhase(m, ws);
+  if (ws->obstacle_xmin_m.size() != m.obstacles.size() ||
+      ws->tooth_H_max.size() != m.teeth.size())
+    prepareBroadPhase(m, ws);
   // Kernels by the lower end of their bounding circle along x. The order of the previous call
   // is the starting point: kernels move little between steps, so insertion sort finishes in
   // about K comparisons. The order (xmin, then index) is total, so the result is the unique
@@ -330,19 +346,54 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws) {
   // Teeth against kernels: the deformed centreline's bounding box against the kernel's bounding
   // circle; only the kernels whose xmin lies in the box's x range (widened by the largest
   // kernel) are tested.
+  auto kernelsInBox = [&](const Vec2& lo, const Vec2& hi, double pad, int* first) {
+    const double from = lo.x() - pad - 2.0 * a_max, to = hi.x() + pad;
+    *first = static_cast<int>(
+        std::lower_bound(xmin.begin(), xmin.end(), from - slackOf(from)) - xmin.begin());
+    return to + slackOf(to);  // last xmin to test
+  };
   for (size_t k = 0; k < m.teeth.size(); ++k) {
     const ToothModel& tm = m.teeth[k];
+    const double pad = 0.5 * tm.diameter_m + margin_m;
+    if (stations_theta_rad != nullptr) {
+      // Stations on demand: the rigid centreline's box widened by a bound of the deflection,
+      // |w(x_s)| <= sum_i max_s |phi_i(x_s)| |q_i| and |w_c(x_s)| <= max_s |H(x_s)|_F |q|^2 / 2,
+      // holds every station. Only a tooth with some kernel in reach of that box has its
+      // stations computed; without one the exact box below would find none either.
+      const Rotation2 rot(*stations_theta_rad);
+      const auto q = z.segment(tm.dof_offset, tm.n_modes);
+      const double deflection_m =
+          (tm.n_modes > 0 ? ws->tooth_phi_max[k].dot(q.cwiseAbs()) +
+                                0.5 * ws->tooth_H_max[k] * q.squaredNorm()
+                          : 0.0);
+      const Vec2 root = rot * (tm.p_DR_D + tm.station_x_m[0] * tm.e1_D);
+      const Vec2 tip = rot * (tm.p_DR_D + tm.station_x_m[tm.n_stations - 1] * tm.e1_D);
+      const double grow_m =
+          deflection_m * (1.0 + 1e-9) + 1e-9 * (root.norm() + tip.norm() + 1e-3);
+      const Vec2 lo_b = root.cwiseMin(tip).array() - grow_m;
+      const Vec2 hi_b = root.cwiseMax(tip).array() + grow_m;
+      int first = 0;
+      const double last = kernelsInBox(lo_b, hi_b, pad, &first);
+      bool any = false;
+      for (int ia = first; ia < K && xmin[ia] <= last && !any; ++ia) {
+        const int i = order[ia];
+        const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
+        const double r = m.kernels[i].semi_axis_a_m + pad;
+        any = !(c.x() + r < lo_b.x() || c.x() - r > hi_b.x() || c.y() + r < lo_b.y() ||
+                c.y() - r > hi_b.y());
+      }
+      if (!any) continue;
+      updateToothStations(m, z, *stations_theta_rad, static_cast<int>(k), ws);
+    }
     const int s0 = ws->station_offset[k], s1 = ws->station_offset[k + 1];
     Vec2 lo = ws->stations_W[s0], hi = lo;
     for (int s = s0 + 1; s < s1; ++s) {
       lo = lo.cwiseMin(ws->stations_W[s]);
       hi = hi.cwiseMax(ws->stations_W[s]);
     }
-    const double pad = 0.5 * tm.diameter_m + margin_m;
-    const double from = lo.x() - pad - 2.0 * a_max, to = hi.x() + pad;
-    const int first = static_cast<int>(
-        std::lower_bound(xmin.begin(), xmin.end(), from - slackOf(from)) - xmin.begin());
-    for (int ia = first; ia < K && xmin[ia] <= to + slackOf(to); ++ia) {
+    int first = 0;
+    const double last = kernelsInBox(lo, hi, pad, &first);
+    for (int ia = first; ia < K && xmin[ia] <= last; ++ia) {
       const int i = order[ia];
       const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
       const double r = m.kernels[i].semi_axis_a_m + pad;

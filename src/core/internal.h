@@ -171,6 +171,8 @@ struct Workspace {
   std::vector<double> obstacle_xmin_m, obstacle_xmax_m;  // x extent per obstacle [m]
   double obstacle_max_width_m = 0;   // largest xmax - xmin of a bar or plate [m]
   std::vector<int> obstacle_planes;  // planes (unbounded: tested against every kernel)
+  std::vector<internal::SmallVec> tooth_phi_max;  // per tooth, max_s |phi_i(x_s)| [1/sqrt(kg)]
+  std::vector<double> tooth_H_max;  // per tooth, max_s |H(x_s)|_F [1/(kg m)]
   std::vector<Vec2> stations_W;      // deformed tooth centrelines, all teeth [m]
   std::vector<int> station_offset;   // first station of each tooth in stations_W
   std::vector<double> station_wc_m;  // foreshortening w_c at each station [m]
@@ -246,7 +248,11 @@ Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 // from the previous call and repaired by insertion sort (O(K) while kernels move little);
 // teeth and obstacles find their kernels by bisection in that order or in the obstacles' x
 // order. The cost per call is O(K + candidates), not O(K^2) nor O(K x obstacles).
-void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
+// With stations_theta_rad, the tooth stations are not required first: broadPhase lays them
+// out and computes them (at that drum angle) only for the teeth that can have a candidate;
+// the other teeth's stations are left stale.
+void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
+                const double* stations_theta_rad = nullptr);
 // The same candidates by testing every pair (O(K^2 + K x obstacles)); the reference of the
 // broad phase's tests.
 void broadPhaseBruteForce(const Model& m, const VecX& z, double margin_m, Workspace* ws);

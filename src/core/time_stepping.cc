@@ -86,8 +86,10 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
 
   // Contact detection at the midpoint configuration z_M = z + h/2 u.
   ws.z_mid = d->z + 0.5 * h * d->u;
-  updateStations(m, ws.z_mid, mid.theta_rad, &ws);
-  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws);
+  // Tooth stations only for the teeth that can meet a kernel (computed by the broad phase).
+  layoutStations(m, &ws);
+  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws,
+             &mid.theta_rad);
   ws.geoms.resize(ws.candidates.size());
   // Separated pairs surely farther than a quarter margin get only a gap bound: inactive.
   for (size_t c = 0; c < ws.candidates.size(); ++c) {

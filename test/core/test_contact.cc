@@ -514,6 +514,7 @@ TEST(BroadPhase, CandidatesEqualBruteForceOnRandomLayouts) {
     Data d;
     resetData(m, &d);
     Workspace ws;  // one workspace across calls, as in a run
+    Workspace ws_lazy_stations;
     VecX z = d.z;
     for (int call = 0; call < 12; ++call) {
       // Small random motion, and every fourth call a wholesale shuffle of a tenth of the kernels.
@@ -526,11 +527,19 @@ TEST(BroadPhase, CandidatesEqualBruteForceOnRandomLayouts) {
         z[o + 2] += U(rng) - 0.5;
       }
       for (int k = 0; k < 4; ++k)
-        z.segment(m.teeth[k].dof_offset, m.teeth[k].n_modes).setConstant(1e-3 * (U(rng) - 0.5));
+        for (int i = 0; i < m.teeth[k].n_modes; ++i)
+          z[m.teeth[k].dof_offset + i] = 2e-3 * (U(rng) - 0.5);
       const double theta = 2 * testutil::kPi * U(rng), margin = 1e-3 + 3e-3 * U(rng);
       internal::updateStations(m, z, theta, &ws);
       internal::broadPhase(m, z, margin, &ws);
       const std::vector<PairId> fast = ws.candidates;
+      // Stations computed by the broad phase itself, only for the teeth that need them.
+      Workspace& ws_lazy = ws_lazy_stations;
+      internal::layoutStations(m, &ws_lazy);
+      internal::broadPhase(m, z, margin, &ws_lazy, &theta);
+      ASSERT_EQ(fast.size(), ws_lazy.candidates.size()) << "layout " << layout << ", call " << call;
+      for (size_t c = 0; c < fast.size(); ++c)
+        ASSERT_TRUE(fast[c] == ws_lazy.candidates[c]) << "layout " << layout << ", call " << call;
       internal::broadPhaseBruteForce(m, z, margin, &ws);
       ASSERT_EQ(fast.size(), ws.candidates.size()) << "layout " << layout << ", call " << call;
       for (size_t c = 0; c < fast.size(); ++c) {
