@@ -739,6 +739,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   Workspace& ws = *d->ws;
   Ctx c{m, *d, ws};
   const int n = m.n_dof;
+  ws.ts_in_contact_step = -2;  // time stepping's list of pairs in contact is stale from here
 
   // Candidate pairs for this step: broad phase with a margin the step cannot outrun.
   const double v_bound = motionBound(c);

@@ -137,6 +137,7 @@ class StateValues {
     momentum_kgm2ps_ = momentum_kgm2ps;
     valid_ = true;
   }
+  void invalidate() { valid_ = false; }
   bool lookup(const Data& d, double* energy_J, double* momentum_kgm2ps) const {
     if (!valid_ || d.omega_radps != omega_radps_ || d.z.size() != z_.size() ||
         d.u.size() != u_.size() || d.kernel_attached != attached_ ||
@@ -182,6 +183,11 @@ struct Workspace {
   VecX guard_z, guard_u;                  // last good state for the non-finite guard
   std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
   internal::StateValues ts_end_values;    // time stepping: energy and momentum at the last end
+  std::vector<int> ts_candidate_memory;   // time stepping: pair-table index of each candidate
+  std::vector<int> ts_in_contact;         // time stepping: pairs in contact at the last step end
+  long ts_in_contact_step = -2;           // time stepping: Data::steps when that list was made
+  std::vector<std::uint8_t> ts_attached_before;  // time stepping: pedicels before this step's
+                                                 // breaks [-]
   std::vector<MatX> iteration_stiffness;  // time stepping: K(Omega) of each tooth [1/s^2]
   std::vector<MatX> iteration_matrix;     // time stepping: I + h theta D + h^2 theta^2 K [-]
   std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
