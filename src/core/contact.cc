@@ -247,10 +247,10 @@ void prepareBroadPhase(const Model& m, Workspace* ws) {
       ws->obstacle_planes.push_back(static_cast<int>(j));
       continue;
     }
-    const double lo = o.type == ObstacleType::kCircle ? o.center_m.x()
-                                                      : std::min(o.point_m.x(), o.point_b_m.x());
-    const double hi = o.type == ObstacleType::kCircle ? o.center_m.x()
-                                                      : std::max(o.point_m.x(), o.point_b_m.x());
+    const double lo =
+        o.type == ObstacleType::kCircle ? o.center_m.x() : std::min(o.point_m.x(), o.point_b_m.x());
+    const double hi =
+        o.type == ObstacleType::kCircle ? o.center_m.x() : std::max(o.point_m.x(), o.point_b_m.x());
     ws->obstacle_xmin_m[j] = lo - o.radius_m;
     ws->obstacle_xmax_m[j] = hi + o.radius_m;
     ws->obstacle_max_width_m =
@@ -313,8 +313,7 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
                 const double* stations_theta_rad) {
   ws->candidates.clear();
   const int K = static_cast<int>(m.kernels.size());
-  if (ws->obstacle_xmin_m.size() != m.obstacles.size() ||
-      ws->tooth_H_max.size() != m.teeth.size())
+  if (ws->obstacle_xmin_m.size() != m.obstacles.size() || ws->tooth_H_max.size() != m.teeth.size())
     prepareBroadPhase(m, ws);
   // Kernels by the lower end of their bounding circle along x. The order of the previous call
   // is the starting point: kernels move little between steps, so insertion sort finishes in
@@ -348,8 +347,8 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
   // kernel) are tested.
   auto kernelsInBox = [&](const Vec2& lo, const Vec2& hi, double pad, int* first) {
     const double from = lo.x() - pad - 2.0 * a_max, to = hi.x() + pad;
-    *first = static_cast<int>(
-        std::lower_bound(xmin.begin(), xmin.end(), from - slackOf(from)) - xmin.begin());
+    *first = static_cast<int>(std::lower_bound(xmin.begin(), xmin.end(), from - slackOf(from)) -
+                              xmin.begin());
     return to + slackOf(to);  // last xmin to test
   };
   for (size_t k = 0; k < m.teeth.size(); ++k) {
@@ -362,14 +361,12 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
       // stations computed; without one the exact box below would find none either.
       const Rotation2 rot(*stations_theta_rad);
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
-      const double deflection_m =
-          (tm.n_modes > 0 ? ws->tooth_phi_max[k].dot(q.cwiseAbs()) +
-                                0.5 * ws->tooth_H_max[k] * q.squaredNorm()
-                          : 0.0);
+      const double deflection_m = (tm.n_modes > 0 ? ws->tooth_phi_max[k].dot(q.cwiseAbs()) +
+                                                        0.5 * ws->tooth_H_max[k] * q.squaredNorm()
+                                                  : 0.0);
       const Vec2 root = rot * (tm.p_DR_D + tm.station_x_m[0] * tm.e1_D);
       const Vec2 tip = rot * (tm.p_DR_D + tm.station_x_m[tm.n_stations - 1] * tm.e1_D);
-      const double grow_m =
-          deflection_m * (1.0 + 1e-9) + 1e-9 * (root.norm() + tip.norm() + 1e-3);
+      const double grow_m = deflection_m * (1.0 + 1e-9) + 1e-9 * (root.norm() + tip.norm() + 1e-3);
       const Vec2 lo_b = root.cwiseMin(tip).array() - grow_m;
       const Vec2 hi_b = root.cwiseMax(tip).array() + grow_m;
       int first = 0;

@@ -165,31 +165,31 @@ struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;
-  std::vector<int> sort_index;       // sweep-and-prune order of the kernels (kept across steps)
-  std::vector<double> sort_xmin_m;   // their bounding circles' lower x, in that order [m]
-  std::vector<int> obstacle_order;   // bars and plates (not planes) by increasing xmin
-  std::vector<double> obstacle_sorted_xmin_m;  // their xmin in that order [m]
+  std::vector<int> sort_index;      // sweep-and-prune order of the kernels (kept across steps)
+  std::vector<double> sort_xmin_m;  // their bounding circles' lower x, in that order [m]
+  std::vector<int> obstacle_order;  // bars and plates (not planes) by increasing xmin
+  std::vector<double> obstacle_sorted_xmin_m;            // their xmin in that order [m]
   std::vector<double> obstacle_xmin_m, obstacle_xmax_m;  // x extent per obstacle [m]
-  double obstacle_max_width_m = 0;   // largest xmax - xmin of a bar or plate [m]
-  std::vector<int> obstacle_planes;  // planes (unbounded: tested against every kernel)
+  double obstacle_max_width_m = 0;                // largest xmax - xmin of a bar or plate [m]
+  std::vector<int> obstacle_planes;               // planes (unbounded: tested against every kernel)
   std::vector<internal::SmallVec> tooth_phi_max;  // per tooth, max_s |phi_i(x_s)| [1/sqrt(kg)]
-  std::vector<double> tooth_H_max;  // per tooth, max_s |H(x_s)|_F [1/(kg m)]
-  std::vector<Vec2> stations_W;      // deformed tooth centrelines, all teeth [m]
-  std::vector<int> station_offset;   // first station of each tooth in stations_W
-  std::vector<double> station_wc_m;  // foreshortening w_c at each station [m]
-  MatX station_Hq;                   // H(x_s) q, one column per station [1/sqrt(kg)]
-  VecX forces;                       // generalised forces [N or sqrt(kg) m/s^2]
+  std::vector<double> tooth_H_max;                // per tooth, max_s |H(x_s)|_F [1/(kg m)]
+  std::vector<Vec2> stations_W;                   // deformed tooth centrelines, all teeth [m]
+  std::vector<int> station_offset;                // first station of each tooth in stations_W
+  std::vector<double> station_wc_m;               // foreshortening w_c at each station [m]
+  MatX station_Hq;                                // H(x_s) q, one column per station [1/sqrt(kg)]
+  VecX forces;                                    // generalised forces [N or sqrt(kg) m/s^2]
   VecX u_free, z_mid, u_old, z_old, du;
-  VecX guard_z, guard_u;                  // last good state for the non-finite guard
-  std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
-  internal::StateValues ts_end_values;    // time stepping: energy and momentum at the last end
-  std::vector<int> ts_candidate_memory;   // time stepping: pair-table index of each candidate
-  std::vector<int> ts_in_contact;         // time stepping: pairs in contact at the last step end
-  long ts_in_contact_step = -2;           // time stepping: Data::steps when that list was made
+  VecX guard_z, guard_u;                 // last good state for the non-finite guard
+  std::vector<MatX> iteration_inverse;   // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues ts_end_values;   // time stepping: energy and momentum at the last end
+  std::vector<int> ts_candidate_memory;  // time stepping: pair-table index of each candidate
+  std::vector<int> ts_in_contact;        // time stepping: pairs in contact at the last step end
+  long ts_in_contact_step = -2;          // time stepping: Data::steps when that list was made
   std::vector<std::uint8_t> ts_attached_before;  // time stepping: pedicels before this step's
                                                  // breaks [-]
-  std::vector<MatX> iteration_stiffness;  // time stepping: K(Omega) of each tooth [1/s^2]
-  std::vector<MatX> iteration_matrix;     // time stepping: I + h theta D + h^2 theta^2 K [-]
+  std::vector<MatX> iteration_stiffness;         // time stepping: K(Omega) of each tooth [1/s^2]
+  std::vector<MatX> iteration_matrix;            // time stepping: I + h theta D + h^2 theta^2 K [-]
   std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
   double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
   double iteration_h = -1;      // and the step [s]

@@ -88,8 +88,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   ws.z_mid = d->z + 0.5 * h * d->u;
   // Tooth stations only for the teeth that can meet a kernel (computed by the broad phase).
   layoutStations(m, &ws);
-  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws,
-             &mid.theta_rad);
+  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws, &mid.theta_rad);
   ws.geoms.resize(ws.candidates.size());
   // Pair memory of each candidate, looked up once (inserted on first sight).
   std::vector<int>& cand_mem = ws.ts_candidate_memory;
