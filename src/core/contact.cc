@@ -280,6 +280,7 @@ void prepareBroadPhase(const Model& m, Workspace* ws) {
   // The kernel order of the sweep starts afresh.
   ws->sort_index.clear();
   ws->sort_xmin_m.clear();
+  ws->grid_order.clear();
   ws->candidates.reserve(4 * m.kernels.size() * (m.teeth.size() + 4) + 64);
 }
 
@@ -399,19 +400,62 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
       ws->candidates.push_back({PairKind::kToothKernel, static_cast<int>(k), i});
     }
   }
-  // Kernels against kernels: sweep and prune along x over bounding circles.
+  // Kernels against kernels: a uniform grid of cells as wide as the longest reach
+  // (2 a_max + margin, widened against round-off), so that two kernels in reach lie in the same
+  // or adjacent cells. Kernels are kept ordered by (cell row, cell column, index), repaired by
+  // insertion sort from the previous order (cells change rarely). Each kernel looks at the
+  // rest of its own cell, the next cell of its row and the three cells of the next row: a
+  // half stencil, so that each pair is met once.
+  const double cell_m = (2.0 * a_max + margin_m) * (1.0 + 1e-9) + 1e-12;
+  std::vector<int>& g_order = ws->grid_order;
+  std::vector<std::int64_t>& g_key = ws->grid_key;
+  if (static_cast<int>(g_order.size()) != K) {
+    g_order.resize(K);
+    for (int i = 0; i < K; ++i) g_order[i] = i;
+  }
+  g_key.resize(K);
+  ws->grid_cell.resize(K);
+  // Cell coordinates, clamped (a kernel far away or not finite goes to the last cell).
+  auto cellOf = [&](double x_m) {
+    const double f = std::floor(x_m / cell_m);
+    return static_cast<std::int64_t>(f >= -1e9 && f <= 1e9 ? f : 1e9);
+  };
+  const std::int64_t kRow = std::int64_t(1) << 32;  // key = row * 2^32 + column
+  for (int i = 0; i < K; ++i) {
+    const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
+    ws->grid_cell[i] = cellOf(c.y()) * kRow + cellOf(c.x());
+  }
   for (int ia = 0; ia < K; ++ia) {
-    const int a = order[ia];
+    const int a = g_order[ia];
+    const std::int64_t ka = ws->grid_cell[a];
+    int ib = ia;
+    while (ib > 0 && (g_key[ib - 1] > ka || (g_key[ib - 1] == ka && g_order[ib - 1] > a))) {
+      g_order[ib] = g_order[ib - 1];
+      g_key[ib] = g_key[ib - 1];
+      --ib;
+    }
+    g_order[ib] = a;
+    g_key[ib] = ka;
+  }
+  auto testPair = [&](int a, const Vec2& ca, double ra, int b) {
+    const Vec2 cb = z.segment<2>(m.kernels[b].dof_offset);
+    const double rr = ra + m.kernels[b].semi_axis_a_m + margin_m;
+    if ((cb - ca).squaredNorm() > rr * rr) return;
+    ws->candidates.push_back({PairKind::kKernelKernel, std::min(a, b), std::max(a, b)});
+  };
+  for (int ia = 0; ia < K; ++ia) {
+    const int a = g_order[ia];
     const Vec2 ca = z.segment<2>(m.kernels[a].dof_offset);
     const double ra = m.kernels[a].semi_axis_a_m;
-    for (int ib = ia + 1; ib < K; ++ib) {
-      if (xmin[ib] > ca.x() + ra + margin_m) break;
-      const int b = order[ib];
-      const Vec2 cb = z.segment<2>(m.kernels[b].dof_offset);
-      const double rr = ra + m.kernels[b].semi_axis_a_m + margin_m;
-      if ((cb - ca).squaredNorm() > rr * rr) continue;
-      ws->candidates.push_back({PairKind::kKernelKernel, std::min(a, b), std::max(a, b)});
-    }
+    const std::int64_t key = g_key[ia];
+    // The rest of this cell and the next cell of the row.
+    for (int ib = ia + 1; ib < K && g_key[ib] <= key + 1; ++ib) testPair(a, ca, ra, g_order[ib]);
+    // The three cells of the next row.
+    const std::int64_t lo = key + kRow - 1, hi = key + kRow + 1;
+    for (int ib = static_cast<int>(std::lower_bound(g_key.begin() + ia + 1, g_key.end(), lo) -
+                                   g_key.begin());
+         ib < K && g_key[ib] <= hi; ++ib)
+      testPair(a, ca, ra, g_order[ib]);
   }
   // Kernels against obstacles: planes always; bars and plates only those whose x extent can
   // meet the kernel's reach (found by bisection in the obstacles' xmin order).

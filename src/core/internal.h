@@ -165,9 +165,12 @@ struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;
-  std::vector<int> sort_index;      // sweep-and-prune order of the kernels (kept across steps)
-  std::vector<double> sort_xmin_m;  // their bounding circles' lower x, in that order [m]
-  std::vector<int> obstacle_order;  // bars and plates (not planes) by increasing xmin
+  std::vector<int> sort_index;          // sweep-and-prune order of the kernels (kept across steps)
+  std::vector<double> sort_xmin_m;      // their bounding circles' lower x, in that order [m]
+  std::vector<int> grid_order;          // kernels by grid cell (kernel pairs; kept across steps)
+  std::vector<std::int64_t> grid_key;   // their cells (row * 2^32 + column), in that order
+  std::vector<std::int64_t> grid_cell;  // cell of each kernel, by kernel index
+  std::vector<int> obstacle_order;      // bars and plates (not planes) by increasing xmin
   std::vector<double> obstacle_sorted_xmin_m;            // their xmin in that order [m]
   std::vector<double> obstacle_xmin_m, obstacle_xmax_m;  // x extent per obstacle [m]
   double obstacle_max_width_m = 0;                // largest xmax - xmin of a bar or plate [m]
@@ -250,10 +253,11 @@ void updateToothStations(const Model& m, const VecX& z, double theta_rad, int to
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 
 // Broad phase: pairs whose bounding shapes are within margin_m; fills ws->candidates, sorted.
-// Requires updateStations for z first. Sweep and prune along x: the kernels' order is kept
-// from the previous call and repaired by insertion sort (O(K) while kernels move little);
-// teeth and obstacles find their kernels by bisection in that order or in the obstacles' x
-// order. The cost per call is O(K + candidates), not O(K^2) nor O(K x obstacles).
+// Requires updateStations for z first. Kernel pairs through a uniform grid, teeth against
+// kernels by bisection in the kernels' x order, kernels against obstacles by bisection in the
+// obstacles' x order; the kernels' orders are kept from the previous call and repaired by
+// insertion sort (O(K) while kernels move little). The cost per call is O(K + candidates +
+// pairs in neighbouring cells), not O(K^2) nor O(K x obstacles).
 // With stations_theta_rad, the tooth stations are not required first: broadPhase lays them
 // out and computes them (at that drum angle) only for the teeth that can have a candidate;
 // the other teeth's stations are left stale.
