@@ -277,7 +277,9 @@ void prepareBroadPhase(const Model& m, Workspace* ws);
 // Data::contacts, follows from it), or with tight_bound, for pairs of exact shapes (kernels,
 // obstacles), the supporting-line gap along the line of centres, a far better bound for
 // elongated kernels; tooth pairs always use the bounding circles (the polyline of stations only
-// approximates the deformed tooth, and the margin covers the difference).
+// approximates the deformed tooth, and the margin covers the difference). Both integrators
+// pass tight_bound for separated pairs, so kernel-kernel and kernel-obstacle pairs count as
+// near (and are reported) when their supporting-line gap is within a quarter margin.
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g,
                      double far_m = std::numeric_limits<double>::infinity(),

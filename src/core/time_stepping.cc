@@ -96,12 +96,15 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   for (size_t c = 0; c < ws.candidates.size(); ++c)
     cand_mem[c] = ws.memory.indexOf(pairKey(ws.candidates[c]));
   auto memoryOf = [&](size_t c) -> PairMemory& { return ws.memory.entry(cand_mem[c]).second; };
-  // Separated pairs surely farther than a quarter margin get only a gap bound: inactive.
+  // Separated pairs surely farther than a quarter margin get only a gap bound: inactive (kernel
+  // and obstacle pairs by the supporting-line bound, so that kernels side by side on the
+  // grate, within each other's bounding circles but not in reach, get no exact distance).
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
     const bool separated = memoryOf(c).state == ContactState::kSeparated;
     evaluateContact(
         m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c],
-        separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity());
+        separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity(),
+        separated);
   }
 
   // Free velocity: theta-method on the linear tooth equations, explicit kernel forces.
