@@ -32,7 +32,7 @@ CASES=(
 )
 if [ "$STREAMS" = 1 ]; then
   # name | scene | options: kernel files generated into $OUT; time stepping 200 steps of 1 us
-  # (idle) or past the first strikes (live, 1.1 ms) and 2000 steps of 10 us; event-driven 1 ms
+  # (idle) or past the first strikes (live, 1.1 ms) and 500 steps of 10 us; event-driven 1 ms
   # (idle) or 0.2 ms (live: its small steps make longer runs take minutes under valgrind).
   CASES=()
   for n in 1 100 1000; do
@@ -42,7 +42,7 @@ if [ "$STREAMS" = 1 ]; then
         $([ "$kind" = idle ] && echo --idle) >"$f"
       ts_dur=$([ "$kind" = idle ] && echo 0.0002 || echo 0.0011)
       CASES+=("stream_${n}_${kind}_ts_1us|config/bench/stream.yaml|--set-file $f --integrator time_stepping --dt 1e-6 --duration $ts_dur")
-      CASES+=("stream_${n}_${kind}_ts_10us|config/bench/stream.yaml|--set-file $f --integrator time_stepping --dt 1e-5 --duration 0.02")
+      CASES+=("stream_${n}_${kind}_ts_10us|config/bench/stream.yaml|--set-file $f --integrator time_stepping --dt 1e-5 --duration 0.005")
       ed_dur=$([ "$kind" = idle ] && echo 0.001 || echo 0.0002)
       CASES+=("stream_${n}_${kind}_ed|config/bench/stream.yaml|--set-file $f --integrator event_driven --duration $ed_dur")
     done
