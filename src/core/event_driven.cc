@@ -53,7 +53,8 @@ Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s
 
 // How much of a separated pair evaluateAll computes.
 enum class SeparatedPairs {
-  kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts)
+  kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts;
+          // kernel and obstacle pairs by the supporting-line bound)
   kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within 1 um by
           // the supporting-line bound (event functions)
   kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
@@ -94,7 +95,7 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       }
       const bool tooth = p.kind == PairKind::kToothKernel;
       far_m = separated == SeparatedPairs::kSign && !tooth ? 1e-6 : near_m;
-      tight = separated == SeparatedPairs::kSign && !tooth;
+      tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
     evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight);
   }
@@ -922,6 +923,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   Workspace& ws = *d->ws;
   Ctx c{m, *d, ws};
   const int n = m.n_dof;
+  ws.ts_in_contact_step = -2;  // time stepping's list of pairs in contact is stale from here
 
   // Candidate pairs for this step: broad phase with a margin the step cannot outrun.
   const double v_bound = motionBound(c);

@@ -138,6 +138,7 @@ class StateValues {
     momentum_kgm2ps_ = momentum_kgm2ps;
     valid_ = true;
   }
+  void invalidate() { valid_ = false; }
   bool lookup(const Data& d, double* energy_J, double* momentum_kgm2ps) const {
     if (!valid_ || d.omega_radps != omega_radps_ || d.z.size() != z_.size() ||
         d.u.size() != u_.size() || d.kernel_attached != attached_ ||
@@ -191,18 +192,34 @@ struct Workspace {
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;
-  std::vector<int> sort_index;       // sweep-and-prune order
-  std::vector<Vec2> stations_W;      // deformed tooth centrelines, all teeth [m]
-  std::vector<int> station_offset;   // first station of each tooth in stations_W
-  std::vector<double> station_wc_m;  // foreshortening w_c at each station [m]
-  MatX station_Hq;                   // H(x_s) q, one column per station [1/sqrt(kg)]
-  VecX forces;                       // generalised forces [N or sqrt(kg) m/s^2]
+  std::vector<int> sort_index;          // sweep-and-prune order of the kernels (kept across steps)
+  std::vector<double> sort_xmin_m;      // their bounding circles' lower x, in that order [m]
+  std::vector<int> grid_order;          // kernels by grid cell (kernel pairs; kept across steps)
+  std::vector<std::int64_t> grid_key;   // their cells (row * 2^32 + column), in that order
+  std::vector<std::int64_t> grid_cell;  // cell of each kernel, by kernel index
+  std::vector<int> obstacle_order;      // bars and plates (not planes) by increasing xmin
+  std::vector<double> obstacle_sorted_xmin_m;            // their xmin in that order [m]
+  std::vector<double> obstacle_xmin_m, obstacle_xmax_m;  // x extent per obstacle [m]
+  double obstacle_max_width_m = 0;                // largest xmax - xmin of a bar or plate [m]
+  std::vector<int> obstacle_planes;               // planes (unbounded: tested against every kernel)
+  std::vector<internal::SmallVec> tooth_phi_max;  // per tooth, max_s |phi_i(x_s)| [1/sqrt(kg)]
+  std::vector<double> tooth_H_max;                // per tooth, max_s |H(x_s)|_F [1/(kg m)]
+  std::vector<Vec2> stations_W;                   // deformed tooth centrelines, all teeth [m]
+  std::vector<int> station_offset;                // first station of each tooth in stations_W
+  std::vector<double> station_wc_m;               // foreshortening w_c at each station [m]
+  MatX station_Hq;                                // H(x_s) q, one column per station [1/sqrt(kg)]
+  VecX forces;                                    // generalised forces [N or sqrt(kg) m/s^2]
   VecX u_free, z_mid, u_old, z_old, du;
-  VecX guard_z, guard_u;                  // last good state for the non-finite guard
-  std::vector<MatX> iteration_inverse;    // time stepping: (I + h theta D + h^2 theta^2 K)^-1
-  internal::StateValues ts_end_values;    // time stepping: energy and momentum at the last end
-  std::vector<MatX> iteration_stiffness;  // time stepping: K(Omega) of each tooth [1/s^2]
-  std::vector<MatX> iteration_matrix;     // time stepping: I + h theta D + h^2 theta^2 K [-]
+  VecX guard_z, guard_u;                 // last good state for the non-finite guard
+  std::vector<MatX> iteration_inverse;   // time stepping: (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues ts_end_values;   // time stepping: energy and momentum at the last end
+  std::vector<int> ts_candidate_memory;  // time stepping: pair-table index of each candidate
+  std::vector<int> ts_in_contact;        // time stepping: pairs in contact at the last step end
+  long ts_in_contact_step = -2;          // time stepping: Data::steps when that list was made
+  std::vector<std::uint8_t> ts_attached_before;  // time stepping: pedicels before this step's
+                                                 // breaks [-]
+  std::vector<MatX> iteration_stiffness;         // time stepping: K(Omega) of each tooth [1/s^2]
+  std::vector<MatX> iteration_matrix;            // time stepping: I + h theta D + h^2 theta^2 K [-]
   std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
   double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
   double iteration_h = -1;      // and the step [s]
@@ -273,7 +290,22 @@ void updateToothStations(const Model& m, const VecX& z, double theta_rad, int to
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
 
 // Broad phase: pairs whose bounding shapes are within margin_m; fills ws->candidates, sorted.
-void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
+// Requires updateStations for z first. Kernel pairs through a uniform grid, teeth against
+// kernels by bisection in the kernels' x order, kernels against obstacles by bisection in the
+// obstacles' x order; the kernels' orders are kept from the previous call and repaired by
+// insertion sort (O(K) while kernels move little). The cost per call is O(K + candidates +
+// pairs in neighbouring cells), not O(K^2) nor O(K x obstacles).
+// With stations_theta_rad, the tooth stations are not required first: broadPhase lays them
+// out and computes them (at that drum angle) only for the teeth that can have a candidate;
+// the other teeth's stations are left stale.
+void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
+                const double* stations_theta_rad = nullptr);
+// The same candidates by testing every pair (O(K^2 + K x obstacles)); the reference of the
+// broad phase's tests.
+void broadPhaseBruteForce(const Model& m, const VecX& z, double margin_m, Workspace* ws);
+// Per-model set-up of the broad phase (obstacles' x order, a fresh kernel order); resetData
+// calls it, and broadPhase when the obstacle count changed.
+void prepareBroadPhase(const Model& m, Workspace* ws);
 
 // Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
 // Requires updateStations for z first. If a cheap lower bound of the gap exceeds far_m, only
@@ -282,7 +314,9 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws);
 // Data::contacts, follows from it), or with tight_bound, for pairs of exact shapes (kernels,
 // obstacles), the supporting-line gap along the line of centres, a far better bound for
 // elongated kernels; tooth pairs always use the bounding circles (the polyline of stations only
-// approximates the deformed tooth, and the margin covers the difference).
+// approximates the deformed tooth, and the margin covers the difference). Both integrators
+// pass tight_bound for separated pairs, so kernel-kernel and kernel-obstacle pairs count as
+// near (and are reported) when their supporting-line gap is within a quarter margin.
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g,
                      double far_m = std::numeric_limits<double>::infinity(),

@@ -261,6 +261,9 @@ void resetBodies(const Model& m, Data* d) {
   const size_t n_kernels = m.kernels.size();
   d->ws->memory.reserve(n_kernels * (m.teeth.size() + 16) + 64);
   d->ws->prev_active.clear();
+  internal::prepareBroadPhase(m, d->ws.get());
+  d->ws->ts_in_contact.clear();
+  d->ws->ts_in_contact_step = -2;
   d->ws->geoms.clear();
   d->contacts.clear();
   d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);

@@ -77,24 +77,34 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   updateIterationMatrices(m, mid.omega_radps, h, &ws);
   // Energy and angular momentum at the step start: those the previous step ended with, if the
   // state is still exactly that one.
+  // The energy is O(kernels) to compute and only needed when an episode begins or ends: it is
+  // computed below only then.
   double energy_before = 0.0, H_before = 0.0;
-  if (!ws.ts_end_values.lookup(*d, &energy_before, &H_before)) {
-    energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
-    H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
-  }
-  const double energy_net_before = energy_before - d->stats.drive_work_J;
+  const bool have_energy_before = ws.ts_end_values.lookup(*d, &energy_before, &H_before);
+  if (!have_energy_before) H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  const double drive_work_before_J = d->stats.drive_work_J;
 
   // Contact detection at the midpoint configuration z_M = z + h/2 u.
   ws.z_mid = d->z + 0.5 * h * d->u;
-  updateStations(m, ws.z_mid, mid.theta_rad, &ws);
-  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws);
+  // Tooth stations only for the teeth that can meet a kernel (computed by the broad phase).
+  layoutStations(m, &ws);
+  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws, &mid.theta_rad);
   ws.geoms.resize(ws.candidates.size());
-  // Separated pairs surely farther than a quarter margin get only a gap bound: inactive.
+  // Pair memory of each candidate, looked up once (inserted on first sight).
+  std::vector<int>& cand_mem = ws.ts_candidate_memory;
+  cand_mem.resize(ws.candidates.size());
+  for (size_t c = 0; c < ws.candidates.size(); ++c)
+    cand_mem[c] = ws.memory.indexOf(pairKey(ws.candidates[c]));
+  auto memoryOf = [&](size_t c) -> PairMemory& { return ws.memory.entry(cand_mem[c]).second; };
+  // Separated pairs surely farther than a quarter margin get only a gap bound: inactive (kernel
+  // and obstacle pairs by the supporting-line bound, so that kernels side by side on the
+  // grate, within each other's bounding circles but not in reach, get no exact distance).
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
-    const bool separated = ws.memory[pairKey(ws.candidates[c])].state == ContactState::kSeparated;
+    const bool separated = memoryOf(c).state == ContactState::kSeparated;
     evaluateContact(
         m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c],
-        separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity());
+        separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity(),
+        separated);
   }
 
   // Free velocity: theta-method on the linear tooth equations, explicit kernel forces.
@@ -124,7 +134,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   ws.rows.clear();
   for (size_t c = 0; c < ws.geoms.size(); ++c) {
     const ContactGeom& g = ws.geoms[c];
-    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    PairMemory& mem = memoryOf(c);
     if (g.gap_m > 0.0) continue;
     ContactRow row;
     row.mu = g.params->friction;
@@ -167,7 +177,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   bool capped = false;
   for (int i = 0; i < k; ++i) {
     if (ws.rows[i].normal_unknown) continue;
-    const PairMemory& mem = ws.memory[pairKey(ws.geoms[ws.active[i]].pair)];
+    const PairMemory& mem = memoryOf(ws.active[i]);
     const double v_in =
         mem.state == ContactState::kSeparated ? -ws.geoms[ws.active[i]].vn : mem.v_in_mps;
     // 1 % above the approach speed is the discretisation noise of an elastic (e = 1) contact.
@@ -197,6 +207,15 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     }
     solved = solveContactIslands(m, &ws.iteration_inverse, &ws) && solved;
   }
+
+  // Energy at the step start (still the state in d): needed if an episode begins.
+  bool episode_begins = false;
+  for (int i = 0; i < k && !episode_begins; ++i)
+    episode_begins =
+        ws.lambda[2 * i] > 0.0 && memoryOf(ws.active[i]).state == ContactState::kSeparated;
+  if (episode_begins && !have_energy_before)
+    energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
+  const double energy_net_before = energy_before - drive_work_before_J;
 
   // New velocities u+ = u_free + Minv W P, positions by the theta rule.
   ws.u_old = d->u;
@@ -232,15 +251,32 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  const double energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
-  const double energy_net_after = energy_after - d->stats.drive_work_J;
+  // Energy at the step end, computed on first use (an episode ends or an impact is logged).
+  double energy_after = 0.0;
+  bool have_energy_after = false;
+  auto energyNetAfter = [&]() {
+    if (!have_energy_after) energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
+    have_energy_after = true;
+    return energy_after - d->stats.drive_work_J;
+  };
 
   // Contact states, episodes, events and statistics.
-  for (auto& kv : ws.memory) kv.second.seen = false;
+  // Pairs in contact at the previous step end: kept by this integrator in ws.ts_in_contact
+  // (pair-table indices). Any other history of the workspace (a reset, event-driven steps)
+  // leaves it stale: then every pair's memory is scanned once, as a rebuild.
+  std::vector<int>& in_contact = ws.ts_in_contact;
+  if (ws.ts_in_contact_step != d->steps - 1) {
+    in_contact.clear();
+    for (size_t e = 0; e < ws.memory.size(); ++e) {
+      PairMemory& mem = ws.memory.entry(static_cast<int>(e)).second;
+      mem.seen = false;
+      if (mem.state != ContactState::kSeparated) in_contact.push_back(static_cast<int>(e));
+    }
+  }
   int ia = 0;
   for (size_t c = 0; c < ws.geoms.size(); ++c) {
     const ContactGeom& g = ws.geoms[c];
-    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    PairMemory& mem = memoryOf(c);
     mem.seen = true;
     const bool is_active = ia < k && ws.active[ia] == static_cast<int>(c);
     const double pn = is_active ? ws.lambda[2 * ia] : 0.0;
@@ -252,7 +288,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
       if (mem.state != ContactState::kSeparated) {
         ContactGeom g_end = g;
         g_end.vn = is_active ? ws.y[2 * (ia - 1)] - ws.b_offset[ia - 1] : g.vn;
-        endEpisode(m, d, &mem, g_end, d->t_s, energy_net_after);
+        endEpisode(m, d, &mem, g_end, d->t_s, energyNetAfter());
       }
       continue;
     }
@@ -286,7 +322,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
       ev.vt_after_mps = vt_after;
       ev.impulse_normal_Ns = pn;
       ev.impulse_tangential_Ns = pt;
-      ev.energy_lost_J = energy_net_before - energy_net_after;
+      ev.energy_lost_J = energy_net_before - energyNetAfter();
       ev.macro_collision = mem.macro_index;
       ev.sub_collision = mem.sub_index;
       d->events.push_back(ev);
@@ -307,8 +343,11 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     d->stats.total_normal_impulse_Ns += pn;
     recordForce(m, d, g, pn / h, pt / h, d->t_s);
   }
-  // Pairs that left the broad phase while in contact have separated.
-  for (auto& kv : ws.memory) {
+  // Pairs that left the broad phase while in contact have separated (in pair-table order, the
+  // order of a scan of the whole table).
+  std::sort(in_contact.begin(), in_contact.end());
+  for (int e : in_contact) {
+    auto& kv = ws.memory.entry(e);
     PairMemory& mem = kv.second;
     if (mem.seen || mem.state == ContactState::kSeparated) continue;
     ContactGeom g_far;
@@ -316,10 +355,29 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
                         static_cast<int>((kv.first >> 30) & 0x3fffffff),
                         static_cast<int>(kv.first & 0x3fffffff)};
     g_far.params = &m.contact[static_cast<int>(g_far.pair.kind)];
-    endEpisode(m, d, &mem, g_far, d->t_s, energy_net_after);
+    endEpisode(m, d, &mem, g_far, d->t_s, energyNetAfter());
   }
+  // The candidates in contact now, for the next step; seen flags back to false.
+  in_contact.clear();
+  for (size_t c = 0; c < ws.candidates.size(); ++c) {
+    PairMemory& mem = memoryOf(c);
+    mem.seen = false;
+    if (mem.state != ContactState::kSeparated) in_contact.push_back(cand_mem[c]);
+  }
+  ws.ts_in_contact_step = d->steps;
+  // The next step starts from the end energy with the pedicels as they were before this
+  // step's breaks: if one breaks, that energy is computed now (pedicels put back meanwhile).
+  if (!have_energy_after) ws.ts_attached_before = d->kernel_attached;
   updatePedicels(m, d);
-  ws.ts_end_values.store(*d, energy_after, H_after);
+  if (!have_energy_after && d->kernel_attached != ws.ts_attached_before) {
+    std::swap(d->kernel_attached, ws.ts_attached_before);
+    energyNetAfter();
+    std::swap(d->kernel_attached, ws.ts_attached_before);
+  }
+  if (have_energy_after)
+    ws.ts_end_values.store(*d, energy_after, H_after);
+  else
+    ws.ts_end_values.invalidate();
   publishContacts(d, &ws);
   return solved ? StepStatus::kOk : StepStatus::kRecovered;
 }

@@ -473,6 +473,89 @@ TEST(BroadPhase, KernelKernelMatchesBruteForce) {
   RecordProperty("near_pairs", expected);
 }
 
+// The broad phase (kernel order kept across calls, teeth and obstacles found by bisection in
+// x order) against testing every pair, on random layouts: kernels scattered around a drum of
+// four teeth among grate bars, plates and a plane, moved at random between calls (as steps
+// would, and by jumps that reorder them wholesale). The candidate lists must be equal.
+TEST(BroadPhase, CandidatesEqualBruteForceOnRandomLayouts) {
+  std::mt19937 rng(20261121);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  long total = 0, by_kind[3] = {0, 0, 0};
+  for (int layout = 0; layout < 20; ++layout) {
+    Model m;
+    m.drum.radius_m = 0.14;
+    for (int k = 0; k < 4; ++k) {
+      ToothModel t = testutil::nylonTooth(k % 3 + 1);
+      t.mount_angle_rad = k * testutil::kPi / 2;
+      m.teeth.push_back(t);
+    }
+    const int K = 50 + static_cast<int>(U(rng) * 250);
+    for (int i = 0; i < K; ++i) {
+      const double r = 0.15 + 0.15 * U(rng), phi = 2 * testutil::kPi * U(rng);
+      const double a = 1e-3 + 5e-3 * U(rng);
+      m.kernels.push_back(makeKernel(a, 0.3 * a, Vec2(r * std::cos(phi), r * std::sin(phi)),
+                                     Vec2::Zero(), 2 * testutil::kPi * U(rng)));
+    }
+    for (int j = 0; j < 31; ++j) {
+      const double phi = -2.618 + j * 0.0698;
+      m.obstacles.push_back(testutil::circleObstacle(
+          Vec2(0.215 * std::cos(phi), 0.215 * std::sin(phi)), 0.003 + 0.004 * U(rng)));
+    }
+    for (int j = 0; j < 3; ++j) {
+      ObstacleModel o;
+      o.type = ObstacleType::kSegment;
+      o.point_m = Vec2(0.3 * (U(rng) - 0.5), 0.3 * (U(rng) - 0.5));
+      o.point_b_m = o.point_m + Vec2(0.2 * (U(rng) - 0.5), 0.2 * (U(rng) - 0.5));
+      o.radius_m = 2e-3;
+      m.obstacles.push_back(o);
+    }
+    m.obstacles.push_back(testutil::planeObstacle(Vec2(0.0, -0.25), Vec2(0.0, 1.0)));
+    compileModel(&m);
+    Data d;
+    resetData(m, &d);
+    Workspace ws;  // one workspace across calls, as in a run
+    Workspace ws_lazy_stations;
+    VecX z = d.z;
+    for (int call = 0; call < 12; ++call) {
+      // Small random motion, and every fourth call a wholesale shuffle of a tenth of the kernels.
+      for (int i = 0; i < K; ++i) {
+        const int o = m.kernels[i].dof_offset;
+        const bool jump = call % 4 == 3 && U(rng) < 0.1;
+        const double step = jump ? 0.2 : 2e-3;
+        z[o] += step * (U(rng) - 0.5);
+        z[o + 1] += step * (U(rng) - 0.5);
+        z[o + 2] += U(rng) - 0.5;
+      }
+      for (int k = 0; k < 4; ++k)
+        for (int i = 0; i < m.teeth[k].n_modes; ++i)
+          z[m.teeth[k].dof_offset + i] = 2e-3 * (U(rng) - 0.5);
+      const double theta = 2 * testutil::kPi * U(rng), margin = 1e-3 + 3e-3 * U(rng);
+      internal::updateStations(m, z, theta, &ws);
+      internal::broadPhase(m, z, margin, &ws);
+      const std::vector<PairId> fast = ws.candidates;
+      // Stations computed by the broad phase itself, only for the teeth that need them.
+      Workspace& ws_lazy = ws_lazy_stations;
+      internal::layoutStations(m, &ws_lazy);
+      internal::broadPhase(m, z, margin, &ws_lazy, &theta);
+      ASSERT_EQ(fast.size(), ws_lazy.candidates.size()) << "layout " << layout << ", call " << call;
+      for (size_t c = 0; c < fast.size(); ++c)
+        ASSERT_TRUE(fast[c] == ws_lazy.candidates[c]) << "layout " << layout << ", call " << call;
+      internal::broadPhaseBruteForce(m, z, margin, &ws);
+      ASSERT_EQ(fast.size(), ws.candidates.size()) << "layout " << layout << ", call " << call;
+      for (size_t c = 0; c < fast.size(); ++c) {
+        ASSERT_TRUE(fast[c] == ws.candidates[c]) << "layout " << layout << ", call " << call;
+        ++by_kind[static_cast<int>(fast[c].kind)];
+      }
+      total += static_cast<long>(fast.size());
+    }
+  }
+  // The layouts test every kind of pair.
+  EXPECT_GT(by_kind[0], 20);
+  EXPECT_GT(by_kind[1], 200);
+  EXPECT_GT(by_kind[2], 200);
+  RecordProperty("candidates", static_cast<int>(total));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Hertz constant.
 
