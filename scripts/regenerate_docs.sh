@@ -3,7 +3,8 @@
 #   default-timing   scripts/time_default_scene.py            (README, "Using the headless simulator")
 #   default-output   simulate config/default_scene.yaml        (README, same section)
 #   node-rtf         scripts/measure_node_rtf.sh               (README, ROS node section)
-#   profile          scripts/profile_core.sh                   (README, "Performance")
+#   profile          scripts/profile_core.sh [--streams]       (README, "Performance")
+#   free-teeth       scripts/compare_free_teeth.py --callgrind  (README, "Performance")
 #   stability        scripts/stability_table.py                (README + docs/stability.md)
 #   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
 #   bench            scripts/bench.py                          (README + docs/bench*)
@@ -16,9 +17,14 @@ cd "$ROOT"
 PY=/usr/bin/python3
 BIN="$ROOT/.build/ws/devel/lib/threshing_sim"
 parts=("$@")
-[ ${#parts[@]} -gt 0 ] || parts=(default-timing default-output node-rtf profile stability findings bench)
+[ ${#parts[@]} -gt 0 ] ||
+  parts=(default-timing default-output node-rtf profile free-teeth stability findings bench)
 
 bash scripts/setup.sh
+# The instruction counts need valgrind (not part of the build's set-up).
+if printf '%s\n' "${parts[@]}" | grep -qx 'profile\|free-teeth' && ! command -v valgrind >/dev/null; then
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends valgrind >/dev/null
+fi
 for part in "${parts[@]}"; do
   echo "regenerate_docs: $part ($(date -u +%H:%M:%S))"
   case "$part" in
@@ -26,7 +32,11 @@ for part in "${parts[@]}"; do
     default-output) "$BIN/simulate" config/default_scene.yaml |
                       $PY scripts/readme_section.py "$part" --fence "" ;;
     node-rtf) bash scripts/measure_node_rtf.sh | $PY scripts/readme_section.py "$part" --fence "" ;;
-    profile) bash scripts/profile_core.sh | $PY scripts/readme_section.py "$part" ;;
+    profile)
+      bash scripts/profile_core.sh | $PY scripts/readme_section.py profile
+      bash scripts/profile_core.sh --streams | $PY scripts/readme_section.py profile-streams ;;
+    free-teeth) $PY scripts/compare_free_teeth.py --callgrind |
+                  $PY scripts/readme_section.py "$part" --fence "" ;;
     stability) $PY scripts/stability_table.py --simulate "$BIN/simulate" \
                  --output docs/stability.md --readme README.md ;;
     findings) $PY scripts/compare_teeth.py --findings ;;

@@ -505,8 +505,13 @@ def main():
             continue
         if a == "--render" or (i > 0 and argv[i - 1] == "--render"):
             continue
-        if a == simulate and "/devel/lib/" in a and os.path.isabs(a):
-            a = "WORKSPACE/devel/lib/" + a.split("/devel/lib/", 1)[1]
+        if a == simulate and os.path.isabs(a):
+            # The repository's own build as a relative path; another workspace's as WORKSPACE/.
+            rel = os.path.relpath(a, PACKAGE_DIR)
+            if not rel.startswith(".."):
+                a = rel
+            elif "/devel/lib/" in a:
+                a = "WORKSPACE/devel/lib/" + a.split("/devel/lib/", 1)[1]
         shown.append(a if " " not in a else "'%s'" % a)
     command = "scripts/stability_table.py " + " ".join(shown)
     if args.save:
