@@ -18,9 +18,9 @@ findings" section, between the lines `<!-- findings -->` and `<!-- findings-end 
 verdicts with their key numbers, the key plots, and the agreement with the measured threshing
 force and the Hertz contact time. --quick runs a tiny sweep (for the CI test).
 
-Force peaks and their times come from the core (RunStats::kernel_tooth_peaks, every accepted
-step and both sides of every located event), not from the force samples, which only feed the
-force history plots.
+Force peaks and their times come from the core (RunStats::kernel_tooth_peaks: every accepted
+step, the located maxima of compliant normal forces, and both sides of every located event),
+not from the force samples, which only feed the force history plots.
 """
 import argparse
 import concurrent.futures
@@ -715,7 +715,8 @@ def write_findings(path, a, plots, rpms, history_rpm):
         "`config/scenes/cases/tip_strike.yaml`; teeth: `config/scenes/teeth/{rigid,"
         "spring_steel,nylon,polyurethane}.yaml` (values and sources in the files); drum "
         f"speeds {rpms[0]}-{rpms[-1]} rpm; force peaks and their times from the core at every "
-        "accepted step and both sides of every located event (steps near a tooth at most "
+        "accepted step, at located maxima of the compliant normal forces and on both sides of "
+        "every located event (steps near a tooth at most "
         f"{fmt(a['sample_us'])} us); force histories sampled every {fmt(a['sample_us'])} us near "
         "contacts; all contacts compliant (Hertz with Hunt-Crossley damping, Coulomb "
         "friction), integrated event-driven. The stream is one seed of a chaotic process (its "
@@ -838,7 +839,8 @@ def readme_section(a, rpms, docs_rel, n_runs, jobs, wall_s):
         f"{n_runs} simulations (cases {', '.join(cases)}; teeth {', '.join(teeth)}; "
         f"{rpms[0]}-{rpms[-1]} rpm; controls with frozen teeth), all contacts compliant, "
         "integrated event-driven. Force peaks and their "
-        "times are the core's (every accepted step and both sides of every located event). "
+        "times are the core's (every accepted step, the located maxima of compliant normal "
+        "forces, and both sides of every located event). "
         f"This run took {duration(wall_s)} on {jobs} workers. The full report, with every "
         f"table and plot, is [`docs/findings.md`]({docs_rel}/findings.md).", "",
         "```bash",
