@@ -200,9 +200,9 @@ TEST(Allocations, KneadEventDriven) {
 }
 
 TEST(Allocations, KneadTimeStepping) {
-  const Model m = loadConfig("config/scenes/knead.yaml", {"integrator.type=time_stepping",
-                                                          "integrator.dt=1e-6",
-                                                          "deflection_validity=1"});
+  const Model m =
+      loadConfig("config/scenes/knead.yaml",
+                 {"integrator.type=time_stepping", "integrator.dt=1e-6", "deflection_validity=1"});
   EXPECT_EQ(allocationsAfterWarmUp(m, 50, 1500, 2), 0);
 }
 
