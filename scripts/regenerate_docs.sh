@@ -9,7 +9,7 @@
 #   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
 #   bench            scripts/bench.py                          (README + docs/bench*)
 # Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
-# 45 minutes on 2 cores). Timings are medians on a possibly shared machine: compare them as
+# 15 minutes on 2 cores). Timings are medians on a possibly shared machine: compare them as
 # ratios within one run.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
