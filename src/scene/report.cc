@@ -11,6 +11,29 @@
 namespace threshing_sim {
 namespace {
 
+// Outcome totals over the kernels of a report (counts, and the largest forces [N]).
+struct OutcomeTotals {
+  long detached = 0, damaged = 0, fractured = 0, subs = 0, macros = 0;
+  int max_subs = 0;
+  double peak_normal_N = 0, peak_tangential_N = 0, max_contact_N = 0;
+};
+
+OutcomeTotals totalsOf(const OutcomeReport& report) {
+  OutcomeTotals t;
+  for (const KernelOutcome& o : report.kernels) {
+    t.detached += o.detached ? 1 : 0;
+    t.damaged += o.damage != DamageClass::kNone ? 1 : 0;
+    t.fractured += o.damage == DamageClass::kFracture ? 1 : 0;
+    t.macros += o.macro_collisions;
+    t.subs += o.sub_collisions;
+    t.max_subs = std::max(t.max_subs, o.max_sub_collisions);
+    t.peak_normal_N = std::max(t.peak_normal_N, o.peak_normal_force_N);
+    t.peak_tangential_N = std::max(t.peak_tangential_N, o.peak_tangential_force_N);
+    t.max_contact_N = std::max(t.max_contact_N, o.max_contact_force_N);
+  }
+  return t;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Number and string formatting.
 
@@ -155,30 +178,17 @@ std::string outcomesJson(const OutcomeReport& report, std::vector<std::string>* 
   j.number("sample_interval_s", report.sample_interval_s);
 
   // Totals.
-  long detached = 0, damaged = 0, fractured = 0, subs = 0;
-  int macros = 0, max_subs = 0;
-  double peak_normal_N = 0, peak_tangential_N = 0, max_contact_N = 0;
-  for (const KernelOutcome& o : report.kernels) {
-    detached += o.detached ? 1 : 0;
-    damaged += o.damage != DamageClass::kNone ? 1 : 0;
-    fractured += o.damage == DamageClass::kFracture ? 1 : 0;
-    macros += o.macro_collisions;
-    subs += o.sub_collisions;
-    max_subs = std::max(max_subs, o.max_sub_collisions);
-    peak_normal_N = std::max(peak_normal_N, o.peak_normal_force_N);
-    peak_tangential_N = std::max(peak_tangential_N, o.peak_tangential_force_N);
-    max_contact_N = std::max(max_contact_N, o.max_contact_force_N);
-  }
+  const OutcomeTotals tot = totalsOf(report);
   j.integer("kernels", static_cast<long>(report.kernels.size()));
-  j.integer("detached", detached);
-  j.integer("damaged", damaged);
-  j.integer("fractured", fractured);
-  j.integer("macro_collisions", macros);
-  j.integer("sub_collisions", subs);
-  j.integer("max_sub_collisions", max_subs);
-  j.number("peak_normal_force_N", peak_normal_N);
-  j.number("peak_tangential_force_N", peak_tangential_N);
-  j.number("max_contact_force_N", max_contact_N);
+  j.integer("detached", tot.detached);
+  j.integer("damaged", tot.damaged);
+  j.integer("fractured", tot.fractured);
+  j.integer("macro_collisions", tot.macros);
+  j.integer("sub_collisions", tot.subs);
+  j.integer("max_sub_collisions", tot.max_subs);
+  j.number("peak_normal_force_N", tot.peak_normal_N);
+  j.number("peak_tangential_force_N", tot.peak_tangential_N);
+  j.number("max_contact_force_N", tot.max_contact_N);
 
   // Per kernel.
   std::string items;
@@ -215,15 +225,9 @@ std::string outcomesJson(const OutcomeReport& report, std::vector<std::string>* 
 // Outcome totals as a sentence, then one line per kernel (up to kMaxKernelLines).
 void printOutcomes(std::ostream& out, const OutcomeReport& report) {
   constexpr size_t kMaxKernelLines = 10;
-  long detached = 0, damaged = 0, fractured = 0, subs = 0;
-  int macros = 0;
-  for (const KernelOutcome& o : report.kernels) {
-    detached += o.detached ? 1 : 0;
-    damaged += o.damage != DamageClass::kNone ? 1 : 0;
-    fractured += o.damage == DamageClass::kFracture ? 1 : 0;
-    macros += o.macro_collisions;
-    subs += o.sub_collisions;
-  }
+  const OutcomeTotals tot = totalsOf(report);
+  const long damaged = tot.damaged, fractured = tot.fractured, detached = tot.detached;
+  const long macros = tot.macros, subs = tot.subs;
   out << "Outcomes: " << damaged << " of " << report.kernels.size() << " kernels damaged (contact "
       << "force >= " << readable(report.thresholds.plastic_force_N, "N") << "), " << fractured
       << " fractured (>= " << readable(report.thresholds.fracture_force_N, "N") << "), " << detached
