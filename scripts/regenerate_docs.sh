@@ -6,6 +6,8 @@
 #   profile          scripts/profile_core.sh [--streams]       (README, "Performance")
 #   free-teeth       scripts/compare_free_teeth.py --callgrind  (README, "Performance")
 #   stability        scripts/stability_table.py                (README + docs/stability.md)
+#   stability-full   the same, scene 10 for 10 000 revolutions (README + docs/stability_full.md;
+#                    not a default part: about 50 minutes, both integrators side by side)
 #   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
 #   bench            scripts/bench.py                          (README + docs/bench*)
 # Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
@@ -39,6 +41,19 @@ for part in "${parts[@]}"; do
                   $PY scripts/readme_section.py "$part" --fence "" ;;
     stability) $PY scripts/stability_table.py --simulate "$BIN/simulate" \
                  --output docs/stability.md --readme README.md ;;
+    stability-full)
+      # One run per integrator, side by side (one core each), then one table from both.
+      tmp=$(mktemp -d)
+      pids=()
+      for integrator in event_driven time_stepping; do
+        $PY scripts/stability_table.py --simulate "$BIN/simulate" --scenes 10 --full \
+          --integrators "$integrator" --save "$tmp/$integrator.json" --output /dev/null &
+        pids+=($!)
+      done
+      for pid in "${pids[@]}"; do wait "$pid" || true; done  # a failed property is in the table
+      $PY scripts/stability_table.py --render "$tmp/event_driven.json" "$tmp/time_stepping.json" \
+        --output docs/stability_full.md --readme README.md --marker stability-full
+      rm -rf "$tmp" ;;
     findings) $PY scripts/compare_teeth.py --findings ;;
     bench) $PY scripts/bench.py ;;
     *) echo "regenerate_docs: unknown part '$part'" >&2; exit 2 ;;

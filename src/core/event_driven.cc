@@ -55,15 +55,27 @@ Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s
 enum class SeparatedPairs {
   kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts;
           // kernel and obstacle pairs by the supporting-line bound)
-  kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within 1 um by
-          // the supporting-line bound (event functions)
+  kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within reach
+          // by the supporting-line bound (event functions; see evaluateAll)
   kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
 };
 
+// Largest speed of any point of kernel i at velocities u: centre plus spin times the long
+// semi-axis [m/s].
+double kernelSpeedBound(const Model& m, const VecX& u, int i) {
+  const KernelModel& k = m.kernels[i];
+  return u.segment<2>(k.dof_offset).norm() + std::abs(u[k.dof_offset + 2]) * k.semi_axis_a_m;
+}
+
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
-// says (a far pair gets only a lower bound of its gap).
+// says (a far pair gets only a lower bound of its gap). Under kSign, a separated kernel pair
+// (kernel-obstacle, kernel-kernel) is evaluated exactly when its gap bound is within 1 um or
+// within twice what its bodies can cover in horizon_s [s] at their present speeds: a pair
+// whose gap falls to zero and rises again inside a step of that length (a spinning kernel
+// grazing a wall) is then exact, with its rate, at both ends of the step, as the graze check
+// needs; a pair beyond that reach cannot close within the step.
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
-                 SeparatedPairs separated = SeparatedPairs::kNear) {
+                 SeparatedPairs separated = SeparatedPairs::kNear, double horizon_s = 0.0) {
   // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
   // are sorted by kind, tooth pairs first, by tooth).
   layoutStations(c.m, &c.ws);
@@ -94,7 +106,13 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
         continue;
       }
       const bool tooth = p.kind == PairKind::kToothKernel;
-      far_m = separated == SeparatedPairs::kSign && !tooth ? 1e-6 : near_m;
+      if (separated == SeparatedPairs::kSign && !tooth) {
+        double speed_mps = kernelSpeedBound(c.m, u, p.a);
+        if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
+        far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);
+      } else {
+        far_m = near_m;
+      }
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
     evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight);
@@ -164,14 +182,16 @@ bool solveSquare(Workspace* ws, int n) {
 // Right-hand side under the current index sets: udot, the contact forces (stored in the pair
 // memory's normal/tangential force) and the contact torque on the drum. Returns false if the
 // constraint system is singular.
-// `separated` is passed to evaluateAll (the Runge-Kutta stages need no separated pair).
+// `separated` and `horizon_s` are passed to evaluateAll (the Runge-Kutta stages need no
+// separated pair).
 bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, double* drum_torque,
-         bool store_forces, SeparatedPairs separated = SeparatedPairs::kNear) {
+         bool store_forces, SeparatedPairs separated = SeparatedPairs::kNear,
+         double horizon_s = 0.0) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   const Drive dr = driveAtTime(c, t);
   smoothForces(m, c.d, z, u, dr, &ws.forces);
-  evaluateAll(c, z, u, dr, separated);
+  evaluateAll(c, z, u, dr, separated, horizon_s);
 
   // Known forces: compliant normals and every sliding friction with a known normal.
   ws.active.clear();
@@ -335,12 +355,14 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
 // last rhs() call stored for (z, u) at time t. If rates is given it receives the time
 // derivative of each function where it is known cheaply (the gap functions: +-dg_N/dt of a
 // pair whose geometry was evaluated in full) and NaN elsewhere [unit of the function / s].
+// horizon_s is the length of the step these values bound [s]: every separated pair that could
+// close within it gets its exact gap and rate (evaluateAll).
 void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals,
-                 std::vector<double>* rates = nullptr) {
+                 std::vector<double>* rates = nullptr, double horizon_s = 0.0) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   double torque;
-  rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true, SeparatedPairs::kSign);
+  rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true, SeparatedPairs::kSign, horizon_s);
   vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
   if (rates) rates->assign(vals->size(), std::numeric_limits<double>::quiet_NaN());
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
@@ -997,7 +1019,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   std::vector<double>& ev1 = ws.ed_ev1;
   std::vector<double>& rate0 = ws.ed_rate0;
   std::vector<double>& rate1 = ws.ed_rate1;
-  eventValues(c, d->t_s, d->z, d->u, &ev0, &rate0);
+  eventValues(c, d->t_s, d->z, d->u, &ev0, &rate0, h);
   // Compliant normal forces and their rates at the start, for the located peaks.
   const bool peaks_on = compliantForceSnapshot(c, d->t_s, d->z, d->u, ws.ed_udot_ev, &ws.ed_pk_f0,
                                                &ws.ed_pk_r0, &ws.ed_pk_on);
@@ -1043,7 +1065,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   const double h_next = h * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2));
 
   // Events: did any function change sign over the step?
-  eventValues(c, d->t_s + h, z1, u1, &ev1, &rate1);
+  eventValues(c, d->t_s + h, z1, u1, &ev1, &rate1, h);
   double h_take = h;
   double h_fired = h;  // a step length at whose end an event function is known to have fired
   bool event = triggered(ev1);

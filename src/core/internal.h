@@ -82,6 +82,8 @@ struct PairMemory {
   double v_in_mps = 0;           // compliant: approach speed at first touch [m/s]
   double hertz_K = 0;            // compliant: Hertz constant frozen at first touch, so that the
                                  // force of one episode derives from a potential [N/m^{3/2}]
+  double ts_depth_m = 0;         // time stepping, rigid law: penetration the closed contact
+                                 // may keep (its impact step's, at least h x zeno_velocity) [m]
   double episode_start_s = -1;   // time of first touch of the current episode [s]
   double episode_peak_N = 0;     // peak normal force within the episode [N]
   double episode_impulse_n = 0;  // normal impulse within the episode [N s]

@@ -62,6 +62,62 @@ double speedBound(const Model& m, const Data& d) {
   return v;
 }
 
+// Closed rigid contacts keep their depth. Moreau-Jean constrains the normal velocity at the
+// midpoint, not the gap, and the second-order terms it drops (a kernel rocking on its flank
+// rolls over a curved profile) sink a resting kernel by O(h^2) per step: 2 um/s at h = 1 us,
+// 0.8 mm over the 750 s long run. After the position update, every rigid contact that carried
+// an impulse this step is evaluated at the end state. On its impact step its depth is recorded
+// (at least one step at the Zeno speed, so that the contact stays closed at the next
+// midpoint). Afterwards, once it is one such slop deeper than that, it is moved back to it by
+// the smallest mass-weighted position change along its normal. Velocities are unchanged, and
+// the potential energy restored is at most what the sinking took. Gauss-Seidel (a kernel on a
+// kernel on the floor): each contact is evaluated after the previous one's correction, for up
+// to three passes while any correction is made.
+template <class MemoryOf>
+void keepClosedContactDepths(const Model& m, const Drive& end, double h, MemoryOf memoryOf, Data* d,
+                             Workspace* ws) {
+  const int k = static_cast<int>(ws->active.size());
+  const double slop_m = h * m.integrator.zeno_velocity_mps;
+  ContactGeom g;
+  for (int pass = 0; pass < 3; ++pass) {
+    bool corrected = false;
+    for (int i = 0; i < k; ++i) {
+      if (!ws->rows[i].normal_unknown || ws->lambda[2 * i] <= 0.0) continue;
+      const size_t c = static_cast<size_t>(ws->active[i]);
+      if (ws->geoms[c].params->law != ContactLaw::kRigid) continue;
+      PairMemory& mem = memoryOf(c);
+      const bool impact_step = mem.state == ContactState::kSeparated;
+      if (impact_step && pass > 0) continue;
+      // This contact at the end state (tooth stations at the end angle).
+      const PairId& pair = ws->candidates[c];
+      if (pair.kind == PairKind::kToothKernel)
+        updateToothStations(m, d->z, end.theta_rad, pair.a, ws);
+      evaluateContact(m, d->z, d->u, end, pair, ws, &g);
+      if (impact_step) {
+        mem.ts_depth_m = std::max(slop_m, -g.gap_m);
+        continue;
+      }
+      // Corrected once it has sunk one slop further (every few hundred steps while rocking),
+      // so that the evaluation after a correction finds nothing more to do.
+      const double excess_m = -g.gap_m - mem.ts_depth_m;
+      if (excess_m <= slop_m) continue;
+      double gnn = 0.0;
+      for (const BodyJac& s : g.side) {
+        if (s.body < 0 || s.w_n.size() == 0) continue;
+        gnn += weightedDot(m, nullptr, s.body, s.w_n, s.w_n);
+      }
+      if (gnn <= 0.0) continue;
+      for (const BodyJac& s : g.side) {
+        if (s.body < 0 || s.w_n.size() == 0) continue;
+        applyInverseMass(m, nullptr, s.body, s.w_n, excess_m / gnn, &d->z);
+      }
+      ++d->stats.depth_corrections;
+      corrected = true;
+    }
+    if (!corrected) break;
+  }
+}
+
 }  // namespace
 
 StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
@@ -229,6 +285,7 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     }
   }
   d->z += h * (th * d->u + (1.0 - th) * ws.u_old);
+  keepClosedContactDepths(m, end, h, memoryOf, d, &ws);
 
   // Drive work: Omega (change of the teeth's angular momentum - contact angular impulse).
   double contact_angular_impulse = 0.0;

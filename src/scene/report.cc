@@ -292,6 +292,7 @@ void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
   j.number("drive_work_J", s.drive_work_J);
   j.integer("numerical_recoveries", s.numerical_recoveries);
   j.integer("rejected_steps", s.rejected_steps);
+  j.integer("depth_corrections", s.depth_corrections);
   j.number("max_tip_deflection_ratio", s.max_tip_deflection_ratio);
   std::string warnings = "[";
   for (size_t i = 0; i < s.warnings.size(); ++i) {

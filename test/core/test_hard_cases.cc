@@ -605,6 +605,68 @@ TEST(HardCases, Scene02GrazingConvergesAndIntegratorsAgree) {
   expectAgree("kernel velocity after the graze", ed.out[2], ed.out[1], ts.out[2], ts.out[1], 1e-9);
 }
 
+// A graze the tooth is not part of: a paddy kernel flying at 1 m/s parallel to a steel wall,
+// spinning at w (no gravity), its centre a - dip above the wall, so that its long end dips
+// below the wall's surface for a moment each half turn and the first dip kicks it off. At
+// w = 2000 rad/s the dip of 0.5 um lasts ~1.3 us of a free-flight step of ~1e-4 s: the gap
+// at both ends of the step is tens of micrometres. The event-driven integrator used to
+// evaluate such a separated kernel-wall pair only as a bound beyond 1 um, with no rate, so the
+// graze check had nothing to interpolate and the contact was missed (0 impacts); every
+// separated kernel pair that could close within the step is now exact at its ends.
+// Checked for both integrators: every dip is seen (one impact, sent off the wall), the
+// response falls continuously with the dip, and a clearance of 0.1 um touches nothing.
+Model spinningGrazeModel(IntegratorType type, double dip_m, double w_radps = 2000.0) {
+  const double a = 5e-3, b = 1.3e-3;
+  Model m = testutil::bareModel(type);
+  m.gravity_mps2 = Vec2::Zero();
+  KernelModel k = testutil::makeKernel(a, b, Vec2(0.0, a - dip_m), Vec2(1.0, 0.0), 0.0);
+  k.initial_angular_velocity_radps = w_radps;
+  m.kernels = {k};
+  m.obstacles = {testutil::planeObstacle(Vec2::Zero(), Vec2(0.0, 1.0))};
+  testutil::setAllContacts(&m, ContactLaw::kRigid, 0.47, 0.5);  // wheat-steel
+  m.integrator.tolerance = 1e-6;
+  m.integrator.dt_s = 1e-7;  // 13 steps across the 0.5 um dip
+  compileModel(&m);
+  return m;
+}
+// Past the first dip (the long axis upright at pi / (2 w) = 0.79 ms) and before the next.
+constexpr double kSpinGrazeEnd = 1.2e-3;  // s
+
+TEST_P(HardCase, Scene02SpinningKernelGrazingAWallIsNotMissed) {
+  const IntegratorType type = GetParam();
+  std::vector<double> vy;
+  for (double dip : {5e-6, 5e-7, 5e-8}) {
+    SCOPED_TRACE("dip " + num(dip));
+    const Model m = spinningGrazeModel(type, dip);
+    const RunLog r = runScene(m, kSpinGrazeEnd, 10);
+    EXPECT_EQ(r.d.stats.impacts, 1);
+    vy.push_back(kernelVelocity(m, r.d, 0).y());
+    EXPECT_GT(vy.back(), 0.0);
+    EXPECT_TRUE(r.d.z.allFinite() && r.d.u.allFinite());
+  }
+  // Measured (event-driven): 0.583, 0.196, 0.063 m/s.
+  EXPECT_LT(vy[1], vy[0]);
+  EXPECT_LT(vy[2], vy[1]);
+  const Model clear = spinningGrazeModel(type, -1e-7);
+  const RunLog r = runScene(clear, kSpinGrazeEnd, 10);
+  EXPECT_TRUE(r.events.empty());
+  EXPECT_EQ(kernelVelocity(clear, r.d, 0).y(), 0.0);
+}
+
+// The two integrators agree on the kick within their error estimates (event-driven: tolerance
+// 1e-6 against 1e-5; time stepping: h = 1e-7 against 2e-7).
+TEST(HardCases, Scene02SpinningKernelGrazeIntegratorsAgree) {
+  auto response = [](IntegratorType type, const std::string& ov) {
+    Model m = spinningGrazeModel(type, 5e-7);
+    if (type == kED) m.integrator.tolerance = std::stod(ov);
+    if (type == kTS) m.integrator.dt_s = std::stod(ov);
+    const RunLog r = runScene(m, kSpinGrazeEnd, 10);
+    return VecX(r.d.u.segment<3>(m.kernels[0].dof_offset));
+  };
+  expectAgree("kernel velocity after the spinning graze", response(kED, "1e-6"),
+              response(kED, "1e-5"), response(kTS, "1e-7"), response(kTS, "2e-7"), 1e-9);
+}
+
 // =============================================================================================
 // 3. Stick-slip at the friction limit: a kernel on a plate inclined at atan(mu) + eps,
 // made by rotating gravity over the horizontal plate y = 0 (downhill is +x; see the scene).
@@ -1329,6 +1391,42 @@ TEST_P(HardCase, Scene10LongRunShortVersion) {
   // show as 5 MB. The event list kept by this test grows by ~50 kB.
   EXPECT_LE(r.rss_end_bytes - r.rss_third_bytes, 256e3);
   expectBitIdenticalRerun(m, r);
+}
+
+// No drift of closed contacts, at the scale of the long run: the short version above ends
+// before any kernel settles, and the full run's kernels end up rocking on their flanks on the
+// floor for hundreds of seconds. Here one of its paddy kernels (wheat-steel floor, e 0.47,
+// mu 0.5) is dropped tilted by 0.4 rad from 0.7 mm and rocks for a second, at h = 1e-5 (ten
+// times the scene's step: time stepping's drift per second grows with h, 2.5e-5 m here before
+// the fix, so one second shows what 750 s at 1e-6 did, 8e-4 m). After the bounces (0.1 s) the
+// exact gap of the ellipse above the floor must stay within the rigid penetration bound of
+// each integrator: event-driven 10 x the event tolerance (1e-6 x 1e-2 m), time stepping the
+// impact step's depth |v_imp| h plus two slops (2 h zeno_velocity).
+TEST_P(HardCase, Scene10KernelRockingOnTheFloorDoesNotSink) {
+  const IntegratorType type = GetParam();
+  const double a = 5e-3, b = 1.3e-3, psi = 0.4, drop = 7e-4, h = 1e-5;
+  Model m = testutil::dropModel(type, ContactLaw::kRigid, 0.47, 0.5, a, b, drop, Vec2::Zero(), psi);
+  m.integrator.dt_s = h;
+  m.integrator.tolerance = 1e-6;
+  compileModel(&m);
+  Data d;
+  resetData(m, &d);
+  const double bound = type == kED
+                           ? 10 * m.integrator.tolerance * 1e-2
+                           : std::sqrt(2 * kG * drop) * h + 2 * h * m.integrator.zeno_velocity_mps;
+  double worst = 0, psi_min = 1e9, psi_max = -1e9;
+  for (int i = 1; i <= 1000; ++i) {
+    ASSERT_EQ(advanceTo(m, &d, 1e-3 * i), StepStatus::kOk);
+    ASSERT_TRUE(d.z.allFinite() && d.u.allFinite());
+    const double sn = std::sin(d.z[2]), cs = std::cos(d.z[2]);
+    const double gap = d.z[1] - std::sqrt(a * a * sn * sn + b * b * cs * cs);
+    if (i >= 100) worst = std::min(worst, gap);
+    if (i >= 500) psi_min = std::min(psi_min, d.z[2]), psi_max = std::max(psi_max, d.z[2]);
+  }
+  EXPECT_GE(worst, -bound);
+  // Still rocking: the closed contact was exercised, not resting flat.
+  EXPECT_GE(psi_max - psi_min, 0.1);
+  RecordProperty("worst_gap_m", num(worst));
 }
 
 // Without drive: the drum at rest, every kernel moving at minus the drum's velocity at its

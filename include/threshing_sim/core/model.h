@@ -124,7 +124,9 @@ struct IntegratorParams {
   double dt_s = 1e-6;       // time stepping: fixed step h [s]
   double theta = 0.5;       // Moreau-Jean theta in [0.5, 1] [-]
   double zeno_velocity_mps =
-      1e-3;                  // event-driven: impacts slower than this close the contact [m/s]
+      1e-3;  // impacts slower than this are plastic (event-driven: they close the contact;
+             // time stepping: a closed rigid contact may sink dt x this below its impact
+             // depth before it is moved back) [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
   bool exact_free_teeth =
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
