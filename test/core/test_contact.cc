@@ -226,13 +226,11 @@ TEST(ContactJacobian, ToothKernelNormalVelocityIsGapRateAtAStation) {
   EXPECT_NEAR(r.g.vn, r.vn_fd_gap, 1e-5);
 }
 
-// BUG (contact.cc evaluateContact, tooth-kernel branch): the gap is measured to the capsule
-// around the polyline through the n_stations (default 9) stations, but w_N uses the exact
-// mode shapes phi(x*), phi'(x*). Between stations the polyline's velocity is the linear
-// interpolation of the station velocities, not phi(x*) q_dot, so dg/dt != w_N^T u + w~_N.
-// Measured at x = 33 mm (stations at 30 and 37.5 mm): the modal part of dg/dt is off by
-// 0.5 % (mode 1), 4 % (2), 15 % (3), 20 % (4), and 40-75 % for modes 5-8, whose half
-// wavelength is ~1-2 station spacings: the polyline cannot represent them.
+// Regression guard (contact.cc evaluateContact, tooth-kernel branch): the gap was measured to
+// the capsule around the polyline through the stations while w_N used the exact mode shapes
+// phi(x*), phi'(x*), so between stations dg/dt != w_N^T u + w~_N (at x = 33 mm the modal part
+// was off by 0.5 % for mode 1 up to 20 % for mode 4). The closest point is now refined on the
+// exact deformed centreline, the same curve w_N describes.
 // Each mode alone (drum still, kernel at rest, straight tooth vibrating in that mode only):
 // the brief asks that the reported dg/dt equal the gap's derivative; 1e-3 relative is far
 // above the FD error (1e-6 m/s on ~1 m/s) and far below what a consistent model gives wrong.

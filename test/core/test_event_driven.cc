@@ -184,14 +184,11 @@ TEST(EventDriven, FrictionLimitSlipsAboveAtanMuWithTheRightAcceleration) {
   EXPECT_NEAR(d.contacts[0].slip_velocity_mps, -d.u[0], 1e-9);
 }
 
-// BUG (event_driven.cc eventDrivenStep, `triggered`): an event fires only when a function goes
-// from > 0 to <= 0 over a step. A pair that is already closed (gap exactly 0) at the start
-// never fires, so a kernel resting on the plate at t = 0 falls through it: measured, it is
-// 12 mm below the plate after 0.05 s (free fall), with no event and max_penetration_m = 0.
-// The same would happen after resetBodiesKeepTime and for any scene starting in contact (and
-// it does for a pair that starts overlapping: it passes through). Suggested fix:
-// at the start of each step, treat a separated pair with g_N <= 0 (or within the tolerance)
-// and dg_N/dt <= 0 as an initial contact (impact / closure) before integrating.
+// A kernel resting on the plate at t = 0 (gap exactly 0) stays on it. Regression guard: an
+// event used to fire only when a function went from > 0 to <= 0 over a step, so a pair closed
+// at the start never fired and the kernel fell through the plate (12 mm below it after
+// 0.05 s). The step start now treats a separated pair with g_N <= 0 and dg_N/dt <= 0 as an
+// initial contact.
 TEST(EventDriven, RestingContactAtStartIsHeld) {
   const double r = 1.5e-3;
   Model m = testutil::dropModel(kED, ContactLaw::kRigid, 0.5, 0.5, r, r, 0.0, Vec2::Zero());
@@ -283,12 +280,11 @@ TEST(EventDriven, EnergyConservedCompliantStrikeOnRigidTooth) {
 
 // The same strike on the flexible (4 modes), undamped, vibrating tooth: everything is still
 // conservative, so E must come back to E0 once the kernel has left.
-// BUG: it gains 1.4e-6 J (8.5e-4 of E0, 2.5 % of the kernel's kinetic energy) at x = 35 mm,
-// between two stations; 3.2e-8 J at x = 30 mm (a station). The gain falls as
-// 1/n_stations^2 (1.4e-6, 3.4e-7, 8.1e-8, 2.3e-8, 4.1e-9 J for 9, 17, 33, 65, 129 stations)
-// and is the same with the time stepper: the Hertz force is not conservative because the
-// gap is measured to the station polyline while the force is applied through the exact mode
-// shapes (see test_contact.cc, ToothKernelNormalVelocityIsGapRateBetweenStations).
+// Regression guard: the gap was measured to the polyline through the stations while the
+// force acted through the exact mode shapes, so the Hertz force was not conservative (a gain
+// of 1.4e-6 J at x = 35 mm, between two stations; 3.2e-8 J at the station x = 30 mm). The
+// closest point is now refined on the exact deformed centreline (contact.cc), and both
+// positions lose nothing (see test_contact.cc, ToothKernelNormalVelocityIsGapRateBetweenStations).
 // 1e-5 relative: 100 times the integration error measured on the rigid tooth above.
 TEST(EventDriven, EnergyConservedCompliantStrikeOnVibratingFlexibleTooth) {
   for (double x : {0.030, 0.035}) {
@@ -340,18 +336,11 @@ TEST(EventDriven, ImpactsWithFrictionNeverCreateEnergy) {
 // The same pile checked step by step: with e <= 1, mu > 0, a still drum and no compliant
 // contact (which would store energy), mechanicalEnergy can only fall. 1e-10 J (1e-7 of E0)
 // is the integration error a step may add.
-// BUG (event_driven.cc projectConstraints): with seed 8, kernels come to rest stacked on the
-// floor (several closed, sticking rigid contacts on the same bodies). From t = 28.66 ms the
-// energy rises step after step (7e-10 J, 2e-9 J, 4.5e-9 J, ...), the closed contacts'
-// dg_N/dt grows instead of staying 0, a kernel sinks 0.15 mm into the floor and by
-// t = 31 ms the energy is 3.6 J (4500 times E0 = 8e-4 J). Cause: the projection says "one
-// contact at a time (Gauss-Seidel)" but evaluates all contacts once per pass (evaluateAll
-// before the loop), so every correction uses residuals from before the other corrections: a
-// Jacobi iteration, which diverges for strongly coupled rows (several rows on one kernel).
-// Verified on a copy of event_driven.cc: calling evaluateAll before each contact's normal and
-// tangential correction (true Gauss-Seidel) gives a largest rise of 1e-13 J and a largest
-// penetration of 5e-12 m for this seed (and cured the same blow-up for seed 1 in an earlier
-// revision). Better: project all closed rows of an island at once with its Delassus matrix.
+// Regression guard (seed 8: kernels stacked on the floor, several closed sticking rigid
+// contacts on one body): the projection of closed contacts once used residuals evaluated
+// before the pass (a Jacobi iteration), which diverged for such coupled rows; the energy rose
+// step after step to 4500 times E0 within 3 ms. projectConstraints() now re-evaluates each
+// contact after the previous one's correction (Gauss-Seidel).
 TEST(EventDriven, MechanicalEnergyNeverRisesInAKernelPile) {
   Model m = testutil::kernelPileModel(kED, ContactLaw::kRigid, 0.5, 0.8, 8u);
   compileModel(&m);
@@ -379,16 +368,11 @@ TEST(EventDriven, MechanicalEnergyNeverRisesInAKernelPile) {
 // event's energy_lost_J is that impact's loss. Hunt-Crossley damping with e = 0.5 must lose
 // energy; e = 1 (no damping) may lose only to friction. Tolerance -1e-12 J (rounding of the
 // energy bookkeeping on ~1e-4 J).
-// BUG (contact.cc evaluateContact / hertzConstant): with e = 1 an impact gains up to 5.1e-7 J
-// (case 20: 0.4 % of the kernel's energy; the same with mu = 0, and the same to 2 digits with
-// the other integrator, so it is the model). The Hertz constant K = 4/3 E* sqrt(R*) is taken
-// from the local curvature at the current contact point, which moves along the kernel as it
-// rolls and spins during the contact (the radius of a 5 x 1.3 mm ellipse ranges from 0.34 to
-// 19 mm): F = K(q) delta^(3/2) is then not the gradient of a potential and a compression-
-// restitution cycle can return more than it took. A disc kernel (constant K) never gains
-// (checked below, mu = 0.8). Suggested fix: freeze K (and the radii) at
-// first touch for the whole episode, or derive the force from the potential 2/5 K(q)
-// delta^(5/2) (adding its dK/dq term).
+// Regression guard: the Hertz constant K = 4/3 E* sqrt(R*) was taken from the local
+// curvature at the current contact point, which moves along a rolling, spinning elongated
+// kernel (its radius ranges from 0.34 to 19 mm), so F = K(q) delta^(3/2) derived from no
+// potential and an e = 1 impact gained up to 5.1e-7 J. K is now frozen at first touch for
+// the whole episode (PairMemory::hertz_K). A disc kernel (constant K) is checked as well.
 TEST(EventDriven, CompliantImpactsWithFrictionNeverCreateEnergy) {
   struct Case {
     double a, b, e;

@@ -214,12 +214,9 @@ TEST(CompileModel, RefusesBadKernels) {
 
 // A NaN in a kernel's initial state reaches the integrators unless compileModel refuses it
 // (model.h: "validates the model"; the issue: "NaN anywhere" is refused).
-// BUG (model.cc compileModel): kernels' initial_position_m, initial_angle_rad,
-// initial_velocity_mps and initial_angular_velocity_radps are not checked (the scene loader
-// refuses NaN in YAML, but code that builds a Model directly, e.g. the ROS node, is not
-// protected). Suggested fix: requireFinite on each, named "kernels.<i>.position" etc. (The
-// same holds for obstacle points/centres, pedicel anchors and a kernel inertia that
-// underflows to 0, see test_simulator.cc NonFiniteResultIsReportedAndStateKept.)
+// Regression guard: compileModel once left the kernels' initial position, angle, velocity and
+// angular velocity unchecked (the scene loader refuses NaN in YAML, but code that builds a
+// Model directly, e.g. the ROS node, was not protected). Each is now refused by its name.
 TEST(CompileModel, RefusesNonFiniteKernelInitialState) {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();

@@ -325,10 +325,9 @@ TEST(TimeStepping, EnergyConservedCompliantStrikeOnRigidTooth) {
 // linear modal equations (energy-conserving), so outside contact E is constant; the strike
 // must return the kernel's energy. 1e-5 relative: at h = 1e-7 s the integration error is
 // ~1e-8 relative (rigid-tooth case above, scaled by (h / 1e-6)^2).
-// BUG: the same non-conservative tooth-kernel contact as in test_event_driven.cc
-// (EnergyConservedCompliantStrikeOnVibratingFlexibleTooth): +1.4e-6 J (8.5e-4 of E0) at
-// x = 35 mm, +3.2e-8 J at the station x = 30 mm, equal to the event-driven result to 3 digits
-// (so it is the model, not the integrator).
+// Regression guard for the same non-conservative tooth-kernel contact as in
+// test_event_driven.cc (EnergyConservedCompliantStrikeOnVibratingFlexibleTooth), which gained
+// +1.4e-6 J at x = 35 mm with both integrators alike (the model, not the integrator).
 TEST(TimeStepping, EnergyConservedCompliantStrikeOnVibratingFlexibleTooth) {
   for (double x : {0.030, 0.035}) {
     Model m = testutil::toothStrikeModel(kTS, 4, x);
@@ -354,14 +353,11 @@ TEST(TimeStepping, EnergyConservedCompliantStrikeOnVibratingFlexibleTooth) {
 // Every impact event and the run statistic: energy_lost_J >= -1e-12 J (1e-9 of the ~1e-3 J in
 // the box: rounding of the energy bookkeeping). Step by step, the total mechanical energy
 // may not rise either: with theta = 1/2 the flights are exact, so 1e-12 J per step.
-// BUG (time_stepping.cc timeSteppingStep): Newton's law with Coulomb friction on the impulses
-// can create energy (physics.md section 8) and the time stepper has no guard against it (the
-// event-driven solveImpact has one: it redoes a gaining impact plastically). Measured with
-// e = 1: impacts gaining up to 5.2e-5 J (seed 1) and 7.3e-5 J (seed 8), 6-9 % of the energy
-// in the box; with e = 0.9 every one of seeds 1-10 gains (up to 2.6e-5 J); with mu = 0 none
-// does, with mu = 0.3 all do: it is the friction coupling. e = 0.5 happens to pass. Suggested
-// fix: after solving an island, compare its kinetic energy with the free motion's; if it
-// rose, solve that island again with e = 0 (or use Poisson / energetic restitution).
+// Regression guard: Newton's law with Coulomb friction on the impulses can create energy
+// (physics.md section 8), and the time stepper once had no guard (with e = 1, impacts gained
+// up to 7.3e-5 J, 6-9 % of the energy in the box; with e = 0.9 every one of seeds 1-10
+// gained). timeSteppingStep() now computes the impulses' work relative to the free motion and
+// redoes a step whose impacts would gain plastically.
 // Energies here are measured across whole steps (the impulse plus one step of gravity under the
 // theta-method), which moves ~1e-3 J of pile energy by up to ~1e-12 J without any contact:
 // 1e-10 J (1e-7 relative) separates that from a law that creates energy (1e-5 J and more).
