@@ -64,13 +64,16 @@ double speedBound(const Model& m, const Data& d) {
 
 // Closed rigid contacts keep their depth. Moreau-Jean constrains the normal velocity at the
 // midpoint, not the gap, and the second-order terms it drops (a kernel rocking on its flank
-// rolls over a curved profile) sink a resting kernel by O(h^2) per step: 2 um/s at h = 1 us,
-// 0.8 mm over the 750 s long run. After the position update, every rigid contact that carried
-// an impulse this step is evaluated at the end state. On its impact step its depth is recorded
-// (at least one step at the Zeno speed, so that the contact stays closed at the next
-// midpoint). Afterwards, once it is one such slop deeper than that, it is moved back to it by
-// the smallest mass-weighted position change along its normal. Velocities are unchanged, and
-// the potential energy restored is at most what the sinking took. Gauss-Seidel (a kernel on a
+// rolls over a curved profile) move a pressed contact's gap by O(h^2) per step, down and up
+// in turn as it rocks, with a net sinking: 2 um/s at h = 1 us, 0.8 mm over the 750 s long
+// run. After the position update, every rigid contact that carried an impulse this step is
+// evaluated at the end state. Its impact step records its depth (at least a slop: one step at
+// the Zeno speed). Afterwards it is moved back to that depth when it sinks a slop deeper, and
+// onto the surface when it rises half a slop above it while pressed, by the smallest mass-weighted
+// position change along its normal; velocities are unchanged. Together with the activation
+// of a pressed contact up to a slop of clearance (timeSteppingStep), a resting contact neither
+// sinks nor opens by drift: opening made resting kernels chatter, an impact every few steps.
+// The potential energy restored is at most what the sinking took. Gauss-Seidel (a kernel on a
 // kernel on the floor): each contact is evaluated after the previous one's correction, for up
 // to three passes while any correction is made.
 template <class MemoryOf>
@@ -93,14 +96,27 @@ void keepClosedContactDepths(const Model& m, const Drive& end, double h, MemoryO
       if (pair.kind == PairKind::kToothKernel)
         updateToothStations(m, d->z, end.theta_rad, pair.a, ws);
       evaluateContact(m, d->z, d->u, end, pair, ws, &g);
+      // The depth it is kept at: the impact step's, at least a slop.
+      const double pen_m = -g.gap_m;
       if (impact_step) {
-        mem.ts_depth_m = std::max(slop_m, -g.gap_m);
+        mem.ts_depth_m = std::max(slop_m, pen_m);
         continue;
       }
-      // Corrected once it has sunk one slop further (every few hundred steps while rocking),
-      // so that the evaluation after a correction finds nothing more to do.
-      const double excess_m = -g.gap_m - mem.ts_depth_m;
-      if (excess_m <= slop_m) continue;
+      // Sunk a slop below that depth: back to it. Risen half a slop above the surface while
+      // pressed: back onto it, so that the pressed contact, kept active up to a slop of
+      // clearance, does not open by drift. Each correction leaves half a slop of room before
+      // the next (while a kernel rocks, one every few hundred steps; the evaluation after a
+      // correction finds nothing more to do), and rounding-level clearances of a sliding
+      // kernel are left alone.
+      double target_m;
+      if (pen_m > mem.ts_depth_m + slop_m) {
+        target_m = mem.ts_depth_m;
+      } else if (pen_m < -0.5 * slop_m) {
+        target_m = 0.0;
+      } else {
+        continue;
+      }
+      const double excess_m = pen_m - target_m;
       double gnn = 0.0;
       for (const BodyJac& s : g.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
@@ -188,10 +204,16 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   // compliant: the Hertz-Hunt-Crossley force over the step as a fixed normal impulse.
   ws.active.clear();
   ws.rows.clear();
+  // A pressed rigid contact (sticking or slipping at the last step, past its impact step) stays
+  // active up to a slop of clearance (h zeno_velocity): the drift its depth keeping corrects
+  // must not open it. A contact that just bounced is not pressed.
+  const double keep_m = h * m.integrator.zeno_velocity_mps;
   for (size_t c = 0; c < ws.geoms.size(); ++c) {
     const ContactGeom& g = ws.geoms[c];
     PairMemory& mem = memoryOf(c);
-    if (g.gap_m > 0.0) continue;
+    const bool pressed = g.params->law == ContactLaw::kRigid &&
+                         (mem.state == ContactState::kStick || mem.state == ContactState::kSlip);
+    if (g.gap_m > (pressed ? keep_m : 0.0)) continue;
     ContactRow row;
     row.mu = g.params->friction;
     if (g.params->law == ContactLaw::kRigid) {
