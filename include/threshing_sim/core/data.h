@@ -95,8 +95,9 @@ struct RunStats {
   double energy_initial_J = 0;    // mechanical energy at reset [J]
   long numerical_recoveries = 0;  // steps redone after a non-finite result
   long rejected_steps = 0;        // event-driven: rejected trial steps
-  long depth_corrections = 0;     // time stepping: position corrections of closed rigid
-                                  // contacts that had sunk below their impact depth
+  long depth_corrections = 0;     // time stepping: position corrections of pressed rigid
+                                  // contacts (sunk below their impact depth, or risen off
+                                  // the surface)
   std::vector<double> kernel_peak_normal_force_N;  // per kernel, any contact [N]
   std::vector<long> kernel_impacts;                // per kernel
   std::vector<double> kernel_detach_time_s;        // per kernel; < 0 = still attached [s]

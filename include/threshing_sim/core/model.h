@@ -125,8 +125,8 @@ struct IntegratorParams {
   double theta = 0.5;       // Moreau-Jean theta in [0.5, 1] [-]
   double zeno_velocity_mps =
       1e-3;  // impacts slower than this are plastic (event-driven: they close the contact;
-             // time stepping: a closed rigid contact may sink dt x this below its impact
-             // depth before it is moved back) [m/s]
+             // time stepping: dt x this is the slop of a pressed rigid contact, how far it
+             // may sink below its impact depth or open before it is moved back) [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
   bool exact_free_teeth =
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
