@@ -308,6 +308,33 @@ bool obstacleInReach(const ObstacleModel& o, const Vec2& c, double r) {
 // Round-off slack of the interval searches below: they only pre-select, the exact tests decide,
 // so a pre-selection a little too wide changes nothing [m].
 double slackOf(double x_m) { return 1e-9 * (std::abs(x_m) + 1.0); }
+
+// Orders the K bodies by (keyOf(i), i) into order, with keys[j] the key of order[j]. The
+// order of the previous call is the starting point (the identity if its size is not K) and is
+// repaired by insertion sort: about K comparisons while keys change little between calls. The
+// order is total, so the result is the unique sorted order whatever the start.
+template <class Key, class KeyOf>
+void repairOrder(int K, KeyOf keyOf, std::vector<int>* order, std::vector<Key>* keys) {
+  std::vector<int>& o = *order;
+  std::vector<Key>& k = *keys;
+  if (static_cast<int>(o.size()) != K) {
+    o.resize(K);
+    for (int i = 0; i < K; ++i) o[i] = i;
+  }
+  k.resize(K);
+  for (int ia = 0; ia < K; ++ia) {
+    const int a = o[ia];
+    const Key ka = keyOf(a);
+    int ib = ia;
+    while (ib > 0 && (k[ib - 1] > ka || (k[ib - 1] == ka && o[ib - 1] > a))) {
+      o[ib] = o[ib - 1];
+      k[ib] = k[ib - 1];
+      --ib;
+    }
+    o[ib] = a;
+    k[ib] = ka;
+  }
+}
 }  // namespace
 
 void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
@@ -316,32 +343,15 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
   const int K = static_cast<int>(m.kernels.size());
   if (ws->obstacle_xmin_m.size() != m.obstacles.size() || ws->tooth_H_max.size() != m.teeth.size())
     prepareBroadPhase(m, ws);
-  // Kernels by the lower end of their bounding circle along x. The order of the previous call
-  // is the starting point: kernels move little between steps, so insertion sort finishes in
-  // about K comparisons. The order (xmin, then index) is total, so the result is the unique
-  // sorted order whatever the start.
+  // Kernels by the lower end of their bounding circle along x (kernels move little between
+  // steps: the previous order is repaired).
   std::vector<int>& order = ws->sort_index;
   std::vector<double>& xmin = ws->sort_xmin_m;
-  if (static_cast<int>(order.size()) != K) {
-    order.resize(K);
-    for (int i = 0; i < K; ++i) order[i] = i;
-  }
-  xmin.resize(K);
-  auto kernelXmin = [&](int i) { return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m; };
+  repairOrder<double>(
+      K, [&](int i) { return z[m.kernels[i].dof_offset] - m.kernels[i].semi_axis_a_m; }, &order,
+      &xmin);
   double a_max = 0.0;
   for (int i = 0; i < K; ++i) a_max = std::max(a_max, m.kernels[i].semi_axis_a_m);
-  for (int ia = 0; ia < K; ++ia) {
-    const int a = order[ia];
-    const double xa = kernelXmin(a);
-    int ib = ia;
-    while (ib > 0 && (xmin[ib - 1] > xa || (xmin[ib - 1] == xa && order[ib - 1] > a))) {
-      order[ib] = order[ib - 1];
-      xmin[ib] = xmin[ib - 1];
-      --ib;
-    }
-    order[ib] = a;
-    xmin[ib] = xa;
-  }
 
   // Teeth against kernels: the deformed centreline's bounding box against the kernel's bounding
   // circle; only the kernels whose xmin lies in the box's x range (widened by the largest
@@ -409,11 +419,6 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
   const double cell_m = (2.0 * a_max + margin_m) * (1.0 + 1e-9) + 1e-12;
   std::vector<int>& g_order = ws->grid_order;
   std::vector<std::int64_t>& g_key = ws->grid_key;
-  if (static_cast<int>(g_order.size()) != K) {
-    g_order.resize(K);
-    for (int i = 0; i < K; ++i) g_order[i] = i;
-  }
-  g_key.resize(K);
   ws->grid_cell.resize(K);
   // Cell coordinates, clamped (a kernel far away or not finite goes to the last cell).
   auto cellOf = [&](double x_m) {
@@ -425,18 +430,8 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
     const Vec2 c = z.segment<2>(m.kernels[i].dof_offset);
     ws->grid_cell[i] = cellOf(c.y()) * kRow + cellOf(c.x());
   }
-  for (int ia = 0; ia < K; ++ia) {
-    const int a = g_order[ia];
-    const std::int64_t ka = ws->grid_cell[a];
-    int ib = ia;
-    while (ib > 0 && (g_key[ib - 1] > ka || (g_key[ib - 1] == ka && g_order[ib - 1] > a))) {
-      g_order[ib] = g_order[ib - 1];
-      g_key[ib] = g_key[ib - 1];
-      --ib;
-    }
-    g_order[ib] = a;
-    g_key[ib] = ka;
-  }
+  repairOrder<std::int64_t>(
+      K, [&](int i) { return ws->grid_cell[i]; }, &g_order, &g_key);
   auto testPair = [&](int a, const Vec2& ca, double ra, int b) {
     const Vec2 cb = z.segment<2>(m.kernels[b].dof_offset);
     const double rr = ra + m.kernels[b].semi_axis_a_m + margin_m;

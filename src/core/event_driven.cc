@@ -60,13 +60,6 @@ enum class SeparatedPairs {
   kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
 };
 
-// Largest speed of any point of kernel i at velocities u: centre plus spin times the long
-// semi-axis [m/s].
-double kernelSpeedBound(const Model& m, const VecX& u, int i) {
-  const KernelModel& k = m.kernels[i];
-  return u.segment<2>(k.dof_offset).norm() + std::abs(u[k.dof_offset + 2]) * k.semi_axis_a_m;
-}
-
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
 // says (a far pair gets only a lower bound of its gap). Under kSign, a separated kernel pair
 // (kernel-obstacle, kernel-kernel) is evaluated exactly when its gap bound is within 1 um or
@@ -779,9 +772,8 @@ double motionBound(const Ctx& c) {
     v = std::max(
         v, std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) +
                (tm.n_modes > 0 ? 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm() : 0.0));
-  for (const KernelModel& k : c.m.kernels)
-    v = std::max(v, c.d.u.segment<2>(k.dof_offset).norm() +
-                        std::abs(c.d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
+  for (int i = 0; i < static_cast<int>(c.m.kernels.size()); ++i)
+    v = std::max(v, kernelSpeedBound(c.m, c.d.u, i));
   return v;
 }
 

@@ -4,6 +4,7 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <cmath>
 #include <complex>
 #include <cstdint>
 #include <cstring>
@@ -290,6 +291,12 @@ void layoutStations(const Model& m, Workspace* ws);
 void updateToothStations(const Model& m, const VecX& z, double theta_rad, int tooth, Workspace* ws);
 // Kernel as a geometric ellipse.
 Ellipse kernelEllipse(const Model& m, const VecX& z, int i);
+// Largest speed of any point of kernel i at velocities u: centre speed plus spin times the long
+// semi-axis [m/s].
+inline double kernelSpeedBound(const Model& m, const VecX& u, int i) {
+  const KernelModel& k = m.kernels[i];
+  return u.segment<2>(k.dof_offset).norm() + std::abs(u[k.dof_offset + 2]) * k.semi_axis_a_m;
+}
 
 // Broad phase: pairs whose bounding shapes are within margin_m; fills ws->candidates, sorted.
 // Requires updateStations for z first. Kernel pairs through a uniform grid, teeth against

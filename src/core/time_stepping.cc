@@ -55,10 +55,8 @@ double speedBound(const Model& m, const Data& d) {
   for (const ToothModel& tm : m.teeth) {
     v = std::max(v, std::abs(d.omega_radps) * (m.drum.radius_m + tm.length_m));
   }
-  for (const KernelModel& k : m.kernels) {
-    v = std::max(
-        v, d.u.segment<2>(k.dof_offset).norm() + std::abs(d.u[k.dof_offset + 2]) * k.semi_axis_a_m);
-  }
+  for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i)
+    v = std::max(v, kernelSpeedBound(m, d.u, i));
   return v;
 }
 
