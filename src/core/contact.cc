@@ -522,6 +522,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
   g->wtilde_n = g->wtilde_t = 0.0;
+  g->rho0_m = g->rho1_m = std::numeric_limits<double>::infinity();
   g->side[0].body = -1;
   g->side[0].w_n.resize(0);
   g->side[0].w_t.resize(0);
@@ -612,6 +613,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       best.point1 = r_x;
     }
     g->gap_m = best.distance_m - r_t;
+    g->rho1_m = best.radius2_m;
     g->n = best.normal;
     g->t = perp(g->n);
     g->p0 = best.point1 + r_t * g->n;
@@ -681,7 +683,9 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     s.body = kernelBody(m, pair.a);
     kernelRow(g->p0, ea.center, g->n, -1.0, &s.w_n);
     kernelRow(g->p0, ea.center, g->t, -1.0, &s.w_t);
-    r_in = seriesRadius(ellipseCurvatureRadius(ea, g->p0), p.radius2_m);
+    g->rho0_m = ellipseCurvatureRadius(ea, g->p0);
+    g->rho1_m = p.radius2_m;
+    r_in = seriesRadius(g->rho0_m, p.radius2_m);
     r_out = seriesRadius(ka.semi_axis_b_m, kern.semi_axis_b_m);
     E_star = effectiveModulus(ka.youngs_modulus_Pa, ka.poisson_ratio, kern.youngs_modulus_Pa,
                               kern.poisson_ratio);
@@ -719,6 +723,12 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       p.distance_m -= o.radius_m;
       p.point1 += o.radius_m * p.normal;
     }
+    // The surface's own curvature (a plate: flat along it, round with its radius at either end).
+    g->rho0_m = o.type == ObstacleType::kCircle ||
+                        (o.type == ObstacleType::kSegment && (p.param <= 0.0 || p.param >= 1.0))
+                    ? o.radius_m
+                    : std::numeric_limits<double>::infinity();
+    g->rho1_m = p.radius2_m;
     g->gap_m = p.distance_m;
     g->n = p.normal;
     g->t = perp(g->n);
@@ -745,6 +755,160 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     g->vt += s.w_t.dot(ub);
   }
   g->hertz_K = hertzConstant(E_star, r_in, r_out);
+}
+
+namespace {
+
+// Drift of a pair of rigid convex surfaces (kernel-kernel, kernel-obstacle): body 0 (a kernel
+// with centre c0 and speed omega0, or fixed) and body 1 (the kernel), with radii of curvature
+// rho0, rho1 at p0, p1 and p1 - p0 = gap n. The normal turns at
+//   phi' = (v_T + rho0 omega0 + rho1 omega1) / (rho0 + rho1 + gap)
+// (the contact points slide over the surfaces at rho (phi' - omega)), so that
+//   d(v_N)/dt = phi' v_T + omega1 [rho1 (phi' - omega1) - omega1 n.(p1 - c1)]
+//                        + omega0 [rho0 (phi' - omega0) + omega0 n.(p0 - c0)],
+//   d(v_T)/dt = -phi' v_N - omega1^2 t.(p1 - c1) + omega0^2 t.(p0 - c0).
+Vec2 rigidPairDrift(const ContactGeom& g, const Vec2& c0, double omega0, const Vec2& c1,
+                    double omega1) {
+  const double rho0 = g.rho0_m, rho1 = g.rho1_m;
+  double phi_rate = 0.0;  // a flat body 0 (fixed) keeps the normal
+  if (std::isfinite(rho0))
+    phi_rate = (g.vt + rho0 * omega0 + rho1 * omega1) / (rho0 + rho1 + g.gap_m);
+  double dvn =
+      phi_rate * g.vt + omega1 * (rho1 * (phi_rate - omega1) - omega1 * g.n.dot(g.p1 - c1));
+  if (omega0 != 0.0) dvn += omega0 * (rho0 * (phi_rate - omega0) + omega0 * g.n.dot(g.p0 - c0));
+  const double dvt = -phi_rate * g.vn - omega1 * omega1 * g.t.dot(g.p1 - c1) +
+                     omega0 * omega0 * g.t.dot(g.p0 - c0);
+  return Vec2(dvn, dvt);
+}
+
+// Deformed centreline of a tooth at its material coordinate x along the motion (u frozen):
+// position, tangent and their rates in the drum frame, with the foreshortening w_c blended
+// between the stations as the narrow phase does (w_c = -q^T H(x) q / 2, H linear in x).
+struct CentrelineMotion {
+  Vec2 r, r_x;       // r_D(x) [m], d r_D / dx [-]
+  Vec2 v, v_x, a;    // material rate of r_D, of d r_D / dx [m/s, 1/s], d^2 r_D / dt^2 [m/s^2]
+  Vec2 rt_x, rt_xx;  // the narrow phase's tangent (1 - w'^2/2) e1 + w' e2 [-] and its
+                     // x-derivative [1/m]
+  Vec2 rt_x_rate;    // its material rate [1/s]
+  double dslope_rate_dx = 0;  // d(w'_dot)/dx = phi'' . qdot [1/(m s)]
+};
+
+CentrelineMotion centrelineMotion(const ToothModel& tm, int tooth, const VecX& z, const VecX& u,
+                                  double x_m, Workspace* ws) {
+  const int n = tm.n_modes;
+  CentrelineMotion cm;
+  double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wd2 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0,
+         wcdd = 0;
+  int s = 0;
+  double t = 0;
+  stationInterval(tm, x_m, &s, &t);
+  if (n > 0) {
+    const auto q = z.segment(tm.dof_offset, n);
+    const auto qd = u.segment(tm.dof_offset, n);
+    evaluateModes(tm, x_m, &ws->scratch_phi, &ws->scratch_dphi);
+    evaluateModeCurvatures(tm, x_m, &ws->scratch_ddphi);
+    w = ws->scratch_phi.dot(q);
+    w1 = ws->scratch_dphi.dot(q);
+    w2 = ws->scratch_ddphi.dot(q);
+    wd = ws->scratch_phi.dot(qd);
+    wd1 = ws->scratch_dphi.dot(qd);
+    wd2 = ws->scratch_ddphi.dot(qd);
+    // Stations s, s + 1: w_c, H q (stored for z) and qdot^T H qdot.
+    const int c = ws->station_offset[tooth] + s;
+    const double dx = tm.station_x_m[s + 1] - tm.station_x_m[s];
+    double hq_d0 = 0, hq_d1 = 0, qhq0 = 0, qhq1 = 0;
+    for (int i = 0; i < n; ++i) {
+      hq_d0 += ws->station_Hq(i, c) * qd[i];
+      hq_d1 += ws->station_Hq(i, c + 1) * qd[i];
+      double h0 = 0, h1 = 0;
+      for (int j = 0; j < n; ++j) {
+        h0 += tm.H_s[s](i, j) * qd[j];
+        h1 += tm.H_s[s + 1](i, j) * qd[j];
+      }
+      qhq0 += qd[i] * h0;
+      qhq1 += qd[i] * h1;
+    }
+    wc = (1.0 - t) * ws->station_wc_m[c] + t * ws->station_wc_m[c + 1];
+    wc1 = (ws->station_wc_m[c + 1] - ws->station_wc_m[c]) / dx;
+    wcd = -((1.0 - t) * hq_d0 + t * hq_d1);
+    wcd1 = -(hq_d1 - hq_d0) / dx;
+    wcdd = -((1.0 - t) * qhq0 + t * qhq1);
+  }
+  const Vec2& e1 = tm.e1_D;
+  const Vec2& e2 = tm.e2_D;
+  cm.r = tm.p_DR_D + (x_m + wc) * e1 + w * e2;
+  cm.r_x = (1.0 + wc1) * e1 + w1 * e2;
+  cm.v = wcd * e1 + wd * e2;
+  cm.v_x = wcd1 * e1 + wd1 * e2;
+  cm.a = wcdd * e1;
+  cm.rt_x = (1.0 - 0.5 * w1 * w1) * e1 + w1 * e2;
+  cm.rt_xx = (-w1 * w2) * e1 + w2 * e2;
+  cm.rt_x_rate = (-w1 * wd1) * e1 + wd1 * e2;
+  cm.dslope_rate_dx = wd2;
+  return cm;
+}
+
+// Drift of a tooth-kernel pair. The centreline point r(x) (distance d = gap + r_t from the
+// ellipse, radius of curvature rho1 at the foot p1 = r + d n) moves relative to the kernel
+// at w = r_dot - V1(r); v_N = -n.w and v_T = -t.w + omega1 d - r_t (Omega + w'_dot). The
+// closest point x* follows n.rt_x = 0 (the narrow phase's condition; fixed at an end of the
+// tooth), the normal turns at phi' = omega1 - t.(w + r_x x*') / (rho1 + d), and
+//   d(v_N)/dt = -phi' t.w - n.w',  d(v_T)/dt = phi' n.w - t.w' + omega1 d' - r_t (alpha +
+//   phi''.qdot x*'),  w' = r_ddot + r_dot_x x*' - omega1 J (r_dot + r_x x*' - v1),
+// d' = -n.(w + r_x x*'), everything in world (the drum frame turned by theta).
+Vec2 toothPairDrift(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                    const ContactGeom& g, Workspace* ws) {
+  const ToothModel& tm = m.teeth[g.pair.a];
+  const KernelModel& k = m.kernels[g.pair.b];
+  const double x = g.tooth_x_m;
+  const CentrelineMotion cm = centrelineMotion(tm, g.pair.a, z, u, x, ws);
+  const Rotation2 rot(drive.theta_rad);
+  const double om = drive.omega_radps, al = drive.alpha_radps2;
+  // World vectors of the centreline point (the drum turns them at Omega).
+  const Vec2 r = rot * cm.r, r_x = rot * cm.r_x;
+  const Vec2 r_dot = rot * (om * perp(cm.r) + cm.v);
+  const Vec2 r_dot_x = rot * (om * perp(cm.r_x) + cm.v_x);
+  const Vec2 r_ddot = rot * (al * perp(cm.r) - om * om * cm.r + 2.0 * om * perp(cm.v) + cm.a);
+  const Vec2 rt_x = rot * cm.rt_x, rt_xx = rot * cm.rt_xx;
+  const Vec2 rt_x_rate = rot * (om * perp(cm.rt_x) + cm.rt_x_rate);
+  // The kernel.
+  const Vec2 c1 = z.segment<2>(k.dof_offset), v1 = u.segment<2>(k.dof_offset);
+  const double om1 = u[k.dof_offset + 2];
+  const Vec2 w = r_dot - (v1 + om1 * perp(r - c1));
+  const double r_t = 0.5 * tm.diameter_m;
+  const double d = g.gap_m + r_t;
+  const double kappa = 1.0 / (g.rho1_m + d);
+  // Normal turning rate phi' = beta0 + beta1 x*'; x*' from d/dt (n.rt_x) = 0.
+  const double beta0 = om1 - kappa * g.t.dot(w), beta1 = -kappa * g.t.dot(r_x);
+  double x_rate = 0.0;
+  if (x > 0.0 && x < tm.length_m) {
+    const double den = beta1 * g.t.dot(rt_x) + g.n.dot(rt_xx);
+    if (den != 0.0) x_rate = -(beta0 * g.t.dot(rt_x) + g.n.dot(rt_x_rate)) / den;
+  }
+  const double phi_rate = beta0 + beta1 * x_rate;
+  const Vec2 move = r_dot + x_rate * r_x;  // velocity of the closest centreline point
+  const Vec2 w_rate = r_ddot + x_rate * r_dot_x - om1 * perp(move - v1);
+  const double dvn = -(phi_rate * g.t.dot(w) + g.n.dot(w_rate));
+  const double dvt = phi_rate * g.n.dot(w) - g.t.dot(w_rate) - om1 * g.n.dot(w + x_rate * r_x) -
+                     r_t * (al + cm.dslope_rate_dx * x_rate);
+  return Vec2(dvn, dvt);
+}
+
+}  // namespace
+
+Vec2 contactVelocityDrift(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                          const ContactGeom& g, Workspace* ws) {
+  if (g.pair.kind == PairKind::kToothKernel) return toothPairDrift(m, z, u, drive, g, ws);
+  const int kb = g.pair.kind == PairKind::kKernelObstacle ? g.pair.a : g.pair.b;
+  const int o1 = m.kernels[kb].dof_offset;
+  Vec2 c0 = Vec2::Zero();
+  double omega0 = 0.0;
+  if (g.pair.kind == PairKind::kKernelKernel) {
+    const int o0 = m.kernels[g.pair.a].dof_offset;
+    c0 = z.segment<2>(o0);
+    omega0 = u[o0 + 2];
+  }
+  return rigidPairDrift(g, c0, omega0, z.segment<2>(o1), u[o1 + 2]);
 }
 
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f) {

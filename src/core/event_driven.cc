@@ -112,24 +112,6 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   }
 }
 
-// Relative velocity derivative along the motion with u frozen: (d/dt W)^T u + d(wtilde)/dt,
-// by a central difference over +-eps of time, for the normal (0) and tangential (1) rows.
-// Only the pair's own tooth has its stations moved (and left moved).
-Vec2 velocityDrift(const Ctx& c, const VecX& z, const VecX& u, double t, const PairId& pair) {
-  const double eps = 1e-8;
-  const bool tooth = pair.kind == PairKind::kToothKernel;
-  ContactGeom gp, gm;
-  c.ws.z_mid = z + eps * u;
-  Drive dp = driveAtTime(c, t + eps);
-  if (tooth) updateToothStations(c.m, c.ws.z_mid, dp.theta_rad, pair.a, &c.ws);
-  evaluateContact(c.m, c.ws.z_mid, u, dp, pair, &c.ws, &gp);
-  c.ws.z_mid = z - eps * u;
-  Drive dm = driveAtTime(c, t - eps);
-  if (tooth) updateToothStations(c.m, c.ws.z_mid, dm.theta_rad, pair.a, &c.ws);
-  evaluateContact(c.m, c.ws.z_mid, u, dm, pair, &c.ws, &gm);
-  return Vec2((gp.vn - gm.vn) / (2 * eps), (gp.vt - gm.vt) / (2 * eps));
-}
-
 // Solves the leading n x n block of ws->ed_A for the right-hand side ws->ed_rc into ws->ed_lam
 // by Gaussian elimination with complete pivoting, in place (ed_A and ed_rc are overwritten).
 // Returns false if the matrix is singular: a pivot at or below n eps times the largest entry,
@@ -249,10 +231,15 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
       if (ws.rows[i].normal_unknown) idx.push_back({i, 0});
       if (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) idx.push_back({i, 1});
     }
+    int drift_of = -1;  // active contact whose drift is in `drift`
+    Vec2 drift = Vec2::Zero();
     for (int r = 0; r < nc; ++r) {
       const ContactGeom& gr = ws.geoms[ws.active[idx[r].first]];
       // Row: current g'' from the free acceleration, plus the velocity drift term.
-      const Vec2 drift = velocityDrift(c, z, u, t, gr.pair);
+      if (drift_of != idx[r].first) {
+        drift = contactVelocityDrift(m, z, u, dr, gr, &ws);
+        drift_of = idx[r].first;
+      }
       double acc = idx[r].second == 0 ? drift[0] : drift[1];
       for (const BodyJac& s : gr.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
@@ -665,7 +652,7 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
   growTo(&ws.b, 2 * k);
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
-    const Vec2 drift = velocityDrift(c, d.z, d.u, t, g.pair);
+    const Vec2 drift = contactVelocityDrift(m, d.z, d.u, dr, g, &ws);
     double an = drift[0], at = drift[1];
     for (const BodyJac& s : g.side) {
       if (s.body < 0 || s.w_n.size() == 0) continue;
@@ -676,8 +663,6 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
     ws.b[2 * i] = an;
     ws.b[2 * i + 1] = at;
   }
-  // The drift evaluations moved the stations; restore them for the current state.
-  evaluateAll(c, d.z, d.u, dr);
   if (!solveContactIslands(m, nullptr, &ws)) return false;
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
@@ -812,7 +797,7 @@ double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& 
       g.params->hc_damping_factor / std::max(mem.v_in_mps, c.m.hc_min_impact_speed_mps);
   if (delta_m <= 0.0 || 1.0 + chi_spm * rate_mps <= 0.0) return 0.0;
   // Normal relative acceleration: the Jacobians times the accelerations, plus the drift.
-  double acc_mps2 = velocityDrift(c, z, u, t, g.pair)[0];
+  double acc_mps2 = contactVelocityDrift(c.m, z, u, driveAtTime(c, t), g, &c.ws)[0];
   for (const BodyJac& s : g.side) {
     if (s.body < 0 || s.w_n.size() == 0) continue;
     acc_mps2 += s.w_n.dot(udot.segment(bodyDofOffset(c.m, s.body), s.w_n.size()));

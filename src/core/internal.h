@@ -71,6 +71,10 @@ struct ContactGeom {
   double vn = 0;           // dg_N/dt [m/s]
   double vt = 0;           // dg_T/dt [m/s]
   double hertz_K = 0;      // Hertz constant K in F = K delta^{3/2} [N/m^{3/2}]
+  // Radii of curvature of the two surfaces at p0 and p1 (inf: flat; a tooth pair's rho0 is
+  // unused, its drift follows the deformed centreline) [m].
+  double rho0_m = std::numeric_limits<double>::infinity();
+  double rho1_m = std::numeric_limits<double>::infinity();
   const ContactParams* params = nullptr;
   bool far = false;  // only a lower bound of the gap was computed (no Jacobians)
 };
@@ -236,7 +240,7 @@ struct Workspace {
   VecX b_offset;  // restitution target e dg_N- folded into b [m/s]
   std::vector<ContactRow> rows;
   LcpWorkspace lcp;
-  VecX scratch_phi, scratch_dphi;
+  VecX scratch_phi, scratch_dphi, scratch_ddphi;
   MatX scratch_H;
   // Event-driven integrator state.
   VecX rk_k[7], rk_y0, rk_y1, rk_err, rk_tmp, dense_a, dense_b;
@@ -330,6 +334,14 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
                      const PairId& pair, Workspace* ws, ContactGeom* g,
                      double far_m = std::numeric_limits<double>::infinity(),
                      bool tight_bound = false);
+
+// Velocity drift of a contact's rows, analytically: the time derivative of (dg_N/dt, dg_T/dt)
+// along the motion z' = u with u frozen and the drum at its speed and acceleration, i.e.
+// (d/dt W)^T u + d(wtilde)/dt for the normal (0) and tangential (1) rows, including the
+// motion of the contact points over the surfaces. g must come from evaluateContact at
+// (z, u, drive) (not far); a tooth pair reads the stations that updateStations stored for z.
+Vec2 contactVelocityDrift(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                          const ContactGeom& g, Workspace* ws);
 
 // Adds w * scale to the generalised vector f for each side of the contact.
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f);

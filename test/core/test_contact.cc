@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 
 #include "../../src/core/internal.h"
 #include "sim_test_util.h"
@@ -576,6 +577,165 @@ TEST(HertzConstant, SphereLikeKernelOnPlaneMatchesClosedForm) {
     EXPECT_NEAR(g.hertz_K, K, 1e-9 * K) << "E_o = " << E_o;
     EXPECT_NEAR(g.gap_m, -1e-4, 1e-12);
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Velocity drift (internal::contactVelocityDrift): the analytic (d/dt W)^T u + d(wtilde)/dt of
+// the normal and tangential rows against central differences of the narrow phase's
+// (dg_N/dt, dg_T/dt) along the motion z' = u (u frozen) with the drum accelerating at alpha:
+// theta(t) = theta + Omega t + alpha t^2 / 2, Omega(t) = Omega + alpha t. Richardson-extrapolated
+// central differences over eps = 1e-6 s and 2 eps: the truncation error is ~eps^4 times the
+// fifth derivative (contact points sliding over curvature radii of millimetres at ~20 m/s turn
+// the normal at ~4e3 rad/s: ~1e-24 x 1e19 m/s^6) and the rounding error (~1e-11 m/s of the
+// velocities, through the closest points' iteration tolerances, over eps) ~1e-5 m/s^2; the
+// drifts are ~1e1..1e4 m/s^2, so they must agree to ~1e-6 relative (of the drift, or of the
+// centripetal terms where those cancel).
+
+// (dg_N/dt, dg_T/dt) of `pair` at time dt along the motion.
+Vec2 rowVelocities(const Model& m, const Motion& mo, double alpha, const PairId& pair, double dt,
+                   ContactGeom* g_out = nullptr) {
+  const VecX zz = mo.z + dt * mo.u;
+  Workspace ws;
+  Drive dr;
+  dr.theta_rad = mo.theta + dt * mo.omega + 0.5 * alpha * dt * dt;
+  dr.omega_radps = mo.omega + alpha * dt;
+  dr.alpha_radps2 = alpha;
+  internal::updateStations(m, zz, dr.theta_rad, &ws);
+  ContactGeom g;
+  internal::evaluateContact(m, zz, mo.u, dr, pair, &ws, &g);
+  if (g_out) *g_out = g;
+  return Vec2(g.vn, g.vt);
+}
+
+// Checks the analytic drift against the central difference; returns the relative error.
+double checkDrift(const Model& m, const Motion& mo, double alpha, const PairId& pair,
+                  const std::string& what) {
+  Workspace ws;
+  Drive dr;
+  dr.theta_rad = mo.theta;
+  dr.omega_radps = mo.omega;
+  dr.alpha_radps2 = alpha;
+  internal::updateStations(m, mo.z, dr.theta_rad, &ws);
+  ContactGeom g;
+  internal::evaluateContact(m, mo.z, mo.u, dr, pair, &ws, &g);
+  EXPECT_FALSE(g.far) << what;
+  const Vec2 drift = internal::contactVelocityDrift(m, mo.z, mo.u, dr, g, &ws);
+  // Central differences over eps and 2 eps, Richardson-extrapolated (error ~eps^4).
+  auto central = [&](double eps) {
+    return Vec2((rowVelocities(m, mo, alpha, pair, eps) - rowVelocities(m, mo, alpha, pair, -eps)) /
+                (2 * eps));
+  };
+  const double eps = 1e-6;
+  const Vec2 fd = (4.0 * central(eps) - central(2 * eps)) / 3.0;
+  // Relative to the drift, or where the terms cancel to the size of the centripetal terms
+  // (the largest spin squared times a kernel's 5 mm half-length).
+  double spin = std::abs(mo.omega);
+  for (const KernelModel& k : m.kernels) spin = std::max(spin, std::abs(mo.u[k.dof_offset + 2]));
+  const double scale = std::max(fd.norm(), spin * spin * 5e-3);
+  const double rel = (drift - fd).norm() / scale;
+  EXPECT_LT(rel, 2e-6) << what << ": analytic (" << drift.transpose() << "), central difference ("
+                       << fd.transpose() << "), gap " << g.gap_m << ", x* " << g.tooth_x_m;
+  return rel;
+}
+
+// toothKernelMotion for a tooth of any mode count (a rigid one has no modal state).
+Motion toothKernelDriftMotion(const Model& m, double x_c, double tilt_rad) {
+  if (m.teeth[0].n_modes == 4) return toothKernelMotion(m, x_c, tilt_rad);
+  Motion mo;
+  mo.z = VecX::Zero(m.n_dof);
+  mo.u = VecX::Zero(m.n_dof);
+  mo.theta = 0.03;
+  mo.omega = 83.78;
+  const int o = m.kernels[0].dof_offset;
+  mo.z.segment<2>(o) = rot(mo.theta, Vec2(0.2 + x_c, 0.005 + 1.3e-3 + 1.5e-4));
+  mo.z[o + 2] = mo.theta + tilt_rad;
+  return mo;
+}
+
+TEST(ContactDrift, ToothKernelMatchesCentralDifferences) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  double worst = 0;
+  for (int n_modes : {4, 0}) {
+    const Model m = contactModel(n_modes);
+    const PairId pair{PairKind::kToothKernel, 0, 0};
+    const ToothModel& tm = m.teeth[0];
+    for (int trial = 0; trial < 12; ++trial) {
+      // Along the tooth's side (12 of them between 5 and 55 mm), penetrating or apart.
+      const double x_c = 0.03 + 0.025 * uni(rng);
+      Motion mo = toothKernelDriftMotion(m, x_c, 0.6 * uni(rng));
+      if (n_modes > 0) {
+        const VecX q = (VecX(4) << 5e-5, -1e-5, 4e-6, -2e-6).finished();
+        mo.z.segment(tm.dof_offset, 4) = q * (1.0 + uni(rng));
+        for (int i = 0; i < 4; ++i) mo.u[tm.dof_offset + i] = 0.1 * uni(rng) / (i + 1);
+      }
+      const int o = m.kernels[0].dof_offset;
+      mo.u.segment<3>(o) << 5.0 * uni(rng), 5.0 * uni(rng), 500.0 * uni(rng);
+      mo.omega = 83.78 * (1.0 + 0.5 * uni(rng));
+      placeAtGap(m, &mo, pair, 0, 1e-4 * uni(rng));
+      const double alpha = 200.0 * uni(rng);
+      worst = std::max(worst, checkDrift(m, mo, alpha, pair,
+                                         "modes " + std::to_string(n_modes) + " trial " +
+                                             std::to_string(trial) + " x_c " + fmt(x_c)));
+    }
+    // Beyond the tip: the closest point stays at x = L (the round end).
+    Motion mo = toothKernelDriftMotion(m, 0.055, 1.2);
+    const int o = m.kernels[0].dof_offset;
+    mo.z.segment<2>(o) = rot(mo.theta, Vec2(0.2 + 0.06 + 0.005 + 1.0e-3, 0.003));
+    placeAtGap(m, &mo, pair, 0, 5e-5);
+    ContactGeom g;
+    rowVelocities(m, mo, 50.0, pair, 0.0, &g);
+    EXPECT_EQ(g.tooth_x_m, tm.length_m);
+    worst = std::max(worst, checkDrift(m, mo, 50.0, pair, "tip, modes " + std::to_string(n_modes)));
+  }
+  RecordProperty("worst_relative_error", fmt(worst));
+}
+
+TEST(ContactDrift, KernelPairsMatchCentralDifferences) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  Model m = contactModel(0);
+  m.obstacles.push_back(testutil::planeObstacle(Vec2(0.0, -0.5), Vec2(0.3, 1.0)));
+  ObstacleModel plate;
+  plate.type = ObstacleType::kSegment;
+  plate.point_m = Vec2(-0.02, -0.45);
+  plate.point_b_m = Vec2(0.02, -0.44);
+  plate.radius_m = 1e-3;
+  m.obstacles.push_back(plate);
+  compileModel(&m);
+  double worst = 0;
+  for (int trial = 0; trial < 8; ++trial) {
+    const std::string tag = " trial " + std::to_string(trial);
+    // Kernel 1 against kernel 0, at random relative poses, apart or overlapping.
+    Motion mo;
+    mo.z = VecX::Zero(m.n_dof);
+    mo.u = VecX::Zero(m.n_dof);
+    mo.theta = 0.0;
+    mo.omega = 83.78;
+    const int o0 = m.kernels[0].dof_offset, o1 = m.kernels[1].dof_offset;
+    const double dir = 3.14159 * uni(rng);
+    mo.z.segment<3>(o0) << 0.0, 0.3, 3.0 * uni(rng);
+    mo.u.segment<3>(o0) << 2 * uni(rng), 2 * uni(rng), 400 * uni(rng);
+    mo.z.segment<3>(o1) << 0.006 * std::cos(dir), 0.3 + 0.006 * std::sin(dir), 3.0 * uni(rng);
+    mo.u.segment<3>(o1) << 2 * uni(rng), 2 * uni(rng), 400 * uni(rng);
+    const PairId kk{PairKind::kKernelKernel, 0, 1};
+    placeAtGap(m, &mo, kk, 1, 2e-4 * uni(rng));
+    worst = std::max(worst, checkDrift(m, mo, 0.0, kk, "kernel-kernel" + tag));
+    // Kernel 1 on the tilted plane (obstacle 2), on the bar (obstacle 1), on the plate (3).
+    const struct {
+      int obstacle;
+      Vec2 near;
+    } cases[] = {{2, Vec2(0.0, -0.5)}, {1, Vec2(0.0, -0.28)}, {3, Vec2(0.01 * uni(rng), -0.445)}};
+    for (const auto& c : cases) {
+      const Vec2 off(std::cos(dir), std::sin(dir));
+      mo.z.segment<2>(o1) = c.near + 0.008 * (c.obstacle == 2 ? Vec2(0.3, 1.0).normalized() : off);
+      const PairId ko{PairKind::kKernelObstacle, 1, c.obstacle};
+      placeAtGap(m, &mo, ko, 1, 2e-4 * uni(rng));
+      worst = std::max(worst,
+                       checkDrift(m, mo, 0.0, ko, "obstacle " + std::to_string(c.obstacle) + tag));
+    }
+  }
+  RecordProperty("worst_relative_error", fmt(worst));
 }
 
 }  // namespace
