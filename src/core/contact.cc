@@ -517,7 +517,7 @@ void broadPhaseBruteForce(const Model& m, const VecX& z, double margin_m, Worksp
 
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
-                     bool tight_bound) {
+                     bool tight_bound, double* warm_x_m) {
   g->pair = pair;
   g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
@@ -538,80 +538,96 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     const int s0 = ws->station_offset[pair.a];
     Proximity best;
     best.distance_m = std::numeric_limits<double>::infinity();
-    int best_seg = 0;
-    // Segments are visited nearest first by a cheap lower bound (distance to the ellipse's
-    // centre minus a); once the bound passes the best distance the rest cannot win.
-    // Segments are ordered by the supporting-line gap (gapLowerBound); "far" is decided by the
-    // coarser bounding-circle bound (centre distance minus a) as it always was: the polyline
-    // only approximates the deformed centreline between stations, which the margin covers.
-    const int n_seg = tm.n_stations - 1;
-    double lower[64];
-    int order[64];
-    double circle_bound = std::numeric_limits<double>::infinity();
-    for (int s = 0; s < n_seg; ++s) {
-      const Vec2& a = ws->stations_W[s0 + s];
-      const Vec2 ab = ws->stations_W[s0 + s + 1] - a;
-      const double f = std::clamp((e.center - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-      const Vec2 p = a + f * ab;
-      lower[s] = gapLowerBound(e, width, p);
-      circle_bound = std::min(circle_bound, (e.center - p).norm() - e.a_m);
-      order[s] = s;
-    }
-    std::sort(order, order + n_seg, [&](int i, int j) { return lower[i] < lower[j]; });
-    if (circle_bound - 0.5 * tm.diameter_m > far_m) {
-      g->gap_m = circle_bound - 0.5 * tm.diameter_m;
-      g->far = true;
-      return;
-    }
-    for (int o = 0; o < n_seg; ++o) {
-      const int s = order[o];
-      if (lower[s] > best.distance_m) break;
-      const Proximity p = segmentEllipse(ws->stations_W[s0 + s], ws->stations_W[s0 + s + 1], e);
-      if (p.distance_m < best.distance_m) {
-        best = p;
-        best_seg = s;
-      }
-    }
     const double r_t = 0.5 * tm.diameter_m;
-    const double x0 = tm.station_x_m[best_seg], x1 = tm.station_x_m[best_seg + 1];
-    g->tooth_x_m = x0 + best.param * (x1 - x0);
-    if (tm.n_modes > 0) {
-      // Refine on the exact deformed centreline (the polyline only brackets it), so that the
-      // gap and the modal Jacobian below describe the same curve: secant iterations on the
-      // closest-point condition h(x) = n(x) . r'(x) = 0, started from the polyline's answer.
-      const auto q = z.segment(tm.dof_offset, tm.n_modes);
-      Vec2 r_x;
-      const Rotation2 rot(drive.theta_rad);
-      auto slopeAt = [&](double x, Proximity* p) {
-        Vec2 dr_dx;
-        r_x = centrelinePoint(tm, pair.a, q, rot, x, ws, &dr_dx);
-        *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
-        return p->normal.dot(dr_dx);
-      };
-      double xa = g->tooth_x_m;
-      double xb = std::min(tm.length_m, xa + 1e-6 * tm.length_m);
-      if (xb == xa) xb = xa - 1e-6 * tm.length_m;
-      Proximity pa, pb;
-      double ha = slopeAt(xa, &pa), hb = slopeAt(xb, &pb);
-      int iterations = 0;
-      for (; iterations < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m; ++iterations) {
-        const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
-        xa = xb, ha = hb;
-        xb = xn;
-        hb = slopeAt(xb, &pb);
+    // A pair in contact starts from its last closest point (warm_x_m) on the exact centreline;
+    // should that refinement not converge, the polyline search below is the fallback.
+    const bool warm = warm_x_m != nullptr && *warm_x_m >= 0.0 && tm.n_modes > 0 &&
+                      far_m == std::numeric_limits<double>::infinity();
+    for (int attempt = warm ? 0 : 1; attempt < 2; ++attempt) {
+      if (attempt == 1) {
+        best.distance_m = std::numeric_limits<double>::infinity();
+        int best_seg = 0;
+        // Segments are visited nearest first by a cheap lower bound (distance to the ellipse's
+        // centre minus a); once the bound passes the best distance the rest cannot win.
+        // Segments are ordered by the supporting-line gap (gapLowerBound); "far" is decided by the
+        // coarser bounding-circle bound (centre distance minus a) as it always was: the polyline
+        // only approximates the deformed centreline between stations, which the margin covers.
+        const int n_seg = tm.n_stations - 1;
+        double lower[64];
+        int order[64];
+        double circle_bound = std::numeric_limits<double>::infinity();
+        for (int s = 0; s < n_seg; ++s) {
+          const Vec2& a = ws->stations_W[s0 + s];
+          const Vec2 ab = ws->stations_W[s0 + s + 1] - a;
+          const double f = std::clamp((e.center - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+          const Vec2 p = a + f * ab;
+          lower[s] = gapLowerBound(e, width, p);
+          circle_bound = std::min(circle_bound, (e.center - p).norm() - e.a_m);
+          order[s] = s;
+        }
+        std::sort(order, order + n_seg, [&](int i, int j) { return lower[i] < lower[j]; });
+        if (circle_bound - 0.5 * tm.diameter_m > far_m) {
+          g->gap_m = circle_bound - 0.5 * tm.diameter_m;
+          g->far = true;
+          return;
+        }
+        for (int o = 0; o < n_seg; ++o) {
+          const int s = order[o];
+          if (lower[s] > best.distance_m) break;
+          const Proximity p = segmentEllipse(ws->stations_W[s0 + s], ws->stations_W[s0 + s + 1], e);
+          if (p.distance_m < best.distance_m) {
+            best = p;
+            best_seg = s;
+          }
+        }
+        const double x0 = tm.station_x_m[best_seg], x1 = tm.station_x_m[best_seg + 1];
+        g->tooth_x_m = x0 + best.param * (x1 - x0);
+      } else {
+        g->tooth_x_m = *warm_x_m;
       }
-      // No secant step (equal slopes at both points, e.g. a flank square to the axis at the
-      // tip): xb is only the probe; keep the polyline's point if it is the closer one, and
-      // evaluate there again so that r_x and the mode values in scratch_phi/dphi describe it.
-      if (iterations == 0 && pa.distance_m < pb.distance_m) {
-        xb = xa;
-        slopeAt(xb, &pb);
+      if (tm.n_modes > 0) {
+        // Refine on the exact deformed centreline (the polyline only brackets it), so that the
+        // gap and the modal Jacobian below describe the same curve: secant iterations on the
+        // closest-point condition h(x) = n(x) . r'(x) = 0, started from the polyline's answer.
+        const auto q = z.segment(tm.dof_offset, tm.n_modes);
+        Vec2 r_x;
+        const Rotation2 rot(drive.theta_rad);
+        auto slopeAt = [&](double x, Proximity* p) {
+          Vec2 dr_dx;
+          r_x = centrelinePoint(tm, pair.a, q, rot, x, ws, &dr_dx);
+          *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
+          return p->normal.dot(dr_dx);
+        };
+        double xa = g->tooth_x_m;
+        double xb = std::min(tm.length_m, xa + 1e-6 * tm.length_m);
+        if (xb == xa) xb = xa - 1e-6 * tm.length_m;
+        Proximity pa, pb;
+        double ha = slopeAt(xa, &pa), hb = slopeAt(xb, &pb);
+        int iterations = 0;
+        for (; iterations < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m;
+             ++iterations) {
+          const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
+          xa = xb, ha = hb;
+          xb = xn;
+          hb = slopeAt(xb, &pb);
+        }
+        // No secant step (equal slopes at both points, e.g. a flank square to the axis at the
+        // tip): xb is only the probe; keep the polyline's point if it is the closer one, and
+        // evaluate there again so that r_x and the mode values in scratch_phi/dphi describe it.
+        if (iterations == 0 && pa.distance_m < pb.distance_m) {
+          xb = xa;
+          slopeAt(xb, &pb);
+        }
+        // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
+        g->tooth_x_m = xb;
+        best = pb;
+        best.point1 = r_x;
+        // A warm start counts when its secant iteration converged.
+        if (attempt == 0 && !(iterations > 0 && iterations < 20)) continue;
       }
-      // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
-      g->tooth_x_m = xb;
-      best = pb;
-      best.point1 = r_x;
+      break;
     }
+    if (warm_x_m != nullptr) *warm_x_m = g->tooth_x_m;
     g->gap_m = best.distance_m - r_t;
     g->rho1_m = best.radius2_m;
     g->n = best.normal;

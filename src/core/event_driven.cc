@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 #include "internal.h"
@@ -69,6 +70,7 @@ enum class SeparatedPairs {
 // needs; a pair beyond that reach cannot close within the step.
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
                  SeparatedPairs separated = SeparatedPairs::kNear, double horizon_s = 0.0) {
+  c.ws.ed_memo.valid = false;  // ws.geoms and the stations change
   // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
   // are sorted by kind, tooth pairs first, by tooth).
   layoutStations(c.m, &c.ws);
@@ -89,7 +91,12 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     ContactGeom& g = c.ws.geoms[i];
     double far_m = kInf;
     bool tight = false;
-    if (c.ws.memory[pairKey(p)].state == ContactState::kSeparated) {
+    PairMemory& mem = c.ws.memory[pairKey(p)];
+    // Tooth pairs in contact start the narrow phase from their last closest point; a
+    // separated one records its closest point for when its contact begins.
+    double* warm = p.kind == PairKind::kToothKernel ? &mem.warm_x_m : nullptr;
+    if (mem.state == ContactState::kSeparated) {
+      mem.warm_x_m = -1;
       if (separated == SeparatedPairs::kNone) {
         // Not evaluated: marked far with no finite bound.
         g.pair = p;
@@ -108,7 +115,7 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       }
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight);
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm);
   }
 }
 
@@ -154,6 +161,106 @@ bool solveSquare(Workspace* ws, int n) {
   return true;
 }
 
+// What rhs() reads of a candidate's pair memory: its index sets and compliant constants.
+RhsMemo::PairState pairStateOf(const PairMemory& mem) {
+  RhsMemo::PairState p;
+  p.state = static_cast<int>(mem.state);
+  p.closed = mem.closed;
+  p.slip_sign = mem.slip_sign;
+  p.v_in_mps = mem.v_in_mps;
+  p.hertz_K = mem.hertz_K;
+  return p;
+}
+
+bool bitsEqual(const VecX& a, const VecX& b) {
+  return a.size() == b.size() &&
+         std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
+}
+
+// Whether the last rhs() call (whose geometry, forces and multipliers are still in the
+// workspace: any other evaluation clears ws.ed_memo.valid) was made with the same inputs, so
+// that its results hold for a call at (dr, z, u): the same drum state, state bits, pedicels,
+// candidates and index sets, and separated pairs evaluated as `separated` asks (any mode
+// serves kNone, whose callers read only pairs in contact; without separated candidates the
+// modes agree).
+bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
+                SeparatedPairs separated, double horizon_s) {
+  const RhsMemo& mm = c.ws.ed_memo;
+  if (!mm.valid || mm.model != &c.m || mm.t_s != dr.t_s || mm.theta_rad != dr.theta_rad ||
+      mm.omega_radps != dr.omega_radps || mm.alpha_radps2 != dr.alpha_radps2)
+    return false;
+  const bool mode_ok = separated == SeparatedPairs::kNone || mm.n_separated == 0 ||
+                       (static_cast<int>(separated) == mm.separated &&
+                        (separated != SeparatedPairs::kSign || horizon_s == mm.horizon_s));
+  if (!mode_ok || !bitsEqual(z, mm.z) || !bitsEqual(u, mm.u) ||
+      c.d.kernel_attached != mm.attached || c.ws.candidates != mm.candidates ||
+      c.ws.geoms.size() != c.ws.candidates.size())
+    return false;
+  for (size_t i = 0; i < mm.candidates.size(); ++i) {
+    const RhsMemo::PairState p = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
+    const RhsMemo::PairState& q = mm.pairs[i];
+    if (p.state != q.state || p.closed != q.closed || p.slip_sign != q.slip_sign ||
+        p.v_in_mps != q.v_in_mps || p.hertz_K != q.hertz_K)
+      return false;
+  }
+  return true;
+}
+
+// Records the inputs and the accelerations of a completed rhs() call.
+void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
+                  SeparatedPairs separated, double horizon_s, const VecX& udot, double torque) {
+  RhsMemo& mm = c.ws.ed_memo;
+  mm.model = &c.m;
+  mm.t_s = dr.t_s;
+  mm.theta_rad = dr.theta_rad;
+  mm.omega_radps = dr.omega_radps;
+  mm.alpha_radps2 = dr.alpha_radps2;
+  mm.z = z;
+  mm.u = u;
+  mm.attached = c.d.kernel_attached;
+  mm.candidates = c.ws.candidates;
+  mm.pairs.resize(mm.candidates.size());
+  mm.n_separated = 0;
+  for (size_t i = 0; i < mm.candidates.size(); ++i) {
+    mm.pairs[i] = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
+    mm.n_separated += mm.pairs[i].state == static_cast<int>(ContactState::kSeparated) ? 1 : 0;
+  }
+  mm.separated = static_cast<int>(separated);
+  mm.horizon_s = horizon_s;
+  mm.udot = udot;
+  mm.torque = torque;
+  mm.valid = true;
+}
+
+// Contact forces per geom (ws.ed_fn, ws.ed_ft) from the multipliers of the last rhs(), stored
+// in the pair memory if asked; returns the contact torque on the drum [N m].
+double finishRhs(const Ctx& c, bool store_forces) {
+  Workspace& ws = c.ws;
+  const int k = static_cast<int>(ws.active.size());
+  double torque = 0.0;
+  const int n_geoms = static_cast<int>(ws.geoms.size());
+  growTo(&ws.ed_fn, n_geoms);
+  growTo(&ws.ed_ft, n_geoms);
+  ws.ed_fn.head(n_geoms).setZero();
+  ws.ed_ft.head(n_geoms).setZero();
+  for (int i = 0; i < k; ++i) {
+    const ContactGeom& g = ws.geoms[ws.active[i]];
+    ws.ed_fn[ws.active[i]] = ws.lambda[2 * i];
+    ws.ed_ft[ws.active[i]] = ws.lambda[2 * i + 1];
+    if (g.pair.kind == PairKind::kToothKernel) {
+      const Vec2& p = g.p0;
+      torque += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
+                ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
+    }
+    if (store_forces) {
+      PairMemory& mem = ws.memory[pairKey(g.pair)];
+      mem.normal_force_N = ws.lambda[2 * i];
+      mem.tangential_force_N = ws.lambda[2 * i + 1];
+    }
+  }
+  return torque;
+}
+
 // Right-hand side under the current index sets: udot, the contact forces (stored in the pair
 // memory's normal/tangential force) and the contact torque on the drum. Returns false if the
 // constraint system is singular.
@@ -165,6 +272,11 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   const Model& m = c.m;
   Workspace& ws = c.ws;
   const Drive dr = driveAtTime(c, t);
+  if (rhsMemoHit(c, dr, z, u, separated, horizon_s)) {
+    *udot = ws.ed_memo.udot;
+    *drum_torque = finishRhs(c, store_forces);
+    return true;
+  }
   smoothForces(m, c.d, z, u, dr, &ws.forces);
   evaluateAll(c, z, u, dr, separated, horizon_s);
 
@@ -305,28 +417,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   *udot = ws.du;
 
   // Contact torque on the drum (for the drive work) and, if asked, the forces for reporting.
-  double torque = 0.0;
-  const int n_geoms = static_cast<int>(ws.geoms.size());
-  growTo(&ws.ed_fn, n_geoms);
-  growTo(&ws.ed_ft, n_geoms);
-  ws.ed_fn.head(n_geoms).setZero();
-  ws.ed_ft.head(n_geoms).setZero();
-  for (int i = 0; i < k; ++i) {
-    const ContactGeom& g = ws.geoms[ws.active[i]];
-    ws.ed_fn[ws.active[i]] = ws.lambda[2 * i];
-    ws.ed_ft[ws.active[i]] = ws.lambda[2 * i + 1];
-    if (g.pair.kind == PairKind::kToothKernel) {
-      const Vec2& p = g.p0;
-      torque += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
-                ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
-    }
-    if (store_forces) {
-      PairMemory& mem = ws.memory[pairKey(g.pair)];
-      mem.normal_force_N = ws.lambda[2 * i];
-      mem.tangential_force_N = ws.lambda[2 * i + 1];
-    }
-  }
-  *drum_torque = torque;
+  *drum_torque = finishRhs(c, store_forces);
+  rhsMemoStore(c, dr, z, u, separated, horizon_s, ws.du, *drum_torque);
   return true;
 }
 
@@ -716,6 +808,7 @@ bool projectConstraints(const Ctx& c, double t) {
           mem.slip_sign == 0 && cp.friction > 0 && mem.state == ContactState::kStick;
       if (!normal && !tangent) continue;
       // This contact at the current (already corrected) state.
+      ws.ed_memo.valid = false;  // the stations move
       ContactGeom g;
       const PairId& pair = ws.candidates[i];
       if (pair.kind == PairKind::kToothKernel)
@@ -916,12 +1009,95 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
   }
 }
 
+// Whether an event function armed as `arm` has fired at value v (v0: its value at the step
+// start), and its signed distance from firing (> 0 before, <= 0 once fired; kBelowStart:
+// v - v0, which is 0 at the start itself).
+bool armFires(Arm arm, double v, double v0) {
+  return arm == Arm::kAtZero ? v <= 0 : arm == Arm::kBelowStart && v < v0;
+}
+double armValue(Arm arm, double v, double v0) { return arm == Arm::kAtZero ? v : v - v0; }
+
+// Locates the first event of a step from the data's time: some armed function (ws.ed_arm,
+// values ws.ed_ev0 at the start) has fired at step length hi_s (values ev_hi; its state, impulses
+// and torque impulse in ws.ed_z_hi, ...) and none at 0. Narrows the bracket [lo, hi] until
+// hi - lo <= t_tol by re-stepping from the start: Illinois regula falsi on the function
+// that fired earliest by linear interpolation, bisection when a fired function has no positive
+// value at lo (an armed-below-start function at the start) or the bracket stopped halving;
+// trial points keep t_tol / 2 from the ends so that the bracket closes from both sides. Sets
+// *h_take to hi, with its state in ws.ed_z_hi, ws.ed_u_hi, ws.ed_imp_n_hi, ws.ed_imp_t_hi,
+// ws.ed_torque_impulse_hi and its values in ws.ed_ev_hi; returns whether the last evaluation
+// (ws.geoms, forces) was at hi.
+bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, double t_tol,
+                 double* h_take) {
+  Workspace& ws = c.ws;
+  const std::vector<double>& ev0 = ws.ed_ev0;
+  const std::vector<std::uint8_t>& arm = ws.ed_arm;
+  std::vector<double>& v_lo = ws.ed_ev_lo;
+  std::vector<double>& v_hi = ws.ed_ev_hi;
+  std::vector<double>& v_mid = ws.ed_evm;
+  v_lo = ev0;
+  v_hi = ev_hi;
+  double lo = 0, hi = hi_s;
+  double w_lo = 1, w_hi = 1;  // Illinois weights of the end values
+  int kept = 0;               // +1: lo kept by the last step, -1: hi kept, 0: neither yet
+  double width_before[2] = {kInf, kInf};  // bracket widths one and two steps back
+  bool at_hi = true;
+  double err, tq;
+  for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
+    // Trial point: the earliest linear-interpolated crossing of the fired functions.
+    bool bisect = hi - lo > 0.5 * width_before[1];
+    double x = hi;
+    for (size_t i = 0; i < v_hi.size() && !bisect; ++i) {
+      const Arm a = static_cast<Arm>(arm[i]);
+      if (a == Arm::kOff || !armFires(a, v_hi[i], ev0[i])) continue;
+      const double f_lo = w_lo * armValue(a, v_lo[i], ev0[i]);
+      const double f_hi = w_hi * armValue(a, v_hi[i], ev0[i]);
+      if (!(f_lo > 0) || !(f_lo - f_hi > 0)) {
+        bisect = true;
+        break;
+      }
+      x = std::min(x, lo + (hi - lo) * (f_lo / (f_lo - f_hi)));
+    }
+    if (bisect || !(x > lo)) x = 0.5 * (lo + hi);
+    x = std::clamp(x, lo + 0.5 * t_tol, hi - 0.5 * t_tol);
+    width_before[1] = width_before[0];
+    width_before[0] = hi - lo;
+    dopriStep(c, c.d.t_s, x, c.d.z, c.d.u, &ws.ed_zt, &ws.ed_ut, &err, &tq);
+    eventValues(c, c.d.t_s + x, ws.ed_zt, ws.ed_ut, &v_mid);
+    bool fired = false;
+    for (size_t i = 0; i < v_mid.size() && v_mid.size() == ev0.size() && !fired; ++i)
+      fired = armFires(static_cast<Arm>(arm[i]), v_mid[i], ev0[i]);
+    if (fired) {
+      hi = x;
+      v_hi = v_mid;
+      ws.ed_z_hi = ws.ed_zt;
+      ws.ed_u_hi = ws.ed_ut;
+      ws.ed_imp_n_hi = ws.ed_imp_n;
+      ws.ed_imp_t_hi = ws.ed_imp_t;
+      ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
+      w_lo = kept == 1 ? 0.5 * w_lo : w_lo;
+      w_hi = 1;
+      kept = 1;
+    } else {
+      lo = x;
+      v_lo = v_mid;
+      w_hi = kept == -1 ? 0.5 * w_hi : w_hi;
+      w_lo = 1;
+      kept = -1;
+    }
+    at_hi = fired;
+  }
+  *h_take = hi;
+  return at_hi;
+}
 }  // namespace
 
 StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   Workspace& ws = *d->ws;
   Ctx c{m, *d, ws};
   const int n = m.n_dof;
+  // A time step since the last event-driven one rewrote the geometry and forces.
+  if (ws.ts_in_contact_step != -2) ws.ed_memo.valid = false;
   ws.ts_in_contact_step = -2;  // time stepping's list of pairs in contact is stale from here
 
   // Candidate pairs for this step: broad phase with a margin the step cannot outrun.
@@ -949,9 +1125,11 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   // contact now, unless they are separating.
   {
     const Drive dr0 = driveAtTime(c, d->t_s);
-    evaluateAll(c, d->z, d->u, dr0);
+    // (The last step's end, evaluated by its statistics, is this state.)
+    if (!rhsMemoHit(c, dr0, d->z, d->u, SeparatedPairs::kNear, 0.0))
+      evaluateAll(c, d->z, d->u, dr0);
     bool rigid_touch = false, any_touch = false;
-    const double e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
+    double e_net = kInf;  // energy minus drive work, computed when a contact begins
     for (size_t i = 0; i < ws.geoms.size(); ++i) {
       const ContactGeom& g = ws.geoms[i];
       PairMemory& mem = ws.memory[pairKey(g.pair)];
@@ -960,6 +1138,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
       if (g.params->law == ContactLaw::kRigid) {
         rigid_touch = true;
       } else {
+        if (e_net == kInf) e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
         mem.v_in_mps = -g.vn;
         mem.hertz_K = g.hertz_K;
         beginEpisode(m, d, &mem, g, d->t_s, e_net);
@@ -1087,18 +1266,27 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
     }
   }
   if (event) {
-    // Bisection on the step length (re-stepping from the start each time) to the tolerance.
-    double lo = 0, hi = h_fired;
+    // The first crossing (re-stepping from the start each time) to the tolerance, from the
+    // values at the fired end: ev1, or the graze probe's.
     const double t_tol = std::max(1e-15, 1e-3 * m.integrator.tolerance * 1e-3);
-    for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
-      const double mid = 0.5 * (lo + hi);
-      dopriStep(c, d->t_s, mid, d->z, d->u, &zt, &ut, &et, &tq);
-      eventValues(c, d->t_s + mid, zt, ut, &evm);
-      (triggered(evm) ? hi : lo) = mid;
+    ws.ed_z_hi = h_fired == h ? z1 : zt;
+    ws.ed_u_hi = h_fired == h ? u1 : ut;
+    ws.ed_imp_n_hi = ws.ed_imp_n;  // the step's, or the confirmed graze probe's
+    ws.ed_imp_t_hi = ws.ed_imp_t;
+    ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
+    const bool at_hi = locateEvent(c, h_fired, h_fired == h ? ev1 : evm, t_tol, &h_take);
+    // The state at the located end, and its values (geometry and forces) unless the last
+    // evaluation was there.
+    z1 = ws.ed_z_hi;
+    u1 = ws.ed_u_hi;
+    ws.ed_imp_n = ws.ed_imp_n_hi;
+    ws.ed_imp_t = ws.ed_imp_t_hi;
+    ws.ed_torque_impulse = ws.ed_torque_impulse_hi;
+    if (at_hi) {
+      ev1 = ws.ed_ev_hi;
+    } else {
+      eventValues(c, d->t_s + h_take, z1, u1, &ev1);
     }
-    h_take = hi;
-    dopriStep(c, d->t_s, h_take, d->z, d->u, &z1, &u1, &err, &torque1);
-    eventValues(c, d->t_s + h_take, z1, u1, &ev1);
     end_evaluated = true;
   }
   // Located maxima of the compliant forces over the step, under the step's index sets.

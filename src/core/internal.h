@@ -96,9 +96,11 @@ struct PairMemory {
   double vn_before = 0, vt_before = 0;  // velocities at the start of the episode [m/s]
   double energy_before_J = 0;           // energy minus drive work at the start of the episode [J]
   double last_contact_end_s = -1;       // end of the previous episode [s]
-  int macro_index = -1;                 // macro-collision counter of this pair
-  int sub_index = -1;                   // sub-collision index within the macro-collision
-  double normal_force_N = 0;            // last force values (for ContactInfo) [N]
+  double warm_x_m = -1;       // tooth pairs: material coordinate of the last closest point (the
+                              // narrow phase's warm start while in contact; -1 none) [m]
+  int macro_index = -1;       // macro-collision counter of this pair
+  int sub_index = -1;         // sub-collision index within the macro-collision
+  double normal_force_N = 0;  // last force values (for ContactInfo) [N]
   double tangential_force_N = 0;
   double impulse_n_acc = 0;  // running sums of the impulses since reset [N s]
   double impulse_t_acc = 0;
@@ -192,6 +194,35 @@ bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPr
 void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const VecX>& q0,
                     const Eigen::Ref<const VecX>& qd0, Eigen::Ref<VecX> q1, Eigen::Ref<VecX> qd1);
 
+// The inputs of the event-driven integrator's last right-hand side evaluation, so that a call
+// with the same inputs (the step end, evaluated again as the next step's start, by the event
+// functions and the statistics) reuses its results, which stay in the workspace until any
+// other evaluation clears `valid`.
+struct RhsMemo {
+  // What the right-hand side reads of one candidate's pair memory.
+  struct PairState {
+    int state = 0;        // ContactState [-]
+    bool closed = false;  // rigid normal closed [-]
+    int slip_sign = 0;    // slip direction [-]
+    double v_in_mps = 0;  // compliant approach speed [m/s]
+    double hertz_K = 0;   // compliant Hertz constant [N/m^{3/2}]
+  };
+  bool valid = false;                  // the workspace holds that evaluation's results [-]
+  const Model* model = nullptr;        // model it was made for
+  double t_s = 0, theta_rad = 0;       // time [s] and drum angle [rad]
+  double omega_radps = 0;              // drum speed [rad/s]
+  double alpha_radps2 = 0;             // drum acceleration [rad/s^2]
+  VecX z, u;                           // state [m or -, m/s or -]
+  std::vector<std::uint8_t> attached;  // pedicels [-]
+  std::vector<PairId> candidates;      // candidate pairs [-]
+  std::vector<PairState> pairs;        // their memory, in that order
+  int n_separated = 0;                 // separated candidates among them [-]
+  int separated = 0;                   // how separated pairs were evaluated (SeparatedPairs) [-]
+  double horizon_s = 0;                // the event functions' horizon [s]
+  VecX udot;                           // accelerations [m/s^2 or modal 1/s^2]
+  double torque = 0;                   // contact torque on the drum [N m]
+};
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
@@ -256,6 +287,10 @@ struct Workspace {
   std::vector<double> ed_ev0, ed_ev1, ed_evm;  // event function values (see eventValues)
   std::vector<double> ed_rate0, ed_rate1;      // their rates at the step ends [unit / s]
   std::vector<std::uint8_t> ed_arm;            // arming of each function over the step
+  std::vector<double> ed_ev_lo, ed_ev_hi;      // event location: values at the bracket's ends
+  VecX ed_z_hi, ed_u_hi;                       // and the state at its upper end
+  VecX ed_imp_n_hi, ed_imp_t_hi;               // with the impulses up to it [N s]
+  double ed_torque_impulse_hi = 0;             // and the drum torque impulse [N m s]
   VecX ed_imp_n_saved, ed_imp_t_saved;         // impulses kept across a graze probe [N s]
   std::vector<int> ed_forced_slip;             // geoms forced into slip by a stick-slip event
   std::vector<std::pair<int, int>> ed_idx;     // constraint rows: (active contact, 0 N / 1 T)
@@ -272,6 +307,7 @@ struct Workspace {
   std::vector<std::uint8_t> ed_pk_on, ed_pk_on_end;
   // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
   VecX ed_pk_udot;
+  internal::RhsMemo ed_memo;  // the last event-driven right-hand side's inputs
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
 };
@@ -330,10 +366,14 @@ void prepareBroadPhase(const Model& m, Workspace* ws);
 // approximates the deformed tooth, and the margin covers the difference). Both integrators
 // pass tight_bound for separated pairs, so kernel-kernel and kernel-obstacle pairs count as
 // near (and are reported) when their supporting-line gap is within a quarter margin.
+// warm_x_m (tooth pairs, optional): where >= 0 and far_m is infinite, the closest point's
+// material coordinate of an earlier evaluation, from which the refinement on the deformed
+// centreline starts instead of the polyline search (that search remains the fallback should
+// the refinement not converge); receives the closest point found (left alone when far).
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g,
                      double far_m = std::numeric_limits<double>::infinity(),
-                     bool tight_bound = false);
+                     bool tight_bound = false, double* warm_x_m = nullptr);
 
 // Velocity drift of a contact's rows, analytically: the time derivative of (dg_N/dt, dg_T/dt)
 // along the motion z' = u with u frozen and the drum at its speed and acceleration, i.e.
