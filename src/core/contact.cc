@@ -598,6 +598,31 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
           *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
           return p->normal.dot(dr_dx);
         };
+        if (attempt == 0) {
+          // Warm start: the last closest point is within the motion since it was found, so the
+          // secant starts with a short probe (1e-9 L) and stops once its next correction is
+          // below the tolerance (1e-15 L) without evaluating it; not converged in 20 iterations
+          // (or equal slopes apart), the polyline search decides.
+          double xa = g->tooth_x_m;
+          double xb = std::min(tm.length_m, xa + 1e-9 * tm.length_m);
+          if (xb == xa) xb = xa - 1e-9 * tm.length_m;
+          Proximity pa, pb;
+          double ha = slopeAt(xa, &pa), hb = slopeAt(xb, &pb);
+          bool converged = false;
+          for (int it = 0; it < 20 && hb != ha; ++it) {
+            const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
+            converged = std::abs(xn - xb) <= 1e-15 * tm.length_m;
+            if (converged) break;
+            xa = xb, ha = hb;
+            xb = xn;
+            hb = slopeAt(xb, &pb);
+          }
+          if (!converged) continue;
+          g->tooth_x_m = xb;
+          best = pb;
+          best.point1 = r_x;
+          break;
+        }
         double xa = g->tooth_x_m;
         double xb = std::min(tm.length_m, xa + 1e-6 * tm.length_m);
         if (xb == xa) xb = xa - 1e-6 * tm.length_m;
@@ -622,8 +647,6 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
         g->tooth_x_m = xb;
         best = pb;
         best.point1 = r_x;
-        // A warm start counts when its secant iteration converged.
-        if (attempt == 0 && !(iterations > 0 && iterations < 20)) continue;
       }
       break;
     }

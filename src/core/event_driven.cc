@@ -1038,15 +1038,16 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
   v_lo = ev0;
   v_hi = ev_hi;
   double lo = 0, hi = hi_s;
-  double w_lo = 1, w_hi = 1;  // Illinois weights of the end values
+  double w_lo = 1, w_hi = 1;  // Anderson-Bjorck weights of the end values
   int kept = 0;               // +1: lo kept by the last step, -1: hi kept, 0: neither yet
-  double width_before[2] = {kInf, kInf};  // bracket widths one and two steps back
+  double width_before[3] = {kInf, kInf, kInf};  // bracket widths one to three steps back
   bool at_hi = true;
   double err, tq;
   for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
     // Trial point: the earliest linear-interpolated crossing of the fired functions.
-    bool bisect = hi - lo > 0.5 * width_before[1];
+    bool bisect = hi - lo > 0.5 * width_before[2];
     double x = hi;
+    int sel = -1;  // the function that gave it
     for (size_t i = 0; i < v_hi.size() && !bisect; ++i) {
       const Arm a = static_cast<Arm>(arm[i]);
       if (a == Arm::kOff || !armFires(a, v_hi[i], ev0[i])) continue;
@@ -1056,10 +1057,18 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
         bisect = true;
         break;
       }
-      x = std::min(x, lo + (hi - lo) * (f_lo / (f_lo - f_hi)));
+      const double xi = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+      if (xi < x) {
+        x = xi;
+        sel = static_cast<int>(i);
+      }
     }
-    if (bisect || !(x > lo)) x = 0.5 * (lo + hi);
+    if (bisect || !(x > lo)) {
+      x = 0.5 * (lo + hi);
+      sel = -1;
+    }
     x = std::clamp(x, lo + 0.5 * t_tol, hi - 0.5 * t_tol);
+    width_before[2] = width_before[1];
     width_before[1] = width_before[0];
     width_before[0] = hi - lo;
     dopriStep(c, c.d.t_s, x, c.d.z, c.d.u, &ws.ed_zt, &ws.ed_ut, &err, &tq);
@@ -1067,7 +1076,17 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
     bool fired = false;
     for (size_t i = 0; i < v_mid.size() && v_mid.size() == ev0.size() && !fired; ++i)
       fired = armFires(static_cast<Arm>(arm[i]), v_mid[i], ev0[i]);
+    // Anderson-Bjorck: an end kept twice in a row has its value scaled by 1 - f_new / f_old
+    // (of the replaced end; 1/2 where that is not positive or no function was selected).
+    auto scale = [&](const std::vector<double>& v_old) {
+      if (sel < 0 || v_mid.size() != ev0.size()) return 0.5;
+      const Arm a = static_cast<Arm>(arm[sel]);
+      const double ratio = armValue(a, v_mid[sel], ev0[sel]) / armValue(a, v_old[sel], ev0[sel]);
+      const double m = 1.0 - ratio;
+      return m > 0 && m < 1 ? m : 0.5;
+    };
     if (fired) {
+      if (kept == 1) w_lo *= scale(v_hi);
       hi = x;
       v_hi = v_mid;
       ws.ed_z_hi = ws.ed_zt;
@@ -1075,13 +1094,12 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
       ws.ed_imp_n_hi = ws.ed_imp_n;
       ws.ed_imp_t_hi = ws.ed_imp_t;
       ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
-      w_lo = kept == 1 ? 0.5 * w_lo : w_lo;
       w_hi = 1;
       kept = 1;
     } else {
+      if (kept == -1) w_hi *= scale(v_lo);
       lo = x;
       v_lo = v_mid;
-      w_hi = kept == -1 ? 0.5 * w_hi : w_hi;
       w_lo = 1;
       kept = -1;
     }
@@ -1103,8 +1121,9 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   // Candidate pairs for this step: broad phase with a margin the step cannot outrun.
   const double v_bound = motionBound(c);
   const double margin = std::max(m.broadphase_margin_m, 1e-6);
-  updateStations(m, d->z, d->theta_rad, &ws);
-  broadPhase(m, d->z, 2.0 * margin, &ws);
+  // (Stations only of the teeth that a kernel can reach: evaluateAll computes what it needs.)
+  layoutStations(m, &ws);
+  broadPhase(m, d->z, 2.0 * margin, &ws, &d->theta_rad);
   for (const PairId& p : ws.candidates) ws.memory[pairKey(p)];
   // Contacts that left the candidate set are separated.
   for (auto& kv : ws.memory) kv.second.seen = false;
