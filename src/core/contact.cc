@@ -88,15 +88,51 @@ void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, S
 // Deformed centreline point at material coordinate x in world, A(theta) [b + (x + w_c) e1 + w e2],
 // and its tangent dr/dx = A(theta) [(1 + w_c') e1 + w' e2] with w_c' = -(w')^2 / 2.
 // The foreshortening w_c(x) = -q^T H(x) q / 2 blends the stations' values linearly, as H(x)
-// blends the station matrices; updateStations stored them for this q.
+// blends the station matrices; updateStations stored them for this q (or, with `direct`,
+// they are computed here for the interval holding x).
+// H(x_s) q [1/sqrt(kg)] and w_c(x_s) = -q^T H(x_s) q / 2 [m] of station s for modal
+// coordinates q, with the operations of updateToothStations (so the same bits).
+void stationHq(const ToothModel& tm, int s, const double* q, double* hq, double* wc) {
+  const int n = tm.n_modes;
+  const double* H = tm.H_s[s].data();
+  for (int i = 0; i < n; ++i) hq[i] = 0.0;
+  for (int j = 0; j < n; ++j) {
+    const double qj = q[j];
+    for (int i = 0; i < n; ++i) hq[i] += H[j * n + i] * qj;
+  }
+  double qHq = 0.0;
+  for (int i = 0; i < n; ++i) qHq += q[i] * hq[i];
+  *wc = -0.5 * qHq;
+}
+
+// The stations bracketing one interval, computed directly (without the workspace's stations).
+struct StationPair {
+  int s = -1;               // interval [x_s, x_{s+1}] held (-1: none) [-]
+  double hq0[16], hq1[16];  // H q at its two stations [1/sqrt(kg)]
+  double wc0 = 0, wc1 = 0;  // w_c there [m]
+  void update(const ToothModel& tm, int s_new, const double* q) {
+    if (s == s_new) return;
+    s = s_new;
+    stationHq(tm, s, q, hq0, &wc0);
+    stationHq(tm, s + 1, q, hq1, &wc1);
+  }
+};
+
 Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const VecX>& q,
-                     const Rotation2& rot, double x_m, Workspace* ws, Vec2* dr_dx) {
+                     const Rotation2& rot, double x_m, Workspace* ws, Vec2* dr_dx,
+                     StationPair* direct = nullptr) {
   evaluateModes(tm, x_m, &ws->scratch_phi, &ws->scratch_dphi);
   int s = 0;
   double t = 0;
   stationInterval(tm, x_m, &s, &t);
-  const int s0 = ws->station_offset[tooth];
-  const double wc = (1.0 - t) * ws->station_wc_m[s0 + s] + t * ws->station_wc_m[s0 + s + 1];
+  double wc = 0.0;
+  if (direct != nullptr) {
+    direct->update(tm, s, q.data());
+    wc = (1.0 - t) * direct->wc0 + t * direct->wc1;
+  } else {
+    const int s0 = ws->station_offset[tooth];
+    wc = (1.0 - t) * ws->station_wc_m[s0 + s] + t * ws->station_wc_m[s0 + s + 1];
+  }
   const double w = ws->scratch_phi.dot(q);
   const double slope = ws->scratch_dphi.dot(q);
   *dr_dx = rot * ((1.0 - 0.5 * slope * slope) * tm.e1_D + slope * tm.e2_D);
@@ -543,8 +579,11 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     // should that refinement not converge, the polyline search below is the fallback.
     const bool warm = warm_x_m != nullptr && *warm_x_m >= 0.0 && tm.n_modes > 0 &&
                       far_m == std::numeric_limits<double>::infinity();
+    StationPair direct;      // the warm start's stations (the workspace's may be stale then)
+    bool from_warm = false;  // the closest point came from the warm start
     for (int attempt = warm ? 0 : 1; attempt < 2; ++attempt) {
       if (attempt == 1) {
+        if (warm) updateToothStations(m, z, drive.theta_rad, pair.a, ws);
         best.distance_m = std::numeric_limits<double>::infinity();
         int best_seg = 0;
         // Segments are visited nearest first by a cheap lower bound (distance to the ellipse's
@@ -594,7 +633,8 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
         const Rotation2 rot(drive.theta_rad);
         auto slopeAt = [&](double x, Proximity* p) {
           Vec2 dr_dx;
-          r_x = centrelinePoint(tm, pair.a, q, rot, x, ws, &dr_dx);
+          r_x =
+              centrelinePoint(tm, pair.a, q, rot, x, ws, &dr_dx, attempt == 0 ? &direct : nullptr);
           *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
           return p->normal.dot(dr_dx);
         };
@@ -618,6 +658,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
             hb = slopeAt(xb, &pb);
           }
           if (!converged) continue;
+          from_warm = true;
           g->tooth_x_m = xb;
           best = pb;
           best.point1 = r_x;
@@ -672,6 +713,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       double t_h = 0;
       stationInterval(tm, g->tooth_x_m, &s_h, &t_h);
       const int col_h = ws->station_offset[pair.a] + s_h;
+      if (from_warm) direct.update(tm, s_h, z.data() + tm.dof_offset);
       const Rotation2 rot(drive.theta_rad);
       const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
       const Vec2 jr = perp(r_t * g->n);
@@ -679,7 +721,8 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
       const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
       for (int i = 0; i < n; ++i) {
         const double hq =
-            (1.0 - t_h) * ws->station_Hq(i, col_h) + t_h * ws->station_Hq(i, col_h + 1);
+            from_warm ? (1.0 - t_h) * direct.hq0[i] + t_h * direct.hq1[i]
+                      : (1.0 - t_h) * ws->station_Hq(i, col_h) + t_h * ws->station_Hq(i, col_h + 1);
         s.w_n[i] = -(e2n * ws->scratch_phi[i] - e1n * hq + jrn * ws->scratch_dphi[i]);
         s.w_t[i] = -(e2t * ws->scratch_phi[i] - e1t * hq + jrt * ws->scratch_dphi[i]);
       }
@@ -832,8 +875,8 @@ struct CentrelineMotion {
   double dslope_rate_dx = 0;  // d(w'_dot)/dx = phi'' . qdot [1/(m s)]
 };
 
-CentrelineMotion centrelineMotion(const ToothModel& tm, int tooth, const VecX& z, const VecX& u,
-                                  double x_m, Workspace* ws) {
+CentrelineMotion centrelineMotion(const ToothModel& tm, const VecX& z, const VecX& u, double x_m,
+                                  Workspace* ws) {
   const int n = tm.n_modes;
   CentrelineMotion cm;
   double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wd2 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0,
@@ -852,13 +895,14 @@ CentrelineMotion centrelineMotion(const ToothModel& tm, int tooth, const VecX& z
     wd = ws->scratch_phi.dot(qd);
     wd1 = ws->scratch_dphi.dot(qd);
     wd2 = ws->scratch_ddphi.dot(qd);
-    // Stations s, s + 1: w_c, H q (stored for z) and qdot^T H qdot.
-    const int c = ws->station_offset[tooth] + s;
+    // Stations s, s + 1: w_c, H q (as updateStations computes them) and qdot^T H qdot.
+    StationPair st;
+    st.update(tm, s, z.data() + tm.dof_offset);
     const double dx = tm.station_x_m[s + 1] - tm.station_x_m[s];
     double hq_d0 = 0, hq_d1 = 0, qhq0 = 0, qhq1 = 0;
     for (int i = 0; i < n; ++i) {
-      hq_d0 += ws->station_Hq(i, c) * qd[i];
-      hq_d1 += ws->station_Hq(i, c + 1) * qd[i];
+      hq_d0 += st.hq0[i] * qd[i];
+      hq_d1 += st.hq1[i] * qd[i];
       double h0 = 0, h1 = 0;
       for (int j = 0; j < n; ++j) {
         h0 += tm.H_s[s](i, j) * qd[j];
@@ -867,8 +911,8 @@ CentrelineMotion centrelineMotion(const ToothModel& tm, int tooth, const VecX& z
       qhq0 += qd[i] * h0;
       qhq1 += qd[i] * h1;
     }
-    wc = (1.0 - t) * ws->station_wc_m[c] + t * ws->station_wc_m[c + 1];
-    wc1 = (ws->station_wc_m[c + 1] - ws->station_wc_m[c]) / dx;
+    wc = (1.0 - t) * st.wc0 + t * st.wc1;
+    wc1 = (st.wc1 - st.wc0) / dx;
     wcd = -((1.0 - t) * hq_d0 + t * hq_d1);
     wcd1 = -(hq_d1 - hq_d0) / dx;
     wcdd = -((1.0 - t) * qhq0 + t * qhq1);
@@ -900,7 +944,7 @@ Vec2 toothPairDrift(const Model& m, const VecX& z, const VecX& u, const Drive& d
   const ToothModel& tm = m.teeth[g.pair.a];
   const KernelModel& k = m.kernels[g.pair.b];
   const double x = g.tooth_x_m;
-  const CentrelineMotion cm = centrelineMotion(tm, g.pair.a, z, u, x, ws);
+  const CentrelineMotion cm = centrelineMotion(tm, z, u, x, ws);
   const Rotation2 rot(drive.theta_rad);
   const double om = drive.omega_radps, al = drive.alpha_radps2;
   // World vectors of the centreline point (the drum turns them at Omega).

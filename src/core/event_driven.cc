@@ -73,14 +73,17 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   c.ws.ed_memo.valid = false;  // ws.geoms and the stations change
   // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
   // are sorted by kind, tooth pairs first, by tooth).
+  // A tooth whose evaluated pairs are all in contact with a warm start (evaluateContact) needs
+  // none: the warm start computes the two stations around its points itself.
   layoutStations(c.m, &c.ws);
   int last_tooth = -1;
   for (const PairId& p : c.ws.candidates) {
     if (p.kind != PairKind::kToothKernel) break;
     if (p.a == last_tooth) continue;
-    if (separated == SeparatedPairs::kNone &&
-        c.ws.memory[pairKey(p)].state == ContactState::kSeparated)
-      continue;
+    const PairMemory& mem = c.ws.memory[pairKey(p)];
+    const bool separated_pair = mem.state == ContactState::kSeparated;
+    if (separated == SeparatedPairs::kNone && separated_pair) continue;
+    if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0) continue;
     updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
     last_tooth = p.a;
   }
@@ -525,22 +528,36 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   ws.ed_imp_n.head(n_pairs).setZero();
   ws.ed_imp_t.head(n_pairs).setZero();
   ws.ed_torque_impulse = 0;
+  zz.resize(n);
+  uu.resize(n);
   for (int s = 0; s < 7; ++s) {
-    zz = z0;
-    uu = u0;
-    for (int j = 0; j < s; ++j) {
-      if (kA[s][j] == 0.0) continue;
-      zz += h * kA[s][j] * ws.rk_k[j].head(n);
-      uu += h * kA[s][j] * ws.rk_k[j].tail(n);
+    // Stage state y0 + h sum_j a_sj k_j, component by component (plain loops: the vectors are
+    // short, where Eigen's dynamic-size expressions cost more than the arithmetic).
+    for (int i = 0; i < n; ++i) {
+      double zi = z0[i], ui = u0[i];
+      for (int j = 0; j < s; ++j) {
+        if (kA[s][j] == 0.0) continue;
+        const double a = h * kA[s][j];
+        zi += a * ws.rk_k[j][i];
+        ui += a * ws.rk_k[j][n + i];
+      }
+      zz[i] = zi;
+      uu[i] = ui;
     }
     if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false, SeparatedPairs::kNone)) return false;
-    ws.rk_k[s].head(n) = uu;
-    ws.rk_k[s].tail(n) = udot;
+    double* k_s = ws.rk_k[s].data();
+    for (int i = 0; i < n; ++i) {
+      k_s[i] = uu[i];
+      k_s[n + i] = udot[i];
+    }
     // Contact impulses and drum torque integrated with the 5th-order weights (b = row 7 of A).
     if (s < 6 && kA[6][s] != 0.0) {
-      ws.ed_imp_n.head(n_pairs) += h * kA[6][s] * ws.ed_fn.head(n_pairs);
-      ws.ed_imp_t.head(n_pairs) += h * kA[6][s] * ws.ed_ft.head(n_pairs);
-      ws.ed_torque_impulse += h * kA[6][s] * torque;
+      const double b = h * kA[6][s];
+      for (int i = 0; i < n_pairs; ++i) {
+        ws.ed_imp_n[i] += b * ws.ed_fn[i];
+        ws.ed_imp_t[i] += b * ws.ed_ft[i];
+      }
+      ws.ed_torque_impulse += b * torque;
     }
   }
   // Stage 7 is the 5th-order solution (FSAL).
@@ -1314,7 +1331,10 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   // Accept: drive work, then move the state and the drum.
   const Drive mid = driveAt(m, *d, 0.5 * h_take);
   const Drive end = driveAt(m, *d, h_take);
-  const double H0 = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  // (The start's momentum is the last step's end value unless something moved the state.)
+  double H0 = 0, unused_energy = 0;
+  if (!ws.ed_end_values.lookup(*d, &unused_energy, &H0))
+    H0 = angularMomentumOf(m, d->z, d->u, d->omega_radps);
   const double H1 = angularMomentumOf(m, z1, u1, end.omega_radps);
   d->stats.drive_work_J += mid.omega_radps * (H1 - H0 - ws.ed_torque_impulse);
   const int n_geoms = static_cast<int>(ws.candidates.size());
@@ -1331,6 +1351,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
+  ws.ed_end_values.store(*d, 0.0, H1);
   if (!event) ws.ed_h = truncated && !rejected && h_next < h_wanted ? h_wanted : h_next;
   const double t = d->t_s;
 

@@ -307,7 +307,9 @@ struct Workspace {
   std::vector<std::uint8_t> ed_pk_on, ed_pk_on_end;
   // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
   VecX ed_pk_udot;
-  internal::RhsMemo ed_memo;  // the last event-driven right-hand side's inputs
+  internal::RhsMemo ed_memo;            // the last event-driven right-hand side's inputs
+  internal::StateValues ed_end_values;  // event-driven: momentum at the last step end (the
+                                        // energy slot unused)
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
 };
@@ -379,7 +381,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
 // along the motion z' = u with u frozen and the drum at its speed and acceleration, i.e.
 // (d/dt W)^T u + d(wtilde)/dt for the normal (0) and tangential (1) rows, including the
 // motion of the contact points over the surfaces. g must come from evaluateContact at
-// (z, u, drive) (not far); a tooth pair reads the stations that updateStations stored for z.
+// (z, u, drive) (not far).
 Vec2 contactVelocityDrift(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                           const ContactGeom& g, Workspace* ws);
 
