@@ -1037,7 +1037,12 @@ void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, c
     const auto q = z.segment(tm.dof_offset, n);
     const auto qd = u.segment(tm.dof_offset, n);
     auto out = f->segment(tm.dof_offset, n);
-    out.noalias() = -w2 * (tm.K_G * q);
+    // -Omega^2 K_G q by plain loops (a dynamic-size product costs more than the arithmetic).
+    for (int i = 0; i < n; ++i) {
+      double kq = 0.0;
+      for (int j = 0; j < n; ++j) kq += tm.K_G(i, j) * q[j];
+      out[i] = -w2 * kq;
+    }
     out.array() += -(tm.omega0_sq.array() - w2) * q.array() -
                    tm.damping_coeff.array() * qd.array() -
                    drive.alpha_radps2 * tm.p_inertia.array();

@@ -192,9 +192,14 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   if (!mm.valid || mm.model != &c.m || mm.t_s != dr.t_s || mm.theta_rad != dr.theta_rad ||
       mm.omega_radps != dr.omega_radps || mm.alpha_radps2 != dr.alpha_radps2)
     return false;
-  const bool mode_ok = separated == SeparatedPairs::kNone || mm.n_separated == 0 ||
-                       (static_cast<int>(separated) == mm.separated &&
-                        (separated != SeparatedPairs::kSign || horizon_s == mm.horizon_s));
+  // kNear and kSign differ only on separated kernel-kernel and kernel-obstacle pairs (tooth
+  // pairs are evaluated alike, whatever the horizon).
+  const bool memo_none = mm.separated == static_cast<int>(SeparatedPairs::kNone);
+  const bool mode_ok =
+      separated == SeparatedPairs::kNone || mm.n_separated == 0 ||
+      (!memo_none && (mm.n_separated_other == 0 ||
+                      (static_cast<int>(separated) == mm.separated &&
+                       (separated != SeparatedPairs::kSign || horizon_s == mm.horizon_s))));
   if (!mode_ok || !bitsEqual(z, mm.z) || !bitsEqual(u, mm.u) ||
       c.d.kernel_attached != mm.attached || c.ws.candidates != mm.candidates ||
       c.ws.geoms.size() != c.ws.candidates.size())
@@ -224,9 +229,12 @@ void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   mm.candidates = c.ws.candidates;
   mm.pairs.resize(mm.candidates.size());
   mm.n_separated = 0;
+  mm.n_separated_other = 0;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
     mm.pairs[i] = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
-    mm.n_separated += mm.pairs[i].state == static_cast<int>(ContactState::kSeparated) ? 1 : 0;
+    const bool apart = mm.pairs[i].state == static_cast<int>(ContactState::kSeparated);
+    mm.n_separated += apart ? 1 : 0;
+    mm.n_separated_other += apart && mm.candidates[i].kind != PairKind::kToothKernel ? 1 : 0;
   }
   mm.separated = static_cast<int>(separated);
   mm.horizon_s = horizon_s;
@@ -311,14 +319,17 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     nc += ws.rows[i].normal_unknown ? 1 : 0;
     nc += (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) ? 1 : 0;
   }
-  // Free accelerations a = Minv f.
-  ws.du.setZero(m.n_dof);
-  for (size_t b = 0; b < m.teeth.size() + m.kernels.size(); ++b) {
-    const int off = bodyDofOffset(m, static_cast<int>(b));
-    const int n = bodyDofCount(m, static_cast<int>(b));
-    if (n == 0) continue;
-    SmallVec fb = ws.forces.segment(off, n);
-    applyInverseMass(m, nullptr, static_cast<int>(b), fb, 1.0, &ws.du);
+  // Free accelerations a = Minv f (mass-normalised modes; kernels diag(1/m, 1/m, 1/J)), with
+  // the operations of applyInverseMass on a zero vector.
+  ws.du.resize(m.n_dof);
+  for (const ToothModel& tm : m.teeth)
+    for (int i = 0; i < tm.n_modes; ++i)
+      ws.du[tm.dof_offset + i] = 0.0 + ws.forces[tm.dof_offset + i];
+  for (const KernelModel& km : m.kernels) {
+    const int o = km.dof_offset;
+    ws.du[o] = 0.0 + ws.forces[o] / km.mass_kg;
+    ws.du[o + 1] = 0.0 + ws.forces[o + 1] / km.mass_kg;
+    ws.du[o + 2] = 0.0 + ws.forces[o + 2] / km.inertia_kgm2;
   }
   // Known contact forces, into the free acceleration.
   for (int i = 0; i < k; ++i) {
@@ -533,13 +544,21 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   for (int s = 0; s < 7; ++s) {
     // Stage state y0 + h sum_j a_sj k_j, component by component (plain loops: the vectors are
     // short, where Eigen's dynamic-size expressions cost more than the arithmetic).
+    const double* k_j[6];
+    double a_j[6];
+    int n_j = 0;
+    for (int j = 0; j < s; ++j) {
+      if (kA[s][j] == 0.0) continue;
+      k_j[n_j] = ws.rk_k[j].data();
+      a_j[n_j++] = h * kA[s][j];
+    }
+    const double* z0p = z0.data();
+    const double* u0p = u0.data();
     for (int i = 0; i < n; ++i) {
-      double zi = z0[i], ui = u0[i];
-      for (int j = 0; j < s; ++j) {
-        if (kA[s][j] == 0.0) continue;
-        const double a = h * kA[s][j];
-        zi += a * ws.rk_k[j][i];
-        ui += a * ws.rk_k[j][n + i];
+      double zi = z0p[i], ui = u0p[i];
+      for (int j = 0; j < n_j; ++j) {
+        zi += a_j[j] * k_j[j][i];
+        ui += a_j[j] * k_j[j][n + i];
       }
       zz[i] = zi;
       uu[i] = ui;

@@ -217,6 +217,7 @@ struct RhsMemo {
   std::vector<PairId> candidates;      // candidate pairs [-]
   std::vector<PairState> pairs;        // their memory, in that order
   int n_separated = 0;                 // separated candidates among them [-]
+  int n_separated_other = 0;           // of which not tooth pairs [-]
   int separated = 0;                   // how separated pairs were evaluated (SeparatedPairs) [-]
   double horizon_s = 0;                // the event functions' horizon [s]
   VecX udot;                           // accelerations [m/s^2 or modal 1/s^2]
