@@ -48,8 +48,27 @@ echo "Top 10 functions by exclusive Ir, whole run at 1e-6:"
 echo
 echo "| exclusive Ir | share | function |"
 echo "|---|---|---|"
-callgrind_annotate "$OUT/run_1e-6.cg" 2>/dev/null | sed -n '/file:function/,$p' | tail -n +3 |
-  head -10 | sed -E 's/ \[[^]]*\]$//; s/\(([^()]|\([^()]*\))*\)$//; s/threshing_sim:://g; s/internal:://g; s/\(anonymous namespace\):://g; s/^ *//' |
-  awk '{ir=$1; sh=$2" "$3; $1=""; $2=""; $3=""; sub(/^ +/, ""); sub(/^[^:]*:/, ""); print "| " ir " | " sh " | `" $0 "` |"}' |
-  sed 's/(\(.*\)%)/\1 %/'
+callgrind_annotate "$OUT/run_1e-6.cg" 2>/dev/null | /usr/bin/python3 -c '
+import re, sys
+lines = sys.stdin.read().split("\n")
+start = next(i for i, l in enumerate(lines) if "file:function" in l) + 2
+rows = 0
+for l in lines[start:]:
+    m = re.match(r"\s*([\d,]+)\s+\(\s*([\d.]+)%\)\s+(\S+?):(.*)$", l)
+    if not m or rows == 10:
+        break
+    name = re.sub(r" \[[^]]*\]$", "", m.group(4))
+    name = name.replace("threshing_sim::", "").replace("internal::", "")
+    name = name.replace("(anonymous namespace)::", "")
+    depth, out = 0, ""
+    for ch in name:  # drop the argument lists
+        if ch == "(":
+            depth += 1
+        elif ch == ")":
+            depth -= 1
+        elif depth == 0:
+            out += ch
+    print("| %s | %s %% | `%s` |" % (m.group(1), m.group(2), out.strip()))
+    rows += 1
+'
 [ -n "$KEEP" ] || rm -rf "$OUT"

@@ -61,6 +61,20 @@ enum class SeparatedPairs {
   kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
 };
 
+// Starting point of a tooth pair's closest point at time t_s [s] [m]: the last one (-1: none),
+// moved on linearly by the rate between the last two where they are 1e-12 s or more apart and
+// the move is within 1e-3 of the tooth's length.
+double warmStart(const Model& m, const PairMemory& mem, const PairId& p, double t_s) {
+  double x = mem.warm_x_m;
+  if (x < 0.0 || mem.warm_x_prev_m < 0.0) return x;
+  const double dt = mem.warm_t_s - mem.warm_t_prev_s;
+  if (!(std::abs(dt) >= 1e-12)) return x;
+  const double move = (mem.warm_x_m - mem.warm_x_prev_m) / dt * (t_s - mem.warm_t_s);
+  const double L = m.teeth[p.a].length_m;
+  if (std::abs(move) <= 1e-3 * L) x = std::clamp(x + move, 0.0, L);
+  return x;
+}
+
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
 // says (a far pair gets only a lower bound of its gap). Under kSign, a separated kernel pair
 // (kernel-obstacle, kernel-kernel) is evaluated exactly when its gap bound is within 1 um or
@@ -95,9 +109,12 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     double far_m = kInf;
     bool tight = false;
     PairMemory& mem = c.ws.memory[pairKey(p)];
-    // Tooth pairs in contact start the narrow phase from their last closest point; a
-    // separated one records its closest point for when its contact begins.
-    double* warm = p.kind == PairKind::kToothKernel ? &mem.warm_x_m : nullptr;
+    // Tooth pairs in contact start the narrow phase from their last closest point (moved on
+    // in time by the rate between the last two); a separated one records its closest point for
+    // when its contact begins.
+    double x_warm = -1;
+    double* warm = p.kind == PairKind::kToothKernel ? &x_warm : nullptr;
+    if (warm && mem.state != ContactState::kSeparated) x_warm = warmStart(c.m, mem, p, dr.t_s);
     if (mem.state == ContactState::kSeparated) {
       mem.warm_x_m = -1;
       if (separated == SeparatedPairs::kNone) {
@@ -119,6 +136,12 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
     evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm);
+    if (warm && !g.far) {
+      mem.warm_x_prev_m = mem.warm_x_m;
+      mem.warm_t_prev_s = mem.warm_t_s;
+      mem.warm_x_m = g.tooth_x_m;
+      mem.warm_t_s = dr.t_s;
+    }
   }
 }
 

@@ -98,6 +98,9 @@ struct PairMemory {
   double last_contact_end_s = -1;       // end of the previous episode [s]
   double warm_x_m = -1;       // tooth pairs: material coordinate of the last closest point (the
                               // narrow phase's warm start while in contact; -1 none) [m]
+  double warm_t_s = 0;        // the time it was found at [s]
+  double warm_x_prev_m = -1;  // the closest point before it (-1 none) [m]
+  double warm_t_prev_s = 0;   // and its time [s]
   int macro_index = -1;       // macro-collision counter of this pair
   int sub_index = -1;         // sub-collision index within the macro-collision
   double normal_force_N = 0;  // last force values (for ContactInfo) [N]
