@@ -1076,6 +1076,37 @@ bool armFires(Arm arm, double v, double v0) {
 }
 double armValue(Arm arm, double v, double v0) { return arm == Arm::kAtZero ? v : v - v0; }
 
+// Earliest crossing in (lo, hi) of the armed functions that fired at hi, by linear
+// interpolation of their values (v_lo, v_hi) weighted by (w_lo, w_hi); *sel receives the
+// function. The midpoint (and *sel = -1) where a fired function has no positive value at lo
+// (armed below its start, at the start itself) or no crossing inside.
+double earliestCrossing(const Workspace& ws, double lo, double hi, const std::vector<double>& v_lo,
+                        const std::vector<double>& v_hi, double w_lo, double w_hi, int* sel) {
+  const std::vector<double>& ev0 = ws.ed_ev0;
+  double x = hi;
+  *sel = -1;
+  for (size_t i = 0; i < v_hi.size(); ++i) {
+    const Arm a = static_cast<Arm>(ws.ed_arm[i]);
+    if (a == Arm::kOff || !armFires(a, v_hi[i], ev0[i])) continue;
+    const double f_lo = w_lo * armValue(a, v_lo[i], ev0[i]);
+    const double f_hi = w_hi * armValue(a, v_hi[i], ev0[i]);
+    if (!(f_lo > 0) || !(f_lo - f_hi > 0)) {
+      *sel = -1;
+      return 0.5 * (lo + hi);
+    }
+    const double xi = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
+    if (xi < x) {
+      x = xi;
+      *sel = static_cast<int>(i);
+    }
+  }
+  if (!(x > lo)) {
+    *sel = -1;
+    return 0.5 * (lo + hi);
+  }
+  return x;
+}
+
 // Locates the first event of a step from the data's time: some armed function (ws.ed_arm,
 // values ws.ed_ev0 at the start) has fired at step length hi_s (values ev_hi; its state, impulses
 // and torque impulse in ws.ed_z_hi, ...) and none at 0. Narrows the bracket [lo, hi] until
@@ -1104,28 +1135,10 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
   double err, tq;
   for (int it = 0; it < 80 && hi - lo > t_tol; ++it) {
     // Trial point: the earliest linear-interpolated crossing of the fired functions.
-    bool bisect = hi - lo > 0.5 * width_before[2];
-    double x = hi;
     int sel = -1;  // the function that gave it
-    for (size_t i = 0; i < v_hi.size() && !bisect; ++i) {
-      const Arm a = static_cast<Arm>(arm[i]);
-      if (a == Arm::kOff || !armFires(a, v_hi[i], ev0[i])) continue;
-      const double f_lo = w_lo * armValue(a, v_lo[i], ev0[i]);
-      const double f_hi = w_hi * armValue(a, v_hi[i], ev0[i]);
-      if (!(f_lo > 0) || !(f_lo - f_hi > 0)) {
-        bisect = true;
-        break;
-      }
-      const double xi = lo + (hi - lo) * (f_lo / (f_lo - f_hi));
-      if (xi < x) {
-        x = xi;
-        sel = static_cast<int>(i);
-      }
-    }
-    if (bisect || !(x > lo)) {
-      x = 0.5 * (lo + hi);
-      sel = -1;
-    }
+    double x = hi - lo > 0.5 * width_before[2]
+                   ? 0.5 * (lo + hi)
+                   : earliestCrossing(ws, lo, hi, v_lo, v_hi, w_lo, w_hi, &sel);
     x = std::clamp(x, lo + 0.5 * t_tol, hi - 0.5 * t_tol);
     width_before[2] = width_before[1];
     width_before[1] = width_before[0];
