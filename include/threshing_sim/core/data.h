@@ -84,11 +84,13 @@ struct KernelToothPeaks {
 struct SchedulerStats {
   long windows = 0;            // scheduling windows (islands and teeth meet at their ends)
   long island_steps = 0;       // accepted integrator steps inside islands
+  long island_body_steps = 0;  // the same, each counted once per body of its island
   long islands_built = 0;      // islands formed (new, grown or merged)
   long islands_dissolved = 0;  // islands dissolved (bodies lazy again, or re-formed)
   long tooth_wakes = 0;        // lazy kernels met by a tooth's swept sector
   long kernel_wakes = 0;       // lazy kernels met by an island kernel's reach
   long predictions = 0;        // new bound circles of lazy kernels (calendar events)
+  long shrinks = 0;            // lazy kernels re-predicted tighter instead of woken
   long pedicel_steps = 0;      // accepted own-clock steps of lone kernels on pedicels
   long pedicel_rejected = 0;   // rejected own-clock steps
   long pedicel_breaks = 0;     // pedicels broken on a lone kernel's own clock

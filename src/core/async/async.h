@@ -81,14 +81,19 @@ struct AsyncState {
   size_t cells_used = 0;               // keys in the table
   std::vector<ToothPropagator> prop;   // free teeth at constant drum speed
   // Per-window scratch (grow-only).
-  std::vector<int> uf_parent;                 // union-find over entity slots of this window
-  std::vector<int> entities;                  // entity ids: tooth k -> k, kernel i -> T + i
-  std::vector<int> entity_slot;               // per entity id: slot in entities, or -1
-  std::vector<std::pair<int, int>> joins;     // entity pairs that must share an island
-  std::vector<int> found;                     // grid query results
-  std::vector<int> comp_teeth, comp_kernels;  // one component's bodies
-  std::vector<ContactEvent> window_events;    // events of this window, before time ordering
-  SchedulerStats counters;                    // work by kind (copied to RunStats::scheduler)
+  std::vector<int> uf_parent;                    // union-find over entity slots of this window
+  std::vector<int> entities;                     // entity ids: tooth k -> k, kernel i -> T + i
+  std::vector<int> entity_slot;                  // per entity id: slot in entities, or -1
+  std::vector<std::pair<int, int>> joins;        // entity pairs that must share an island
+  std::vector<int> found;                        // grid query results
+  std::vector<int> found_copy;                   // a query's results while the grid changes
+  std::vector<int> comp_teeth, comp_kernels;     // one component's bodies
+  std::vector<std::pair<int, int>> split_edges;  // an island's proximity graph (local numbers)
+  std::vector<std::uint8_t> split_pinned;        // its bodies that must stay integrated
+  std::vector<int> split_parent;                 // union-find over its bodies
+  std::vector<int> split_teeth, split_kernels;   // the dissolved island's bodies (global)
+  std::vector<ContactEvent> window_events;       // events of this window, before time ordering
+  SchedulerStats counters;                       // work by kind (copied to RunStats::scheduler)
 };
 
 constexpr std::int64_t kEmptyCell = std::numeric_limits<std::int64_t>::min();
@@ -114,8 +119,10 @@ void gridRemove(AsyncState* as, int i);
 void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi);
 // Gives lazy kernel i (at time t_s) a new bound circle and wake time and lists it, or, when
 // it cannot stay lazy past t_window_end_s, adds joins (with a neighbour, or itself alone).
-void predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
-                   double t_window_end_s);
+// Its growth (bound radius minus a) is at most grow_cap_m. Returns true if it stays lazy.
+bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
+                   double t_window_end_s,
+                   double grow_cap_m = std::numeric_limits<double>::infinity());
 // Distance from point c to obstacle o's surface [m] (negative inside).
 double obstacleClearance(const ObstacleModel& o, const Vec2& c);
 // Supporting-line lower bound of the gap between two ellipses along their centres' line [m].
@@ -125,11 +132,13 @@ double ellipseGapBound(const Ellipse& e1, const Ellipse& e2);
 // Distance from p to the annular sector {rho e(phi): phi0 <= phi <= phi1, r_in <= rho <= r_out}.
 double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, double r_out);
 bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1);
-void sweepTeeth(const Model& m, const Data& d, AsyncState* as, double t0, double t1);
-void islandNeighbours(const Model& m, const Data& d, AsyncState* as, double window_s);
-// Whether island s's bodies are all out of each other's (and the obstacles') reach over the
-// next window of length window_s.
-bool islandBodiesApart(const Model& m, const Data& d, const AsyncState& as, int s, double window_s);
+void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1);
+void islandNeighbours(const Model& m, Data* d, AsyncState* as, double t0, double t1);
+// The proximity graph of island s over the next window of length window_s, in local entity
+// numbers (teeth 0..nT-1, kernels nT..): edges between bodies in contact or within reach;
+// pinned: kernels in contact with or within reach of an obstacle.
+void islandProximity(const Model& m, const Data& d, const AsyncState& as, int s, double window_s,
+                     std::vector<std::pair<int, int>>* edges, std::vector<std::uint8_t>* pinned);
 
 // --- island.cc: sub-systems -----------------------------------------------------------------
 void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vector<int>& teeth,

@@ -152,7 +152,10 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
     Island& isl = as->islands[s];
     if (!isl.alive) continue;
     isl.data.omega_target_radps = d->omega_target_radps;
+    const long steps_before = isl.data.steps;
     const StepStatus st = advanceTo(isl.model, &isl.data, t1);
+    as->counters.island_body_steps +=
+        (isl.data.steps - steps_before) * static_cast<long>(isl.teeth.size() + isl.kernels.size());
     if (!timeStepping(m)) isl.data.t_s = t1;  // it lands on t1 or an ulp past it
     mergeIslandResults(m, d, as, static_cast<int>(s));
     storeIslandState(m, d, *as, static_cast<int>(s));
@@ -185,19 +188,61 @@ void advanceDrum(const Model& m, Data* d, double t1) {
   d->t_s = t1;
 }
 
-// Stage: islands with nothing in contact and nothing within reach over the next window
-// dissolve; their kernels become lazy again (with a new bound circle), their teeth free.
-void retireIslands(const Model& m, Data* d, AsyncState* as, double window_s) {
-  for (size_t s = 0; s < as->islands.size(); ++s) {
+// One component (root r of the split union-find) of a dissolved island: a lone kernel
+// becomes lazy, a lone tooth free, anything else a new island.
+void rebuildComponent(const Model& m, Data* d, AsyncState* as, int root) {
+  const int nT = static_cast<int>(as->split_teeth.size());
+  std::vector<int>& teeth = as->comp_teeth;
+  std::vector<int>& kernels = as->comp_kernels;
+  teeth.clear();
+  kernels.clear();
+  bool pinned = false;
+  for (int x = 0; x < static_cast<int>(as->split_parent.size()); ++x) {
+    if (findRootOf(&as->split_parent, x) != root) continue;
+    if (x < nT) {
+      teeth.push_back(as->split_teeth[x]);
+    } else {
+      kernels.push_back(as->split_kernels[x - nT]);
+    }
+    pinned |= as->split_pinned[x] != 0;
+  }
+  if (!pinned && teeth.empty() && kernels.size() == 1) {
+    predictKernel(m, *d, as, kernels[0], d->t_s, d->t_s);
+  } else if (pinned || teeth.size() + kernels.size() > 1) {
+    buildIsland(m, d, as, freeIslandSlot(as), teeth, kernels);
+  }
+}
+
+// Stage: each island splits into the groups of its bodies that are in contact or within reach
+// over the next window; a lone kernel becomes lazy again (a new bound circle), a lone tooth
+// free; an island that stays whole is kept with its workspace.
+void splitIslands(const Model& m, Data* d, AsyncState* as, double window_s) {
+  const size_t n_slots = as->islands.size();
+  for (size_t s = 0; s < n_slots; ++s) {
     Island& isl = as->islands[s];
-    if (!isl.alive || islandInContact(as, static_cast<int>(s))) continue;
-    if (!islandBodiesApart(m, *d, *as, static_cast<int>(s), window_s)) continue;
-    bool integrated_tooth = false;
-    for (int k : isl.teeth) integrated_tooth |= toothNeedsIntegration(m, *d, as, k);
-    if (integrated_tooth && !isl.kernels.empty()) continue;
-    if (integrated_tooth && rampingOver(m, *d)) continue;
+    if (!isl.alive) continue;
+    islandProximity(m, *d, *as, static_cast<int>(s), window_s, &as->split_edges, &as->split_pinned);
+    const int nT = static_cast<int>(isl.teeth.size());
+    for (int a = 0; a < nT; ++a)
+      if (toothNeedsIntegration(m, *d, as, isl.teeth[a])) as->split_pinned[a] = 1;
+    const int n = static_cast<int>(as->split_pinned.size());
+    as->split_parent.resize(n);
+    for (int x = 0; x < n; ++x) as->split_parent[x] = x;
+    int components = n;
+    for (const auto& e : as->split_edges) {
+      const int ra = findRootOf(&as->split_parent, e.first);
+      const int rb = findRootOf(&as->split_parent, e.second);
+      if (ra == rb) continue;
+      as->split_parent[std::max(ra, rb)] = std::min(ra, rb);
+      --components;
+    }
+    // Whole (one component, and not a lone body that may leave): kept as it is.
+    if (components == 1 && (n > 1 || as->split_pinned[0])) continue;
+    as->split_teeth = isl.teeth;
+    as->split_kernels = isl.kernels;
     dissolveIsland(m, d, as, static_cast<int>(s));
-    for (int i : isl.kernels) predictKernel(m, *d, as, i, d->t_s, d->t_s);
+    for (int x = 0; x < n; ++x)
+      if (findRootOf(&as->split_parent, x) == x) rebuildComponent(m, d, as, x);
   }
 }
 
@@ -263,8 +308,8 @@ StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
   const double t1 = windowEnd(m, *d, as, t_end_s);
   ++as.counters.windows;
   if (!wakeDueKernels(m, d, &as, t0, t1)) return StepStatus::kFailed;
-  sweepTeeth(m, *d, &as, t0, t1);
-  islandNeighbours(m, *d, &as, t1 - t0);
+  sweepTeeth(m, d, &as, t0, t1);
+  islandNeighbours(m, d, &as, t0, t1);
   claimIntegratedTeeth(m, *d, &as);
   if (!formIslands(m, d, &as)) return StepStatus::kFailed;
   const StepStatus status = integrateIslands(m, d, &as, t1);
@@ -272,7 +317,7 @@ StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
   advanceFreeTeeth(m, d, &as, t1 - t0);
   advanceDrum(m, d, t1);
   checkToothDeflection(m, d);
-  retireIslands(m, d, &as, t1 - t0);
+  splitIslands(m, d, &as, t1 - t0);
   flushWindowEvents(d, &as);
   return status;
 }

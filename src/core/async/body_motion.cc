@@ -167,22 +167,29 @@ double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i
   const double g = m.gravity_mps2.norm();
   if (as.kernels[i].motion != KernelMotion::kPedicel)
     return u.head<2>().norm() + g * horizon_s + std::abs(u[2]) * k.semi_axis_a_m;
-  // On the pedicel: energy. While the stem holds, its tension stays below the detachment force,
-  // so the centre stays within reach_m of the anchor and can drop at most to that depth; the
-  // kinetic energy is at most today's kinetic and spring energy plus that drop's work. Speed
-  // of any point: |v| + a |omega| <= sqrt(2 E (1/m + a^2/J)). Past a break, gravity adds g t.
+  // On the pedicel: energy. Only gravity does positive work, so over a horizon H the kinetic
+  // plus spring energy stays below today's plus m g times the drop, and the drop is at most
+  // H times the largest centre speed. With the speed of any point |v| + a |omega| <=
+  // sqrt(2 E kappa), kappa = 1/m + a^2/J, that gives V^2 <= 2 kappa (E0 + m g H V): V is at
+  // most the positive root. While the stem holds, its tension stays below the detachment
+  // force, so the centre also cannot drop below the anchor by more than the stem reaches: the
+  // smaller of the two bounds holds. Past a break, gravity adds g t.
   const PedicelModel& p = k.pedicel;
   const Vec2 r = rotated(z[2], p.p_KP_K);
   const double stretch_m = (z.head<2>() + r - p.p_WA_W).norm() - p.rest_length_m;
+  const double a = k.semi_axis_a_m;
+  const double kappa = 1.0 / k.mass_kg + a * a / k.inertia_kgm2;
+  const double e0_J = 0.5 * k.mass_kg * u.head<2>().squaredNorm() +
+                      0.5 * k.inertia_kgm2 * u[2] * u[2] +
+                      0.5 * p.stiffness_Npm * stretch_m * stretch_m;
+  const double pull = k.mass_kg * g * horizon_s * kappa;
+  const double v_short = pull + std::sqrt(pull * pull + 2.0 * kappa * e0_J);
   const double reach_m =
       p.rest_length_m + 2.0 * p.detachment_force_N / p.stiffness_Npm + p.p_KP_K.norm();
   const Vec2 down = g > 0 ? Vec2(m.gravity_mps2 / g) : Vec2::Zero();
   const double drop_m = std::max(0.0, reach_m - down.dot(z.head<2>() - p.p_WA_W));
-  const double energy_J = 0.5 * k.mass_kg * u.head<2>().squaredNorm() +
-                          0.5 * k.inertia_kgm2 * u[2] * u[2] +
-                          0.5 * p.stiffness_Npm * stretch_m * stretch_m + k.mass_kg * g * drop_m;
-  const double a = k.semi_axis_a_m;
-  return std::sqrt(2.0 * energy_J * (1.0 / k.mass_kg + a * a / k.inertia_kgm2)) + g * horizon_s;
+  const double v_long = std::sqrt(2.0 * kappa * (e0_J + k.mass_kg * g * drop_m));
+  return std::min(v_short, v_long) + g * horizon_s;
 }
 
 void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s) {

@@ -66,20 +66,36 @@ size_t findSlot(const AsyncState& as, std::int64_t key) {
   return s;
 }
 
-// Rebuilds the table from the kernels in the grid once half its slots hold keys (cells that
-// emptied keep their keys until then).
-void compactGrid(AsyncState* as) {
-  std::fill(as->cell_key.begin(), as->cell_key.end(), kEmptyCell);
-  std::fill(as->cell_head.begin(), as->cell_head.end(), -1);
-  as->cells_used = 0;
-  for (size_t i = 0; i < as->kernels.size(); ++i) {
-    if (!as->kernels[i].in_grid) continue;
-    as->kernels[i].in_grid = false;
-    gridInsert(as, static_cast<int>(i));
+// Lists kernel i in the cell of its bound circle's centre (the table has room).
+void listInCell(AsyncState* as, int i) {
+  KernelClock& kc = as->kernels[i];
+  kc.cell = cellOf(*as, kc.bound_c_W);
+  const size_t s = findSlot(*as, kc.cell);
+  if (as->cell_key[s] == kEmptyCell) {
+    as->cell_key[s] = kc.cell;
+    as->cell_head[s] = -1;
+    ++as->cells_used;
   }
+  kc.cell_prev = -1;
+  kc.cell_next = as->cell_head[s];
+  if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
+  as->cell_head[s] = i;
+  kc.in_grid = true;
 }
 
-Ellipse lazyEllipse(const Model& m, const Data& d, int i) { return kernelEllipse(m, d.z, i); }
+// Rebuilds the table from the listed kernels once half its slots hold keys (cells that emptied
+// keep their keys until then); it doubles while the listed kernels alone would fill half.
+void compactGrid(AsyncState* as) {
+  size_t listed = 0;
+  for (const KernelClock& kc : as->kernels) listed += kc.in_grid ? 1 : 0;
+  size_t slots = std::max<size_t>(as->cell_key.size(), 16);
+  while (4 * (listed + 1) > slots) slots *= 2;
+  as->cell_key.assign(slots, kEmptyCell);
+  as->cell_head.assign(slots, -1);
+  as->cells_used = 0;
+  for (size_t i = 0; i < as->kernels.size(); ++i)
+    if (as->kernels[i].in_grid) listInCell(as, static_cast<int>(i));
+}
 
 }  // namespace
 
@@ -121,18 +137,7 @@ void gridInsert(AsyncState* as, int i) {
   KernelClock& kc = as->kernels[i];
   if (kc.in_grid) return;
   if (2 * (as->cells_used + 1) > as->cell_key.size()) compactGrid(as);
-  kc.cell = cellOf(*as, kc.bound_c_W);
-  const size_t s = findSlot(*as, kc.cell);
-  if (as->cell_key[s] == kEmptyCell) {
-    as->cell_key[s] = kc.cell;
-    as->cell_head[s] = -1;
-    ++as->cells_used;
-  }
-  kc.cell_prev = -1;
-  kc.cell_next = as->cell_head[s];
-  if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
-  as->cell_head[s] = i;
-  kc.in_grid = true;
+  listInCell(as, i);
 }
 
 void gridRemove(AsyncState* as, int i) {
@@ -170,66 +175,77 @@ void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
   }
 }
 
-void predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
-                   double t_window_end_s) {
+namespace {
+// Longest horizon (up to max_s) over which lazy kernel i's growth V(H) H stays within
+// grow_cap_m, and the speed bound V over it (bisection on the monotone growth).
+double horizonFor(const Model& m, const Data& d, const AsyncState& as, int i, double grow_cap_m,
+                  double max_s, double* v_mps) {
+  double lo = 0.0, hi = max_s;
+  if (lazySpeedBound(m, d, as, i, hi) * hi > grow_cap_m) {
+    for (int it = 0; it < 40; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (lazySpeedBound(m, d, as, i, mid) * mid > grow_cap_m ? hi : lo) = mid;
+    }
+    hi = lo;
+  }
+  *v_mps = std::max(lazySpeedBound(m, d, as, i, hi), 1e-12);
+  return hi;
+}
+}  // namespace
+
+bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
+                   double t_window_end_s, double grow_cap_m) {
   KernelClock& kc = as->kernels[i];
   const KernelModel& k = m.kernels[i];
+  const int T = static_cast<int>(m.teeth.size());
   const double margin = m.broadphase_margin_m;
-  const double grow_cap = as->r_cap_m - k.semi_axis_a_m;
   ++as->counters.predictions;
-  // Horizon: the circle may grow by at most grow_cap. The speed bound is v0 + g H over a
-  // horizon H, so the growth (v0 + g H) H reaches grow_cap at the root of that quadratic.
-  const double v0 = std::max(lazySpeedBound(m, d, *as, i, 0.0), 1e-9);
-  const double g = m.gravity_mps2.norm();
-  double horizon =
-      g > 0 ? 2.0 * grow_cap / (v0 + std::sqrt(v0 * v0 + 4.0 * g * grow_cap)) : grow_cap / v0;
-  horizon = std::min(horizon, as->max_horizon_s);
-  const double v = v0 + g * horizon;
+  // Horizon: the circle may grow by at most the cap (and never past the grid's radius).
+  const double cap = std::min(grow_cap_m, as->r_cap_m - k.semi_axis_a_m);
+  double v = 0.0;
+  double horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
   const double min_horizon = t_window_end_s - t_s;
-  const Ellipse e = lazyEllipse(m, d, i);
-  const Vec2 c = e.center;
+  const Ellipse e = kernelEllipse(m, d.z, i);
   // Other lazy kernels: the grown ellipses must stay a margin apart.
   const double reach = k.semi_axis_a_m + v * horizon + margin;
-  gridQuery(as, c - Vec2(reach, reach), c + Vec2(reach, reach));
+  gridQuery(as, e.center - Vec2(reach, reach), e.center + Vec2(reach, reach));
   bool joined = false;
   for (int j : as->found) {
     if (j == i) continue;
     const KernelClock& kj = as->kernels[j];
-    if ((kj.bound_c_W - c).norm() > kj.bound_r_m + reach) continue;
+    if ((kj.bound_c_W - e.center).norm() > kj.bound_r_m + reach) continue;
     const double grown_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
-    const double room = ellipseGapBound(e, lazyEllipse(m, d, j)) - grown_j - margin;
+    const double room = ellipseGapBound(e, kernelEllipse(m, d.z, j)) - grown_j - margin;
     if (room >= v * min_horizon) {
       horizon = std::min(horizon, room / v);
     } else {
-      as->joins.emplace_back(static_cast<int>(m.teeth.size()) + i,
-                             static_cast<int>(m.teeth.size()) + j);
+      as->joins.emplace_back(T + i, T + j);
       joined = true;
     }
   }
   // Obstacles: the grown bounding circle must stay a margin away.
   for (const ObstacleModel& o : m.obstacles) {
-    const double room = obstacleClearance(o, c) - k.semi_axis_a_m - margin;
+    const double room = obstacleClearance(o, e.center) - k.semi_axis_a_m - margin;
     if (room >= v * min_horizon) {
       horizon = std::min(horizon, room / v);
     } else {
-      const int id = static_cast<int>(m.teeth.size()) + i;
-      as->joins.emplace_back(id, id);
+      as->joins.emplace_back(T + i, T + i);
       joined = true;
     }
   }
-  kc.bound_c_W = c;
+  kc.bound_c_W = e.center;
   kc.bound_r_m = k.semi_axis_a_m + v * horizon;
   kc.wake_s = t_s + horizon;
   kc.speed_bound_mps = v;
   if (!joined && kc.wake_s < t_window_end_s) {
     // Too fast to stay lazy over the window: it is integrated, alone if nothing is near.
-    const int id = static_cast<int>(m.teeth.size()) + i;
-    as->joins.emplace_back(id, id);
+    as->joins.emplace_back(T + i, T + i);
     joined = true;
   }
-  if (joined) return;  // it goes into an island this window
+  if (joined) return false;  // it goes into an island this window
   gridInsert(as, i);
   heapPush(as, i);
+  return true;
 }
 
 double obstacleClearance(const ObstacleModel& o, const Vec2& c) {
