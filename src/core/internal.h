@@ -197,6 +197,8 @@ struct AsyncState;  // the island-local scheduler (src/core/async/async.h)
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
 struct Workspace {
+  Workspace();
+  ~Workspace();  // out of line (simulator.cc), where AsyncState is complete
   // The asynchronous island-local scheduler's state (integrator.islands); built on first use.
   std::unique_ptr<internal::AsyncState> async;
   std::vector<PairId> candidates;            // broad-phase survivors
@@ -394,7 +396,8 @@ void updatePedicels(const Model& m, Data* d);
 StepStatus timeSteppingStep(const Model& m, Data* d, double h_s);
 StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s);
 // The asynchronous island-local scheme (integrator.islands: true; src/core/async/).
-StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s);
+StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync = true);
+StepStatus asyncSync(const Model& m, Data* d);
 StepStatus asyncStep(const Model& m, Data* d);
 // Forgets the scheduler's state (a reset of the bodies).
 void resetAsync(Data* d);

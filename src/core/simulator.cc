@@ -44,6 +44,9 @@ bool PairId::operator<(const PairId& o) const {
   return std::tie(kind, a, b) < std::tie(o.kind, o.a, o.b);
 }
 
+Workspace::Workspace() = default;
+Workspace::~Workspace() = default;
+
 Data::Data() : ws(std::make_unique<Workspace>()) {}
 Data::~Data() = default;
 Data::Data(Data&&) noexcept = default;
@@ -399,6 +402,16 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
     worst = StepStatus::kRecovered;
   }
   return worst;
+}
+
+StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s) {
+  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s, false);
+  return advanceTo(model, data, t_end_s);
+}
+
+StepStatus syncBodies(const Model& model, Data* data) {
+  if (!model.integrator.islands) return StepStatus::kOk;
+  return internal::asyncSync(model, data);
 }
 
 Vec2 toothPointWorld(const Model& model, const Data& data, int tooth, double x_m) {

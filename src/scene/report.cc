@@ -267,14 +267,18 @@ std::string joinList(const std::vector<std::string>& items) {
 
 std::string schedulerJson(const SchedulerStats& s) {
   const std::pair<const char*, long> fields[] = {{"windows", s.windows},
-                                                 {"island_steps", s.island_steps}, {"island_body_steps", s.island_body_steps},
+                                                 {"island_steps", s.island_steps},
+                                                 {"island_body_steps", s.island_body_steps},
                                                  {"islands_built", s.islands_built},
                                                  {"islands_dissolved", s.islands_dissolved},
                                                  {"tooth_wakes", s.tooth_wakes},
                                                  {"kernel_wakes", s.kernel_wakes},
-                                                 {"predictions", s.predictions}, {"shrinks", s.shrinks},
+                                                 {"predictions", s.predictions},
+                                                 {"shrinks", s.shrinks},
                                                  {"pedicel_steps", s.pedicel_steps},
                                                  {"pedicel_rejected", s.pedicel_rejected},
+                                                 {"sleeps", s.sleeps},
+                                                 {"asleep", s.asleep},
                                                  {"pedicel_breaks", s.pedicel_breaks},
                                                  {"free_advances", s.free_advances},
                                                  {"tooth_advances", s.tooth_advances}};

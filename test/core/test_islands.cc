@@ -188,6 +188,7 @@ class IslandsVsGlobal : public ::testing::TestWithParam<IntegratorType> {};
 
 TEST_P(IslandsVsGlobal, DefaultStrikeAgrees) {
   Model mg = testutil::defaultSceneModel(GetParam());
+  mg.integrator.islands = false;
   Model ma = mg;
   ma.integrator.islands = true;
   compileModel(&mg);
@@ -260,6 +261,7 @@ double energyResidual(const Model& m, const Data& d) {
 
 TEST(IslandsEnergy, AccountMatchesTheGlobalScheme) {
   Model mg = testutil::defaultSceneModel(IntegratorType::kEventDriven);
+  mg.integrator.islands = false;
   Model ma = mg;
   ma.integrator.islands = true;
   compileModel(&mg);

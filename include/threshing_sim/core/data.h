@@ -93,6 +93,8 @@ struct SchedulerStats {
   long shrinks = 0;            // lazy kernels re-predicted tighter instead of woken
   long pedicel_steps = 0;      // accepted own-clock steps of lone kernels on pedicels
   long pedicel_rejected = 0;   // rejected own-clock steps
+  long sleeps = 0;             // own-clock jumps of a kernel at rest on its pedicel (no step)
+  long asleep = 0;             // predictions of a kernel at rest (a circle for the longest horizon)
   long pedicel_breaks = 0;     // pedicels broken on a lone kernel's own clock
   long free_advances = 0;      // closed-form advances of free kernels
   long tooth_advances = 0;     // exact advances of free teeth

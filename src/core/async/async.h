@@ -102,6 +102,9 @@ constexpr std::int64_t kEmptyCell = std::numeric_limits<std::int64_t>::min();
 // Brings lazy kernel i to time t_s (free: closed form; pedicel: its own integrator, which may
 // break the pedicel and then continue in free flight). Returns false on a numerical failure.
 bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_s);
+// Whether lazy kernel i, on its pedicel, is at rest over horizon_s (it moves by less than the
+// error scale; see atRest in body_motion.cc).
+bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s);
 // Bound on the speed of any point of lazy kernel i over the next horizon_s [m/s].
 double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i, double horizon_s);
 // Free tooth k over h_s at the data's (constant) drum speed: exact (as->prop[k] must be built).

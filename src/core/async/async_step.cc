@@ -278,11 +278,19 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   as->prop.resize(T);
   for (ToothPropagator& p : as->prop) p.n_modes = -1;
   as->counters = SchedulerStats();
+  // Every kernel listed first with an ungrown circle, so that each prediction sees all its
+  // neighbours (and leaves them their half of each gap).
   for (int i = 0; i < K; ++i) {
     KernelClock& kc = as->kernels[i];
     kc.t_s = d->t_s;
     kc.motion = m.kernels[i].pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
                                                                       : KernelMotion::kFree;
+    kc.bound_c_W = d->z.segment<2>(m.kernels[i].dof_offset);
+    kc.bound_r_m = m.kernels[i].semi_axis_a_m;
+    gridInsert(as, i);
+  }
+  for (int i = 0; i < K; ++i) {
+    gridRemove(as, i);
     predictKernel(m, *d, as, i, d->t_s, d->t_s);
   }
   as->ready = true;
@@ -306,6 +314,7 @@ StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
   AsyncState& as = asyncState(m, d);
   const double t0 = d->t_s;
   const double t1 = windowEnd(m, *d, as, t_end_s);
+  if (!(t1 > t0)) return StepStatus::kFailed;  // no progress: a window of zero length
   ++as.counters.windows;
   if (!wakeDueKernels(m, d, &as, t0, t1)) return StepStatus::kFailed;
   sweepTeeth(m, d, &as, t0, t1);
@@ -329,7 +338,7 @@ AsyncState& asyncState(const Model& m, Data* d) {
   return *ws.async;
 }
 
-StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s) {
+StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync) {
   StepStatus worst = StepStatus::kOk;
   const double half_step = timeStepping(m) ? 0.5 * m.integrator.dt_s : 0.0;
   for (long w = 0; d->t_s < t_end_s - half_step; ++w) {
@@ -341,10 +350,17 @@ StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s) {
     if (s == StepStatus::kRecovered) worst = s;
   }
   AsyncState& as = asyncState(m, d);
-  if (!syncLazyKernels(m, d, &as)) worst = StepStatus::kFailed;
+  if (sync && !syncLazyKernels(m, d, &as)) worst = StepStatus::kFailed;
   publishContacts(d, as);
   d->stats.scheduler = as.counters;
   return worst;
+}
+
+StepStatus asyncSync(const Model& m, Data* d) {
+  AsyncState& as = asyncState(m, d);
+  const bool ok = syncLazyKernels(m, d, &as);
+  d->stats.scheduler = as.counters;
+  return ok ? StepStatus::kOk : StepStatus::kFailed;
 }
 
 StepStatus asyncStep(const Model& m, Data* d) {

@@ -103,6 +103,18 @@ void freeFlight(const Model& m, Data* d, const KernelModel& k, double dt_s) {
   u.head<2>() += dt_s * m.gravity_mps2;
 }
 
+// Whether a kernel on its pedicel is at rest over the jump dt_s: with velocity v and
+// acceleration a of any point, the state moves by at most |v| dt + |a| dt^2 / 2 and its
+// velocity by |a| dt, which must stay below the error scales of the global norm (positions
+// tolerance x 1e-2 m, velocities tolerance x 1 m/s). Such a kernel sleeps: its clock jumps.
+bool atRest(const KernelModel& k, const Vec2& g, double tol, const Vec6& y, double dt_s) {
+  const Vec6 f = pedicelRhs(k, g, y);
+  const double a = k.semi_axis_a_m;
+  const double v = f.head<2>().norm() + a * std::abs(f[2]);
+  const double acc = f.segment<2>(3).norm() + a * std::abs(f[5]);
+  return v * dt_s + 0.5 * acc * dt_s * dt_s <= tol * 1e-2 && acc * dt_s <= tol;
+}
+
 // The pedicel kernel's own clock from kc->t_s to t_s. Returns false on a numerical failure or
 // the step bound; sets *broke_at_s when the pedicel broke (the kernel is then at that time).
 bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, double* broke_at_s) {
@@ -111,6 +123,11 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
   const double tol = m.integrator.tolerance;
   double h = kc.h_s > 0 ? kc.h_s : std::min(m.integrator.max_step_s, 1e-6);
   Vec6 y = kernelState(*d, k), y1;
+  if (atRest(k, m.gravity_mps2, tol, y, t_s - kc.t_s)) {
+    ++as->counters.sleeps;
+    kc.t_s = t_s;
+    return true;
+  }
   for (long n = 0; kc.t_s < t_s; ++n) {
     if (n > 10000000) return false;  // the work bound: no lone kernel takes 1e7 steps
     const double h_try = std::min({h, m.integrator.max_step_s, t_s - kc.t_s});
@@ -157,6 +174,11 @@ bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_
   freeFlight(m, d, k, t_s - kc.t_s);
   kc.t_s = t_s;
   return true;
+}
+
+bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s) {
+  const KernelModel& k = m.kernels[i];
+  return atRest(k, m.gravity_mps2, m.integrator.tolerance, kernelState(d, k), horizon_s);
 }
 
 double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i,

@@ -202,8 +202,15 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
   ++as->counters.predictions;
   // Horizon: the circle may grow by at most the cap (and never past the grid's radius).
   const double cap = std::min(grow_cap_m, as->r_cap_m - k.semi_axis_a_m);
-  double v = 0.0;
-  double horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
+  // A kernel at rest on its pedicel over the longest horizon moves by less than the error scale
+  // until something reaches it: it sleeps, with a circle grown by that scale only.
+  double v = 0.0, horizon = as->max_horizon_s;
+  if (kc.motion == KernelMotion::kPedicel && lazyAtRest(m, d, i, horizon)) {
+    v = m.integrator.tolerance * 1e-2 / horizon;
+    ++as->counters.asleep;
+  } else {
+    horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
+  }
   const double min_horizon = t_window_end_s - t_s;
   const Ellipse e = kernelEllipse(m, d.z, i);
   // Other lazy kernels: the grown ellipses must stay a margin apart.
@@ -214,8 +221,11 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
     if (j == i) continue;
     const KernelClock& kj = as->kernels[j];
     if ((kj.bound_c_W - e.center).norm() > kj.bound_r_m + reach) continue;
+    // Each of two neighbours may grow into at most half of the free gap between them, so that
+    // the one predicted later still finds its share.
+    const double free_m = ellipseGapBound(e, kernelEllipse(m, d.z, j)) - margin;
     const double grown_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
-    const double room = ellipseGapBound(e, kernelEllipse(m, d.z, j)) - grown_j - margin;
+    const double room = std::min(free_m - grown_j, 0.5 * free_m);
     if (room >= v * min_horizon) {
       horizon = std::min(horizon, room / v);
     } else {
