@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "threshing_sim/core/simulator.h"
+#include "threshing_sim/scene/report.h"
 #include "threshing_sim/scene/scene_loader.h"
 
 namespace threshing_sim {
@@ -285,6 +286,8 @@ int run(const Options& options) {
   field("steps", std::to_string(data.steps));
   field("rejected_steps", std::to_string(data.stats.rejected_steps));
   field("numerical_recoveries", std::to_string(data.stats.numerical_recoveries));
+  field("islands", model.integrator.islands ? "true" : "false");
+  field("scheduler", schedulerJson(data.stats.scheduler));
   field("impacts", std::to_string(data.stats.impacts));
   field("contact_episodes", std::to_string(data.stats.contact_episodes));
   field("peak_normal_force_N", num(data.stats.peak_normal_force_N));

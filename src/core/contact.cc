@@ -200,6 +200,14 @@ int PairTable::indexOf(std::uint64_t key) {
 
 PairMemory& PairTable::operator[](std::uint64_t key) { return entries_[indexOf(key)].second; }
 
+const PairMemory* PairTable::find(std::uint64_t key) const {
+  if (slots_.empty()) return nullptr;
+  for (size_t s = slotOf(key, slots_.size());; s = (s + 1) & (slots_.size() - 1)) {
+    if (slots_[s] < 0) return nullptr;
+    if (entries_[slots_[s]].first == key) return &entries_[slots_[s]].second;
+  }
+}
+
 void PairTable::clear() {
   entries_.clear();
   std::fill(slots_.begin(), slots_.end(), -1);

@@ -52,17 +52,29 @@ double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, dou
   return e;
 }
 
+namespace {
+// h plus one tooth's angular momentum, summed in the order of the per-model total.
+double addToothMomentum(double h, const ToothModel& tm, const Eigen::Ref<const VecX>& q,
+                        const Eigen::Ref<const VecX>& qd, double omega) {
+  double inertia = tm.I0_kgm2;
+  if (tm.n_modes > 0) {
+    inertia += q.squaredNorm() - quadraticForm(tm.K_G, q);
+    h += tm.p_inertia.dot(qd);
+  }
+  return h + omega * inertia;
+}
+}  // namespace
+
+double toothAngularMomentum(const ToothModel& tm, const Eigen::Ref<const VecX>& q,
+                            const Eigen::Ref<const VecX>& qd, double omega) {
+  return addToothMomentum(0.0, tm, q, qd, omega);
+}
+
 double angularMomentumOf(const Model& m, const VecX& z, const VecX& u, double omega) {
   double h = 0.0;
-  for (const ToothModel& tm : m.teeth) {
-    double inertia = tm.I0_kgm2;
-    if (tm.n_modes > 0) {
-      const auto q = z.segment(tm.dof_offset, tm.n_modes);
-      inertia += q.squaredNorm() - quadraticForm(tm.K_G, q);
-      h += tm.p_inertia.dot(u.segment(tm.dof_offset, tm.n_modes));
-    }
-    h += omega * inertia;
-  }
+  for (const ToothModel& tm : m.teeth)
+    h = addToothMomentum(h, tm, z.segment(tm.dof_offset, tm.n_modes),
+                         u.segment(tm.dof_offset, tm.n_modes), omega);
   return h;
 }
 

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <utility>
 #include <vector>
 
@@ -123,6 +124,8 @@ class PairTable {
   void reserve(size_t n);
   // The memory of a pair, default-constructed on first use.
   PairMemory& operator[](std::uint64_t key);
+  // The memory of a pair if it has an entry, else nullptr (nothing is inserted).
+  const PairMemory* find(std::uint64_t key) const;
   // Index of the entry of key in the dense array (inserting it if new).
   int indexOf(std::uint64_t key);
   Entry& entry(int index) { return entries_[index]; }
@@ -227,10 +230,16 @@ struct RhsMemo {
   double torque = 0;                   // contact torque on the drum [N m]
 };
 
+struct AsyncState;  // the island-local scheduler (src/core/async/async.h)
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
 struct Workspace {
+  Workspace();
+  ~Workspace();  // out of line (simulator.cc), where AsyncState is complete
+  // The asynchronous island-local scheduler's state (integrator.islands); built on first use.
+  std::unique_ptr<internal::AsyncState> async;
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;
@@ -422,6 +431,11 @@ Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_W
 // Mechanical energy of a configuration (see simulator.h) and the teeth's angular momentum.
 double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, double omega);
 double angularMomentumOf(const Model& m, const VecX& z, const VecX& u, double omega);
+// One tooth's angular momentum about the drum axis [kg m^2/s].
+double toothAngularMomentum(const ToothModel& tm, const Eigen::Ref<const VecX>& q,
+                            const Eigen::Ref<const VecX>& qd, double omega);
+// Tracks the largest tip deflection over L and warns once when it leaves the model's range.
+void checkToothDeflection(const Model& m, Data* d);
 // Records peak force statistics for one contact at time t.
 void recordForce(const Model& m, Data* d, const ContactGeom& g, double fn, double ft, double t);
 // Opens / closes contact episodes and emits ContactEvents.
@@ -439,6 +453,12 @@ void updatePedicels(const Model& m, Data* d);
 // --- the integrators -------------------------------------------------------------------------
 StepStatus timeSteppingStep(const Model& m, Data* d, double h_s);
 StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s);
+// The asynchronous island-local scheme (integrator.islands: true; src/core/async/).
+StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync = true);
+StepStatus asyncSync(const Model& m, Data* d);
+StepStatus asyncStep(const Model& m, Data* d);
+// Forgets the scheduler's state (a reset of the bodies).
+void resetAsync(Data* d);
 
 }  // namespace internal
 }  // namespace threshing_sim

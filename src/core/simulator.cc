@@ -8,6 +8,7 @@
 #include <limits>
 #include <tuple>
 
+#include "async/async.h"
 #include "internal.h"
 #include "threshing_sim/core/beam.h"
 
@@ -42,6 +43,9 @@ const char* toString(PairKind k) {
 bool PairId::operator<(const PairId& o) const {
   return std::tie(kind, a, b) < std::tie(o.kind, o.a, o.b);
 }
+
+Workspace::Workspace() = default;
+Workspace::~Workspace() = default;
 
 Data::Data() : ws(std::make_unique<Workspace>()) {}
 Data::~Data() = default;
@@ -241,6 +245,36 @@ void updatePedicels(const Model& m, Data* d) {
 
 }  // namespace internal
 
+namespace internal {
+
+// Model validity after a step: the beam model is linear in the deflection (small-deflection
+// Euler-Bernoulli with first-order foreshortening, physics.md section 2), so a tooth whose tip
+// deflection |w(L)| exceeds model.deflection_validity_fraction x L has left the range the model
+// is valid in. Tracks the largest |w(L)| / L and warns once per run (no allocation otherwise).
+void checkToothDeflection(const Model& m, Data* d) {
+  RunStats& st = d->stats;
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (tm.n_modes == 0) continue;
+    // The last station is the tip, x = L.
+    const double w_tip_m =
+        tm.phi_s.row(tm.n_stations - 1).transpose().dot(d->z.segment(tm.dof_offset, tm.n_modes));
+    const double ratio = std::abs(w_tip_m) / tm.length_m;
+    st.max_tip_deflection_ratio = std::max(st.max_tip_deflection_ratio, ratio);
+    if (ratio > m.deflection_validity_fraction && st.deflection_warning_time_s < 0) {
+      st.deflection_warning_time_s = d->t_s;
+      char text[256];
+      std::snprintf(text, sizeof(text),
+                    "tooth %zu: tip deflection %.3g L (|w(L)| = %.3g m) at t = %.6g s is outside "
+                    "the small-deflection range of the beam model (|w(L)| <= %.3g L)",
+                    k, ratio, std::abs(w_tip_m), d->t_s, m.deflection_validity_fraction);
+      st.warnings.push_back(text);
+    }
+  }
+}
+
+}  // namespace internal
+
 namespace {
 
 // Kernels, teeth and pedicels back to the scene's initial state (time and drum untouched).
@@ -272,32 +306,6 @@ void resetBodies(const Model& m, Data* d) {
   d->stats.kernel_detach_time_s.assign(m.kernels.size(), -1.0);
 }
 
-// Model validity after a step: the beam model is linear in the deflection (small-deflection
-// Euler-Bernoulli with first-order foreshortening, physics.md section 2), so a tooth whose tip
-// deflection |w(L)| exceeds model.deflection_validity_fraction x L has left the range the model
-// is valid in. Tracks the largest |w(L)| / L and warns once per run (no allocation otherwise).
-void checkToothDeflection(const Model& m, Data* d) {
-  RunStats& st = d->stats;
-  for (size_t k = 0; k < m.teeth.size(); ++k) {
-    const ToothModel& tm = m.teeth[k];
-    if (tm.n_modes == 0) continue;
-    // The last station is the tip, x = L.
-    const double w_tip_m =
-        tm.phi_s.row(tm.n_stations - 1).transpose().dot(d->z.segment(tm.dof_offset, tm.n_modes));
-    const double ratio = std::abs(w_tip_m) / tm.length_m;
-    st.max_tip_deflection_ratio = std::max(st.max_tip_deflection_ratio, ratio);
-    if (ratio > m.deflection_validity_fraction && st.deflection_warning_time_s < 0) {
-      st.deflection_warning_time_s = d->t_s;
-      char text[256];
-      std::snprintf(text, sizeof(text),
-                    "tooth %zu: tip deflection %.3g L (|w(L)| = %.3g m) at t = %.6g s is outside "
-                    "the small-deflection range of the beam model (|w(L)| <= %.3g L)",
-                    k, ratio, std::abs(w_tip_m), d->t_s, m.deflection_validity_fraction);
-      st.warnings.push_back(text);
-    }
-  }
-}
-
 bool finiteState(const Data& d) {
   return d.z.allFinite() && d.u.allFinite() && std::isfinite(d.omega_radps) &&
          std::isfinite(d.theta_rad);
@@ -320,11 +328,13 @@ void resetData(const Model& model, Data* data) {
   // The free-tooth propagators are rebuilt for this model on first use.
   for (internal::ToothPropagator& prop : data->ws->ed_prop) prop.n_modes = -1;
   resetBodies(model, data);
+  internal::resetAsync(data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
 }
 
 void resetBodiesKeepTime(const Model& model, Data* data) {
   resetBodies(model, data);
+  internal::resetAsync(data);
   data->stats.drive_work_J = 0;
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
   data->ws->ed_h = 0;
@@ -336,17 +346,19 @@ void setDrumTarget(const Model& model, Data* data, double omega_target_radps) {
 }
 
 StepStatus step(const Model& model, Data* data) {
+  if (model.integrator.islands) return internal::asyncStep(model, data);
   const double t_end = model.integrator.type == IntegratorType::kTimeStepping
                            ? data->t_s + model.integrator.dt_s
                            : std::numeric_limits<double>::infinity();
   const StepStatus s = model.integrator.type == IntegratorType::kTimeStepping
                            ? internal::timeSteppingStep(model, data, model.integrator.dt_s)
                            : internal::eventDrivenStep(model, data, t_end);
-  if (s != StepStatus::kFailed) checkToothDeflection(model, data);
+  if (s != StepStatus::kFailed) internal::checkToothDeflection(model, data);
   return s;
 }
 
 StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
+  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s);
   StepStatus worst = StepStatus::kOk;
   const double h = model.integrator.dt_s;
   while (true) {
@@ -361,7 +373,7 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
     StepStatus s = ts ? internal::timeSteppingStep(model, data, h)
                       : internal::eventDrivenStep(model, data, t_end_s);
     if (s == StepStatus::kOk && finiteState(*data)) {
-      checkToothDeflection(model, data);
+      internal::checkToothDeflection(model, data);
       continue;
     }
     // Recovery: restore, then cross the same interval with ten small time steps.
@@ -386,10 +398,20 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
       data->omega_radps = om0;
       return StepStatus::kFailed;
     }
-    checkToothDeflection(model, data);
+    internal::checkToothDeflection(model, data);
     worst = StepStatus::kRecovered;
   }
   return worst;
+}
+
+StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s) {
+  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s, false);
+  return advanceTo(model, data, t_end_s);
+}
+
+StepStatus syncBodies(const Model& model, Data* data) {
+  if (!model.integrator.islands) return StepStatus::kOk;
+  return internal::asyncSync(model, data);
 }
 
 Vec2 toothPointWorld(const Model& model, const Data& data, int tooth, double x_m) {

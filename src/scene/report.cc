@@ -265,6 +265,30 @@ std::string joinList(const std::vector<std::string>& items) {
 // ---------------------------------------------------------------------------------------------
 // Summary JSON.
 
+std::string schedulerJson(const SchedulerStats& s) {
+  const std::pair<const char*, long> fields[] = {{"windows", s.windows},
+                                                 {"island_steps", s.island_steps},
+                                                 {"island_body_steps", s.island_body_steps},
+                                                 {"islands_built", s.islands_built},
+                                                 {"islands_dissolved", s.islands_dissolved},
+                                                 {"tooth_wakes", s.tooth_wakes},
+                                                 {"kernel_wakes", s.kernel_wakes},
+                                                 {"predictions", s.predictions},
+                                                 {"shrinks", s.shrinks},
+                                                 {"pedicel_steps", s.pedicel_steps},
+                                                 {"pedicel_rejected", s.pedicel_rejected},
+                                                 {"sleeps", s.sleeps},
+                                                 {"asleep", s.asleep},
+                                                 {"pedicel_breaks", s.pedicel_breaks},
+                                                 {"free_advances", s.free_advances},
+                                                 {"tooth_advances", s.tooth_advances}};
+  std::string out = "{";
+  for (const auto& f : fields)
+    out += std::string(out.size() > 1 ? ", " : "") + "\"" + f.first +
+           "\": " + std::to_string(f.second);
+  return out + "}";
+}
+
 void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
                       const std::string& status, double wall_time_s, double energy_final_J,
                       const OutcomeReport* outcomes) {
@@ -294,6 +318,7 @@ void writeSummaryJson(std::ostream& out, const Model& model, const Data& data,
   j.integer("rejected_steps", s.rejected_steps);
   j.integer("depth_corrections", s.depth_corrections);
   j.number("max_tip_deflection_ratio", s.max_tip_deflection_ratio);
+  j.raw("scheduler", schedulerJson(s.scheduler));
   std::string warnings = "[";
   for (size_t i = 0; i < s.warnings.size(); ++i) {
     warnings += (i ? ", " : "") + jsonString(s.warnings[i]);

@@ -111,6 +111,7 @@ const KeySpec kSchema[] = {
     {"integrator.zeno_velocity", KeyKind::kValue},
     {"integrator.max_step", KeyKind::kValue},
     {"integrator.free_teeth", KeyKind::kValue},
+    {"integrator.islands", KeyKind::kValue},
     {"duration", KeyKind::kValue},
     {"broadphase_margin", KeyKind::kValue},
     {"macro_collision_gap", KeyKind::kValue},
@@ -538,6 +539,9 @@ void readIntegrator(const Section& scene, IntegratorParams* integrator) {
       s.word("free_teeth", integrator->exact_free_teeth ? "exact" : "integrated",
              "free tooth propagation", {"exact", "integrated"});
   integrator->exact_free_teeth = free_teeth == "exact";
+  const std::string islands = s.word("islands", integrator->islands ? "true" : "false",
+                                     "island-local scheme", {"true", "false"});
+  integrator->islands = islands == "true";
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -24,6 +24,17 @@ namespace testutil {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kG = 9.81;  // |gravity| used by every scene here [m/s^2]
 
+// The stepping scheme the models below use: the island-local one (the default), or with
+// THRESHING_SIM_GLOBAL_SCHEME the global one, so that one test source runs under both.
+#ifdef THRESHING_SIM_GLOBAL_SCHEME
+constexpr bool kIslandScheme = false;
+#else
+constexpr bool kIslandScheme = true;
+#endif
+inline const char* schemeOverride() {
+  return kIslandScheme ? "integrator.islands=true" : "integrator.islands=false";
+}
+
 // A value with 10 significant digits, for RecordProperty and failure messages.
 inline std::string fmt(double value) {
   std::ostringstream out;
@@ -80,6 +91,7 @@ inline Model bareModel(IntegratorType type) {
   Model m;
   m.drum.initial_speed_radps = 0.0;
   m.integrator.type = type;
+  m.integrator.islands = kIslandScheme;
   m.integrator.tolerance = 1e-9;
   m.integrator.dt_s = 1e-6;
   m.gravity_mps2 = Vec2(0.0, -kG);
@@ -119,6 +131,7 @@ inline Model defaultSceneModel(IntegratorType type = IntegratorType::kEventDrive
   m.contact[static_cast<int>(PairKind::kKernelObstacle)] = {ContactLaw::kRigid, 0.47, 0.50};
   m.gravity_mps2 = Vec2(0.0, -kG);
   m.integrator.type = type;
+  m.integrator.islands = kIslandScheme;
   m.integrator.tolerance = 1e-6;
   m.integrator.dt_s = 1e-6;
   m.duration_s = 0.01;

@@ -63,6 +63,7 @@ std::string vec(double x, double y) { return "[" + num(x) + ", " + num(y) + "]";
 Model loadHard(const std::string& file, IntegratorType type,
                std::vector<std::string> overrides = {}) {
   overrides.push_back(std::string("integrator.type=") + integratorName(type));
+  overrides.push_back(testutil::schemeOverride());
   return loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/hard/" + file, overrides);
 }
 

@@ -79,6 +79,27 @@ struct KernelToothPeaks {
   double time_of_tangential_s = -1;  // when it first occurred; < 0 = none yet [s]
 };
 
+// Work of the asynchronous island-local scheduler by kind (integrator.islands: true), the
+// terms of its cost model: each count times its cost per occurrence is the run's cost.
+struct SchedulerStats {
+  long windows = 0;            // scheduling windows (islands and teeth meet at their ends)
+  long island_steps = 0;       // accepted integrator steps inside islands
+  long island_body_steps = 0;  // the same, each counted once per body of its island
+  long islands_built = 0;      // islands formed (new, grown or merged)
+  long islands_dissolved = 0;  // islands dissolved (bodies lazy again, or re-formed)
+  long tooth_wakes = 0;        // lazy kernels met by a tooth's swept sector
+  long kernel_wakes = 0;       // lazy kernels met by an island kernel's reach
+  long predictions = 0;        // new bound circles of lazy kernels (calendar events)
+  long shrinks = 0;            // lazy kernels re-predicted tighter instead of woken
+  long pedicel_steps = 0;      // accepted own-clock steps of lone kernels on pedicels
+  long pedicel_rejected = 0;   // rejected own-clock steps
+  long sleeps = 0;             // own-clock jumps of a kernel at rest on its pedicel (no step)
+  long asleep = 0;             // predictions of a kernel at rest (a circle for the longest horizon)
+  long pedicel_breaks = 0;     // pedicels broken on a lone kernel's own clock
+  long free_advances = 0;      // closed-form advances of free kernels
+  long tooth_advances = 0;     // exact advances of free teeth
+};
+
 // Running statistics over a run (reset by resetData).
 struct RunStats {
   long impacts = 0;                      // completed impacts, all pairs
@@ -107,6 +128,7 @@ struct RunStats {
                                           // model.deflection_validity_fraction; < 0 = never [s]
   // Per kernel: peak tooth contact forces [N] and their times [s] (sized by resetData).
   std::vector<KernelToothPeaks> kernel_tooth_peaks;
+  SchedulerStats scheduler;  // the island-local scheduler's work (zero under the global scheme)
 };
 
 struct Workspace;  // integrator scratch memory, opaque

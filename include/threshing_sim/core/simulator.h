@@ -27,6 +27,17 @@ void setDrumTarget(const Model& model, Data* data, double omega_target_radps);
 // good state).
 StepStatus advanceTo(const Model& model, Data* data, double t_end_s);
 
+// The same, but under the island scheme (integrator.islands) lone kernels stay on their own
+// clocks: their entries of data.z, data.u (and what is computed from them) are stale until
+// syncBodies(). For callers that step often and read the whole state seldom (the node steps at
+// 1e-5 s and publishes at 100 Hz): the cost of a call then follows the events, not the kernel
+// count. Under the global scheme it is advanceTo.
+StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s);
+
+// Brings every lone kernel to data's time (after advanceToLazy; advanceTo does it itself).
+// Returns kFailed if a kernel's own integrator failed.
+StepStatus syncBodies(const Model& model, Data* data);
+
 // One integrator step (time stepping: dt; event-driven: one accepted step or event).
 StepStatus step(const Model& model, Data* data);
 

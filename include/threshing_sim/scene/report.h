@@ -21,6 +21,9 @@ struct OutcomeReport {
   double sample_interval_s = 0;  // contact sampling interval near teeth (--forces samples) [s]
 };
 
+// The island-local scheduler's work by kind (RunStats::scheduler) as a one-line JSON object.
+std::string schedulerJson(const SchedulerStats& s);
+
 // Summary of a run as one JSON object: status, times, step and impact counts, force peaks,
 // energy balance, warnings and the final state of each kernel; with outcomes, an "outcomes"
 // object (thresholds, totals over the kernels, one entry per kernel). Non-finite numbers are

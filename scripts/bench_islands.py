@@ -1,0 +1,334 @@
+"""The island-local scheme's part of the benchmark (scripts/bench.py --part islands).
+
+Measures, with the same pinned, cached bench_work_precision points as the rest of bench.py:
+
+1. Scaling of the stream scene (config/bench/stream.yaml, 2 ms) with the kernel count, up to
+   10 000, for four layouts: the stream (kernels in the teeth's path), idle at rest (every
+   kernel hanging at its static equilibrium out of reach), idle swinging (out of reach on
+   unstretched pedicels, so that each swings and falls), and sparse (10 kernels in reach, the
+   rest at rest out of reach); under the island scheme and, where affordable, the global one.
+2. Events per kernel per simulated second by kind (RunStats::scheduler).
+3. Instructions per contact event and per island step, by callgrind (valgrind), on the single
+   strike and the 100- and 1000-kernel streams.
+4. The node's real-time factor on the stream at 1, 10, 100 and 1000 kernels.
+5. The issue's targets, each with its measured figure.
+
+Writes docs/bench_islands.md, docs/bench/islands_*.csv and .png, and the README section between
+<!-- islands-table --> markers.
+"""
+import json
+import math
+import os
+import pathlib
+import re
+import shutil
+import subprocess
+import tempfile
+
+import bench  # scripts/bench.py: Runner, stream files, node runs, CSV and README helpers
+
+STREAM = bench.BENCH_DIR / "stream.yaml"
+STRIKE = bench.BENCH_DIR / "single_strike.yaml"
+COUNTS = [0, 1, 10, 100, 1000, 10000]
+GLOBAL_MAX = 1000  # the global scheme is run up to this count (it costs kernels x events)
+SCHEMES = {
+    ("islands", "event_driven"): ["--set", "integrator.islands=true",
+                                  "--set", "integrator.type=event_driven",
+                                  "--set", "integrator.tolerance=1e-6"],
+    ("islands", "time_stepping"): ["--set", "integrator.islands=true",
+                                   "--set", "integrator.type=time_stepping",
+                                   "--set", "integrator.dt=1e-6"],
+    ("global", "event_driven"): ["--set", "integrator.islands=false",
+                                 "--set", "integrator.type=event_driven",
+                                 "--set", "integrator.tolerance=1e-6"],
+    ("global", "time_stepping"): ["--set", "integrator.islands=false",
+                                  "--set", "integrator.type=time_stepping",
+                                  "--set", "integrator.dt=1e-6"],
+}
+LAYOUTS = {"stream": False, "idle at rest": "rest", "idle swinging": "swinging",
+           "sparse (10 in reach)": ("sparse", 10)}
+EVENT_KINDS = ["island_steps", "islands_built", "tooth_wakes", "kernel_wakes", "predictions",
+               "shrinks", "pedicel_steps", "sleeps", "free_advances", "tooth_advances",
+               "windows"]
+MARK = ("<!-- islands-table -->", "<!-- islands-table-end -->")
+
+
+def kernel_file(count, layout, gen_dir):
+    if count == 0:
+        path = pathlib.Path(gen_dir) / "stream_kernels_0.yaml"
+        path.write_text("# No kernels: the stream scene's teeth, drum and grate alone.\n"
+                        "kernels: []\n")
+        return path
+    return bench.stream_override_file(count, gen_dir, layout)
+
+
+def scaling(runner, gen_dir, quick):
+    counts = [0, 1, 10] if quick else COUNTS
+    futures = []
+    for (scheme, integrator), settings in SCHEMES.items():
+        for layout, idle in LAYOUTS.items():
+            for n in counts:
+                if scheme == "global" and n > GLOBAL_MAX:
+                    continue
+                if layout.startswith("sparse") and n < 10:
+                    continue
+                args = ["--set-file", str(kernel_file(n, idle, gen_dir))] + settings
+                label = f"islands bench: {layout}, {n} kernels, {scheme} {integrator}"
+                futures.append(((scheme, integrator, layout, n), runner.submit(
+                    label, STREAM, args, reps=1 if quick else 3, budget_s=30.0, samples=0,
+                    time_limit_s=10.0 if quick else 120.0)))
+    rows = []
+    for (scheme, integrator, layout, n), fut in futures:
+        run = fut.result()
+        sched = run.get("scheduler", {})
+        struck = sum(1 for k in run["kernels"] if k["impacts"] > 0)
+        rows.append({"scheme": scheme, "integrator": integrator, "layout": layout, "n": n,
+                     "status": run["status"], "completed": run["completed"],
+                     "sim_time_s": run["sim_time_s"], "wall_per_sim_s": run["wall_per_sim_s"],
+                     "real_time_factor": 1.0 / run["wall_per_sim_s"],
+                     "impacts": run["impacts"], "kernels_struck": struck, "steps": run["steps"],
+                     **{k: sched.get(k, 0) for k in EVENT_KINDS}})
+    return rows
+
+
+def callgrind_count(bench_bin, scene, args, workdir):
+    """Instructions inside advanceTo (the stepping loop) of one bench_work_precision run."""
+    out = pathlib.Path(workdir) / "cg.out"
+    json_out = pathlib.Path(workdir) / "cg.json"
+    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
+           "--toggle-collect=threshing_sim::advanceTo*", str(bench_bin), str(scene)] + args + [
+               "--reps", "1", "--samples", "0", "--out", str(json_out)]
+    subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True,
+                   timeout=3600)
+    text = subprocess.run(["callgrind_annotate", str(out)], capture_output=True, text=True,
+                          check=True).stdout
+    m = re.search(r"([\d,]+)\s+\(100\.0%\)\s+PROGRAM TOTALS", text)
+    with open(json_out) as f:
+        run = json.load(f)
+    return int(m.group(1).replace(",", "")), run
+
+
+def instructions(gen_dir, quick):
+    """Instructions per contact event (impact or compliant episode) and per island step."""
+    if shutil.which("valgrind") is None:
+        bench.say("islands bench: valgrind not installed, instruction counts skipped")
+        return []
+    bench_bin = bench.BIN_DIR / "bench_work_precision"
+    cases = [("single strike", STRIKE, [])]
+    for n in ([10] if quick else [100, 1000]):
+        cases.append((f"stream, {n} kernels", STREAM,
+                      ["--set-file", str(kernel_file(n, False, gen_dir))]))
+    rows = []
+    with tempfile.TemporaryDirectory() as work:
+        for label, scene, extra in cases:
+            for integrator in ("event_driven", "time_stepping"):
+                settings = SCHEMES[("islands", integrator)]
+                total, run = callgrind_count(bench_bin, scene, extra + settings, work)
+                events = max(1, run["contact_episodes"])
+                steps = max(1, run["scheduler"]["island_steps"])
+                rows.append({"case": label, "integrator": integrator, "instructions": total,
+                             "contact_events": run["contact_episodes"],
+                             "island_steps": run["scheduler"]["island_steps"],
+                             "per_event": total / events, "per_island_step": total / steps,
+                             "island_body_steps": run["scheduler"]["island_body_steps"]})
+                bench.say(f"islands bench: {label}, {integrator}: {total:.3g} instructions, "
+                          f"{total / events:.3g} per contact event")
+    return rows
+
+
+def node_table(gen_dir, quick):
+    if quick:
+        return []
+    cfg = {"node_duration": bench.NODE_DURATION_S}
+    setup = bench.ROOT / ".build" / "ws" / "devel" / "setup.bash"
+    if not (bench.BIN_DIR / "threshing_sim_node").exists() or not setup.exists():
+        return []
+    rows = []
+    port = 11800 + os.getpid() % 100
+    for label, integrator in (("event-driven, tolerance 1e-6", "event_driven"),
+                              ("time stepping, dt 1e-6 s", "time_stepping")):
+        settings = SCHEMES[("islands", integrator)][2:]
+        for n in (1, 10, 100, 1000):
+            row = bench.node_try(cfg, gen_dir, setup, port, integrator, settings, n)
+            if row is not None:
+                row["setting"] = label
+                rows.append(row)
+    return rows
+
+
+def fmt(x, digits=3):
+    return bench.fmt(x, digits) if x is not None else "-"
+
+
+def plot(rows, out_dir):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, integrator in zip(axes, ("event_driven", "time_stepping")):
+        for (layout, scheme), style in {("stream", "islands"): "o-", ("stream", "global"): "o--",
+                                        ("idle at rest", "islands"): "s-",
+                                        ("idle swinging", "islands"): "^-",
+                                        ("sparse (10 in reach)", "islands"): "d-"}.items():
+            sel = sorted((r for r in rows if r["layout"] == layout and r["scheme"] == scheme
+                          and r["integrator"] == integrator and r["n"] > 0),
+                         key=lambda r: r["n"])
+            if sel:
+                ax.loglog([r["n"] for r in sel], [r["wall_per_sim_s"] for r in sel], style,
+                          label=f"{layout} ({scheme})")
+        ax.axhline(1.0, color="grey", lw=0.8, ls=":")
+        ax.set_xlabel("kernels")
+        ax.set_ylabel("wall time per simulated second [s]")
+        ax.set_title(integrator.replace("_", " "))
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "islands_scaling.png", dpi=110)
+    plt.close(fig)
+
+
+def pick(rows, **kw):
+    for r in rows:
+        if all(r.get(k) == v for k, v in kw.items()):
+            return r
+    return None
+
+
+def targets(scal, instr, node, strike_rtf):
+    """The issue's targets: (case, target, measured, met)."""
+    def rtf(layout, n, integrator, scheme="islands"):
+        r = pick(scal, layout=layout, n=n, integrator=integrator, scheme=scheme)
+        return r["real_time_factor"] if r else None
+    out = []
+    out.append(("default single strike, event-driven, tolerance 1e-7", ">= 20x real time",
+                strike_rtf, strike_rtf is not None and strike_rtf >= 20))
+    idle = pick(scal, layout="idle at rest", n=1000, integrator="event_driven", scheme="islands")
+    none = pick(scal, layout="idle at rest", n=0, integrator="event_driven", scheme="islands")
+    ratio = idle["wall_per_sim_s"] / none["wall_per_sim_s"] if idle and none else None
+    out.append(("1000 idle kernels at rest on pedicels, event-driven",
+                "<= 1.2x the cost with no kernels", ratio, ratio is not None and ratio <= 1.2))
+    swing = pick(scal, layout="idle swinging", n=1000, integrator="event_driven",
+                 scheme="islands")
+    ratio_s = swing["wall_per_sim_s"] / none["wall_per_sim_s"] if swing and none else None
+    out.append(("1000 idle kernels swinging on unstretched pedicels, event-driven",
+                "<= 1.2x the cost with no kernels", ratio_s, ratio_s is not None and ratio_s <= 1.2))
+    for integrator, goal in (("event_driven", 1.0), ("time_stepping", 0.2)):
+        v = rtf("sparse (10 in reach)", 1000, integrator)
+        out.append((f"1000 kernels, 10 in reach, {integrator.replace('_', ' ')}",
+                    f">= {goal:g}x real time", v, v is not None and v >= goal))
+    ev = {r["case"]: r for r in instr if r["integrator"] == "event_driven"}
+    a, b = ev.get("stream, 100 kernels"), ev.get("stream, 1000 kernels")
+    per = b["per_event"] if b else None
+    out.append(("instructions per contact event, dense stream (1000 kernels)",
+                "<= 3e5", per, per is not None and per <= 3e5))
+    flat = b["per_event"] / a["per_event"] if a and b else None
+    out.append(("per-event cost, 1000 against 100 kernels", "<= 1.5", flat,
+                flat is not None and flat <= 1.5))
+    v = rtf("stream", 100, "event_driven")
+    out.append(("100-kernel stream, event-driven, simulate", ">= 1x real time", v,
+                v is not None and v >= 1.0))
+    nrow = next((r for r in node if r["n"] == 100 and r["integrator"] == "event_driven"), None)
+    out.append(("100-kernel stream, the node's real-time factor", ">= 0.99",
+                nrow["rtf"] if nrow else None, bool(nrow and nrow["rtf"] >= 0.99)))
+    v = rtf("stream", 1000, "event_driven")
+    out.append(("1000-kernel stream, event-driven", ">= 0.5x real time", v,
+                v is not None and v >= 0.5))
+    v = rtf("stream", 1000, "time_stepping")
+    out.append(("1000-kernel stream, time stepping, dt 1e-6 s", ">= 0.1x real time", v,
+                v is not None and v >= 0.1))
+    return out
+
+
+def strike_factor(runner):
+    """Real-time factor of the default single strike at the tolerance whose headline error is
+    below 1e-6 (1e-7, docs/bench.md), under the island scheme."""
+    run = runner.submit("islands bench: single strike, tolerance 1e-7", STRIKE,
+                        ["--set", "integrator.islands=true", "--set",
+                         "integrator.tolerance=1e-7"], reps=5, samples=0).result()
+    return 1.0 / run["wall_per_sim_s"]
+
+
+def write_doc(scal, instr, node, tgt, out_dir, fig_rel):
+    lines = ["| case | target | measured | met |", "|---|---|---|---|"]
+    for case, goal, value, met in tgt:
+        lines.append(f"| {case} | {goal} | {fmt(value)} | {'yes' if met else '**no**'} |")
+    target_table = "\n".join(lines)
+    sc = ["| layout | kernels | scheme | integrator | real-time factor | kernels struck | "
+          "impacts | island steps |", "|---|---|---|---|---|---|---|---|"]
+    for r in sorted(scal, key=lambda r: (r["layout"], r["integrator"], r["scheme"], r["n"])):
+        sc.append(f"| {r['layout']} | {r['n']} | {r['scheme']} | {r['integrator']} | "
+                  f"{fmt(r['real_time_factor'])}{'' if r['completed'] else ' (cut short)'} | "
+                  f"{r['kernels_struck']} | {r['impacts']} | {r['island_steps']} |")
+    ev = ["| layout | kernels | integrator | " + " | ".join(EVENT_KINDS) + " |",
+          "|---|---|---|" + "---|" * len(EVENT_KINDS)]
+    for r in sorted(scal, key=lambda r: (r["layout"], r["integrator"], r["n"])):
+        if r["scheme"] != "islands" or r["n"] == 0:
+            continue
+        per = r["n"] * r["sim_time_s"]
+        ev.append(f"| {r['layout']} | {r['n']} | {r['integrator']} | " +
+                  " | ".join(fmt(r[k] / per) for k in EVENT_KINDS) + " |")
+    ins = ["| case | integrator | instructions | contact events | island steps | "
+           "per event | per island step | bodies per island step |", "|---|---|---|---|---|---|---|---|"]
+    for r in instr:
+        ins.append(f"| {r['case']} | {r['integrator']} | {r['instructions']:.3g} | "
+                   f"{r['contact_events']} | {r['island_steps']} | {r['per_event']:.3g} | "
+                   f"{r['per_island_step']:.3g} | "
+                   f"{r['island_body_steps'] / max(1, r['island_steps']):.3g} |")
+    nd = ["| setting | kernels | real-time factor | overruns |", "|---|---|---|---|"]
+    for r in node:
+        nd.append(f"| {r['setting']} | {r['n']} | {fmt(r['rtf'])} | {r['overruns']} |")
+    doc = f"""# The island-local scheme: measured
+
+Regenerated by `python3 scripts/bench.py --part islands` (Release, one pinned CPU per point,
+medians; callgrind for instruction counts). The stream scene is `config/bench/stream.yaml`
+(2 ms); its kernel files come from `scripts/bench.py --stream-kernels N [--idle [swinging]]
+[--sparse 10]`.
+
+## The issue's targets
+
+{target_table}
+
+## Scaling with the kernel count
+
+![scaling]({fig_rel}islands_scaling.png)
+
+{chr(10).join(sc)}
+
+## Events per kernel per simulated second, by kind (island scheme)
+
+{chr(10).join(ev)}
+
+## Instructions per contact event and per island step (callgrind)
+
+Instructions inside `advanceTo`, divided by the contact events (impacts and compliant episodes)
+and by the island integrator's accepted steps.
+
+{chr(10).join(ins)}
+
+## The node's real-time factor (stream, island scheme)
+
+{chr(10).join(nd) if node else "(not measured in this run)"}
+"""
+    return doc, target_table
+
+
+def run(args, runner, gen_dir, out, fig_dir):
+    quick = args.quick
+    scal = scaling(runner, gen_dir, quick)
+    bench.write_csv(fig_dir / "islands_scaling.csv", scal)
+    plot(scal, fig_dir)
+    instr = instructions(gen_dir, quick)
+    bench.write_csv(fig_dir / "islands_instructions.csv", instr)
+    node = [] if args.no_node else node_table(gen_dir, quick)
+    bench.write_csv(fig_dir / "islands_node.csv", node)
+    strike = None if quick else strike_factor(runner)
+    tgt = targets(scal, instr, node, strike)
+    doc, table = write_doc(scal, instr, node, tgt, out, "bench/")
+    (out / "bench_islands.md").write_text(doc)
+    if not quick and not args.no_readme and not args.out:
+        path = bench.ROOT / "README.md"
+        text = path.read_text()
+        if MARK[0] in text:
+            path.write_text(bench.replace_between(text, MARK[0], MARK[1], table))
+    bench.say(f"islands bench: wrote {out / 'bench_islands.md'}")
+    return scal

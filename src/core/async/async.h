@@ -1,0 +1,160 @@
+// threshing_sim core, asynchronous island-local scheduler: the private header of the stages in
+// src/core/async/ (not installed; only the files of that folder and simulator.cc include it).
+//
+// Cost follows the events (see README "Architecture" and docs/architecture.md):
+//   - every kernel keeps its own clock (KernelClock::t_s). A kernel that touches nothing is
+//     "lazy": a free kernel flies its parabola in closed form, a kernel on its pedicel is
+//     advanced by its own small adaptive integrator, and neither is touched until something can
+//     reach it or the caller needs its state;
+//   - a lazy kernel holds a bound circle that contains it until its wake time; the wake times
+//     form the event calendar (a binary heap), and the circles sit in a uniform grid;
+//   - bodies that can touch within a window form an island, integrated by the global
+//     integrator (event-driven or time stepping) on a sub-system of just those bodies, with its
+//     own clock, steps, events and contact problems; an event in one island never re-steps
+//     another;
+//   - the drum's motion is known in advance, so the sector a tooth sweeps over a window is
+//     known: kernels whose bound circles it meets are woken into the tooth's island.
+// Windows (short intervals, at most a broad-phase margin of tooth travel) order the islands'
+// merges and splits: islands and teeth meet at window ends, lazy kernels do not.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "../internal.h"
+
+namespace threshing_sim {
+namespace internal {
+
+// How a kernel moves while it touches nothing.
+enum class KernelMotion : std::uint8_t {
+  kFree = 0,     // no pedicel (or broken): parabola under gravity, constant spin, closed form
+  kPedicel = 1,  // on its pedicel: its own adaptive Dormand-Prince clock over its 3 dofs
+  kIsland = 2,   // member of an island: integrated with the island's bodies
+};
+
+// Per-kernel clock and calendar entry.
+struct KernelClock {
+  double t_s = 0;  // time the kernel's entries of Data::z, u refer to [s]
+  KernelMotion motion = KernelMotion::kFree;
+  int island = -1;                     // island slot while motion == kIsland
+  double wake_s = 0;                   // the kernel stays inside its bound circle until then [s]
+  Vec2 bound_c_W = Vec2::Zero();       // bound circle centre, world [m]
+  double bound_r_m = 0;                // bound circle radius [m]
+  double speed_bound_mps = 0;          // speed bound of its points until wake_s [m/s]
+  double h_s = 0;                      // pedicel clock: next step proposal [s]
+  int heap_pos = -1;                   // position in the calendar heap; -1 = not in it
+  std::int64_t cell = 0;               // grid cell of bound_c_W while listed
+  int cell_next = -1, cell_prev = -1;  // neighbours in the cell's list (-1 = none)
+  bool in_grid = false;                // listed in the grid
+};
+
+// One island: a sub-system of teeth and kernels (plus every obstacle) integrated together.
+struct Island {
+  bool alive = false;
+  std::vector<int> teeth;    // global tooth indices, ascending (local order)
+  std::vector<int> kernels;  // global kernel indices, ascending (local order)
+  Model model;               // the sub-model (compiled per-body data copied from the full model)
+  Data data;                 // the sub-system's state, clock and integrator workspace
+  // Additive statistics of data.stats already merged into the global statistics.
+  long merged_impacts = 0, merged_episodes = 0, merged_recoveries = 0, merged_rejected = 0,
+       merged_depth_corrections = 0, merged_steps = 0;
+  double merged_impulse_Ns = 0, merged_drive_work_J = 0;  // [N s], [J]
+  std::vector<long> merged_kernel_impacts;                // per local kernel
+  size_t merged_warnings = 0;                             // warnings already copied
+};
+
+// The scheduler's whole state (lives in Workspace::async).
+struct AsyncState {
+  bool ready = false;                // set up for the current model and reset
+  std::vector<KernelClock> kernels;  // per kernel
+  std::vector<int> tooth_island;     // per tooth: island slot, -1 = free (closed form)
+  std::vector<Island> islands;       // island slots (dead ones are reused)
+  PairTable stored_memory;           // pair memory (global keys) of pairs outside islands
+  std::vector<int> heap;             // calendar: kernels by wake time (binary min-heap)
+  // Uniform grid of lazy kernels' bound circles: open-addressing table cell -> first kernel.
+  double cell_m = 0;                   // cell size [m]
+  double r_cap_m = 0;                  // largest bound radius a lazy kernel is given [m]
+  double max_horizon_s = 1.0;          // longest horizon of a prediction [s]
+  std::vector<std::int64_t> cell_key;  // table keys (kEmptyCell = empty)
+  std::vector<int> cell_head;          // first kernel of the cell, -1 = none
+  size_t cells_used = 0;               // keys in the table
+  std::vector<ToothPropagator> prop;   // free teeth at constant drum speed
+  // Per-window scratch (grow-only).
+  std::vector<int> uf_parent;                    // union-find over entity slots of this window
+  std::vector<int> entities;                     // entity ids: tooth k -> k, kernel i -> T + i
+  std::vector<int> entity_slot;                  // per entity id: slot in entities, or -1
+  std::vector<std::pair<int, int>> joins;        // entity pairs that must share an island
+  std::vector<int> found;                        // grid query results
+  std::vector<int> found_copy;                   // a query's results while the grid changes
+  std::vector<int> comp_teeth, comp_kernels;     // one component's bodies
+  std::vector<std::pair<int, int>> split_edges;  // an island's proximity graph (local numbers)
+  std::vector<std::uint8_t> split_pinned;        // its bodies that must stay integrated
+  std::vector<int> split_parent;                 // union-find over its bodies
+  std::vector<int> split_teeth, split_kernels;   // the dissolved island's bodies (global)
+  std::vector<ContactEvent> window_events;       // events of this window, before time ordering
+  SchedulerStats counters;                       // work by kind (copied to RunStats::scheduler)
+};
+
+constexpr std::int64_t kEmptyCell = std::numeric_limits<std::int64_t>::min();
+
+// --- body_motion.cc: closed-form and own-clock motion of lone bodies -----------------------
+// Brings lazy kernel i to time t_s (free: closed form; pedicel: its own integrator, which may
+// break the pedicel and then continue in free flight). Returns false on a numerical failure.
+bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_s);
+// Whether lazy kernel i, on its pedicel, is at rest over horizon_s (it moves by less than the
+// error scale; see atRest in body_motion.cc).
+bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s);
+// Bound on the speed of any point of lazy kernel i over the next horizon_s [m/s].
+double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i, double horizon_s);
+// Free tooth k over h_s at the data's (constant) drum speed: exact (as->prop[k] must be built).
+void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s);
+// Bound on |w| at the stations of tooth k while it moves freely at the data's drum speed [m].
+double toothDeflectionBound(const Model& m, const Data& d, int k);
+
+// --- calendar.cc: the wake-time heap and the grid of bound circles ------------------------
+void heapPush(AsyncState* as, int i);
+void heapRemove(AsyncState* as, int i);
+int heapTop(const AsyncState& as);  // -1 if empty
+void gridInsert(AsyncState* as, int i);
+void gridRemove(AsyncState* as, int i);
+// Listed kernels whose circles may meet the box [lo, hi], into as->found (callers test exactly).
+void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi);
+// Gives lazy kernel i (at time t_s) a new bound circle and wake time and lists it, or, when
+// it cannot stay lazy past t_window_end_s, adds joins (with a neighbour, or itself alone).
+// Its growth (bound radius minus a) is at most grow_cap_m. Returns true if it stays lazy.
+bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
+                   double t_window_end_s,
+                   double grow_cap_m = std::numeric_limits<double>::infinity());
+// Distance from point c to obstacle o's surface [m] (negative inside).
+double obstacleClearance(const ObstacleModel& o, const Vec2& c);
+// Supporting-line lower bound of the gap between two ellipses along their centres' line [m].
+double ellipseGapBound(const Ellipse& e1, const Ellipse& e2);
+
+// --- wake.cc: what can touch what over a window --------------------------------------------
+// Distance from p to the annular sector {rho e(phi): phi0 <= phi <= phi1, r_in <= rho <= r_out}.
+double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, double r_out);
+bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1);
+void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1);
+void islandNeighbours(const Model& m, Data* d, AsyncState* as, double t0, double t1);
+// The proximity graph of island s over the next window of length window_s, in local entity
+// numbers (teeth 0..nT-1, kernels nT..): edges between bodies in contact or within reach;
+// pinned: kernels in contact with or within reach of an obstacle.
+void islandProximity(const Model& m, const Data& d, const AsyncState& as, int s, double window_s,
+                     std::vector<std::pair<int, int>>* edges, std::vector<std::uint8_t>* pinned);
+
+// --- island.cc: sub-systems -----------------------------------------------------------------
+void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vector<int>& teeth,
+                 const std::vector<int>& kernels);
+void dissolveIsland(const Model& m, Data* d, AsyncState* as, int s);
+void storeIslandState(const Model& m, Data* d, const AsyncState& as, int s);
+void mergeIslandResults(const Model& m, Data* d, AsyncState* as, int s);
+bool islandInContact(AsyncState* as, int s);
+void publishIslandContacts(const AsyncState& as, std::vector<ContactInfo>* out);
+
+// --- async_step.cc ----------------------------------------------------------------------------
+AsyncState& asyncState(const Model& m, Data* d);
+StepStatus asyncWindow(const Model& m, Data* d, double t_end_s);
+
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,380 @@
+// Asynchronous core: one window of the island-local scheme, as a list of named stages, and
+// advanceTo over windows. See async.h for the scheme.
+#include "async.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+bool timeStepping(const Model& m) { return m.integrator.type == IntegratorType::kTimeStepping; }
+
+bool rampingOver(const Model& m, const Data& d) {
+  (void)m;
+  return d.omega_radps != d.omega_target_radps;
+}
+
+// Whether tooth k, touching nothing, needs integrating over the window instead of its exact
+// free motion: the drum ramps (the stiffness changes), the option is off, or no propagator.
+bool toothNeedsIntegration(const Model& m, const Data& d, AsyncState* as, int k) {
+  const ToothModel& tm = m.teeth[k];
+  if (tm.n_modes == 0) return false;
+  if (rampingOver(m, d) || !m.integrator.exact_free_teeth) return true;
+  return !buildToothPropagator(m, k, d.omega_radps, &as->prop[k]);
+}
+
+// Window end: at most the integrator's largest step and a broad-phase margin of the fastest
+// motion (tooth tips, island kernels), landing on the run's end and on a drum ramp's end.
+// Time stepping: a whole number of steps, the time accumulated as the steps accumulate it.
+double windowEnd(const Model& m, const Data& d, const AsyncState& as, double t_end_s) {
+  double v = 1e-6;
+  const double omega = std::max(std::abs(d.omega_radps), std::abs(d.omega_target_radps));
+  for (const ToothModel& tm : m.teeth) v = std::max(v, omega * (m.drum.radius_m + tm.length_m));
+  for (const Island& isl : as.islands)
+    if (isl.alive)
+      for (int i : isl.kernels) v = std::max(v, kernelSpeedBound(m, d.u, i));
+  double w = std::min(m.integrator.max_step_s, m.broadphase_margin_m / v);
+  const double ramp = timeToTarget(m, d);
+  if (ramp > 1e-12 && ramp < w) w = ramp;
+  if (!timeStepping(m)) return std::min(d.t_s + w, t_end_s);
+  const double h = m.integrator.dt_s;
+  const long steps = std::max(1L, static_cast<long>(w / h));
+  double t = d.t_s;
+  for (long s = 0; s < steps && t < t_end_s - 0.5 * h; ++s) t += h;
+  return t;
+}
+
+// Stage: teeth that must be integrated (drum ramp, no exact propagator) join an island.
+void claimIntegratedTeeth(const Model& m, const Data& d, AsyncState* as) {
+  for (int k = 0; k < static_cast<int>(m.teeth.size()); ++k)
+    if (as->tooth_island[k] < 0 && toothNeedsIntegration(m, d, as, k)) as->joins.emplace_back(k, k);
+}
+
+int findRootOf(std::vector<int>* parent, int x) {
+  while ((*parent)[x] != x) {
+    (*parent)[x] = (*parent)[(*parent)[x]];
+    x = (*parent)[x];
+  }
+  return x;
+}
+
+// Slot of entity id e in this window's union-find (added on first sight).
+int entitySlot(AsyncState* as, int e) {
+  if (as->entity_slot[e] < 0) {
+    as->entity_slot[e] = static_cast<int>(as->entities.size());
+    as->entities.push_back(e);
+    as->uf_parent.push_back(as->entity_slot[e]);
+  }
+  return as->entity_slot[e];
+}
+
+int islandOfEntity(const Model& m, const AsyncState& as, int e) {
+  const int T = static_cast<int>(m.teeth.size());
+  return e < T ? as.tooth_island[e] : as.kernels[e - T].island;
+}
+
+void unite(AsyncState* as, int a, int b) {
+  const int ra = findRootOf(&as->uf_parent, a), rb = findRootOf(&as->uf_parent, b);
+  if (ra != rb) as->uf_parent[std::max(ra, rb)] = std::min(ra, rb);
+}
+
+int freeIslandSlot(AsyncState* as) {
+  for (size_t s = 0; s < as->islands.size(); ++s)
+    if (!as->islands[s].alive) return static_cast<int>(s);
+  as->islands.emplace_back();
+  return static_cast<int>(as->islands.size()) - 1;
+}
+
+// Builds the island of one union-find component (root r) unless it is an existing island
+// unchanged. Returns false on a numerical failure of a lazy kernel's clock.
+bool buildComponent(const Model& m, Data* d, AsyncState* as, int root) {
+  const int T = static_cast<int>(m.teeth.size());
+  std::vector<int>& teeth = as->comp_teeth;
+  std::vector<int>& kernels = as->comp_kernels;
+  teeth.clear();
+  kernels.clear();
+  int only_island = -2;  // -2 none seen, -1 a lazy body, >= 0 the one island of all members
+  for (size_t x = 0; x < as->entities.size(); ++x) {
+    if (findRootOf(&as->uf_parent, static_cast<int>(x)) != root) continue;
+    const int e = as->entities[x];
+    (e < T ? teeth : kernels).push_back(e < T ? e : e - T);
+    const int isl = islandOfEntity(m, *as, e);
+    only_island = (only_island == -2 || only_island == isl) ? isl : -1;
+    if (isl < 0) only_island = -1;
+  }
+  if (only_island >= 0 &&
+      teeth.size() + kernels.size() ==
+          as->islands[only_island].teeth.size() + as->islands[only_island].kernels.size())
+    return true;  // the same island: nothing to rebuild
+  for (int k : teeth)
+    if (as->tooth_island[k] >= 0 && as->islands[as->tooth_island[k]].alive)
+      dissolveIsland(m, d, as, as->tooth_island[k]);
+  for (int i : kernels) {
+    const int s = as->kernels[i].island;
+    if (s >= 0 && as->islands[s].alive) dissolveIsland(m, d, as, s);
+    heapRemove(as, i);
+    gridRemove(as, i);
+    if (!advanceLazyKernel(m, d, as, i, d->t_s)) return false;
+  }
+  std::sort(teeth.begin(), teeth.end());
+  std::sort(kernels.begin(), kernels.end());
+  buildIsland(m, d, as, freeIslandSlot(as), teeth, kernels);
+  return true;
+}
+
+// Stage: joins become islands. Entities of the joins, with every member of an island one of
+// them belongs to, are united; each component becomes one island.
+bool formIslands(const Model& m, Data* d, AsyncState* as) {
+  if (as->joins.empty()) return true;
+  const int T = static_cast<int>(m.teeth.size());
+  as->entities.clear();
+  as->uf_parent.clear();
+  for (const auto& jn : as->joins) unite(as, entitySlot(as, jn.first), entitySlot(as, jn.second));
+  // Whole islands come along.
+  for (size_t x = 0; x < as->entities.size(); ++x) {
+    const int s = islandOfEntity(m, *as, as->entities[x]);
+    if (s < 0) continue;
+    for (int k : as->islands[s].teeth) unite(as, static_cast<int>(x), entitySlot(as, k));
+    for (int i : as->islands[s].kernels) unite(as, static_cast<int>(x), entitySlot(as, T + i));
+  }
+  bool ok = true;
+  for (size_t x = 0; x < as->entities.size() && ok; ++x)
+    if (findRootOf(&as->uf_parent, static_cast<int>(x)) == static_cast<int>(x))
+      ok = buildComponent(m, d, as, static_cast<int>(x));
+  for (int e : as->entities) as->entity_slot[e] = -1;
+  as->joins.clear();
+  return ok;
+}
+
+// Stage: every island advances to t1 by the global integrator on its sub-system.
+StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) {
+  StepStatus worst = StepStatus::kOk;
+  for (size_t s = 0; s < as->islands.size(); ++s) {
+    Island& isl = as->islands[s];
+    if (!isl.alive) continue;
+    isl.data.omega_target_radps = d->omega_target_radps;
+    const long steps_before = isl.data.steps;
+    const StepStatus st = advanceTo(isl.model, &isl.data, t1);
+    as->counters.island_body_steps +=
+        (isl.data.steps - steps_before) * static_cast<long>(isl.teeth.size() + isl.kernels.size());
+    if (!timeStepping(m)) isl.data.t_s = t1;  // it lands on t1 or an ulp past it
+    mergeIslandResults(m, d, as, static_cast<int>(s));
+    storeIslandState(m, d, *as, static_cast<int>(s));
+    if (st == StepStatus::kFailed) return st;
+    if (st == StepStatus::kRecovered) worst = st;
+  }
+  return worst;
+}
+
+// Stage: free teeth move exactly; the drive does the work that keeps the speed.
+void advanceFreeTeeth(const Model& m, Data* d, AsyncState* as, double h_s) {
+  for (int k = 0; k < static_cast<int>(m.teeth.size()); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (as->tooth_island[k] >= 0 || tm.n_modes == 0) continue;
+    const auto q = d->z.segment(tm.dof_offset, tm.n_modes);
+    const auto qd = d->u.segment(tm.dof_offset, tm.n_modes);
+    const double H0 = toothAngularMomentum(tm, q, qd, d->omega_radps);
+    advanceFreeTooth(m, d, as, k, h_s);
+    const double H1 = toothAngularMomentum(tm, q, qd, d->omega_radps);
+    d->stats.drive_work_J += d->omega_radps * (H1 - H0);
+  }
+}
+
+// Stage: the drum to t1 (piecewise-constant acceleration, known in advance).
+void advanceDrum(const Model& m, Data* d, double t1) {
+  const Drive end = driveAt(m, *d, t1 - d->t_s);
+  d->theta_rad = end.theta_rad;
+  d->omega_radps = end.omega_radps;
+  d->alpha_radps2 = end.alpha_radps2;
+  d->t_s = t1;
+}
+
+// One component (root r of the split union-find) of a dissolved island: a lone kernel
+// becomes lazy, a lone tooth free, anything else a new island.
+void rebuildComponent(const Model& m, Data* d, AsyncState* as, int root) {
+  const int nT = static_cast<int>(as->split_teeth.size());
+  std::vector<int>& teeth = as->comp_teeth;
+  std::vector<int>& kernels = as->comp_kernels;
+  teeth.clear();
+  kernels.clear();
+  bool pinned = false;
+  for (int x = 0; x < static_cast<int>(as->split_parent.size()); ++x) {
+    if (findRootOf(&as->split_parent, x) != root) continue;
+    if (x < nT) {
+      teeth.push_back(as->split_teeth[x]);
+    } else {
+      kernels.push_back(as->split_kernels[x - nT]);
+    }
+    pinned |= as->split_pinned[x] != 0;
+  }
+  if (!pinned && teeth.empty() && kernels.size() == 1) {
+    predictKernel(m, *d, as, kernels[0], d->t_s, d->t_s);
+  } else if (pinned || teeth.size() + kernels.size() > 1) {
+    buildIsland(m, d, as, freeIslandSlot(as), teeth, kernels);
+  }
+}
+
+// Stage: each island splits into the groups of its bodies that are in contact or within reach
+// over the next window; a lone kernel becomes lazy again (a new bound circle), a lone tooth
+// free; an island that stays whole is kept with its workspace.
+void splitIslands(const Model& m, Data* d, AsyncState* as, double window_s) {
+  const size_t n_slots = as->islands.size();
+  for (size_t s = 0; s < n_slots; ++s) {
+    Island& isl = as->islands[s];
+    if (!isl.alive) continue;
+    islandProximity(m, *d, *as, static_cast<int>(s), window_s, &as->split_edges, &as->split_pinned);
+    const int nT = static_cast<int>(isl.teeth.size());
+    for (int a = 0; a < nT; ++a)
+      if (toothNeedsIntegration(m, *d, as, isl.teeth[a])) as->split_pinned[a] = 1;
+    const int n = static_cast<int>(as->split_pinned.size());
+    as->split_parent.resize(n);
+    for (int x = 0; x < n; ++x) as->split_parent[x] = x;
+    int components = n;
+    for (const auto& e : as->split_edges) {
+      const int ra = findRootOf(&as->split_parent, e.first);
+      const int rb = findRootOf(&as->split_parent, e.second);
+      if (ra == rb) continue;
+      as->split_parent[std::max(ra, rb)] = std::min(ra, rb);
+      --components;
+    }
+    // Whole (one component, and not a lone body that may leave): kept as it is.
+    if (components == 1 && (n > 1 || as->split_pinned[0])) continue;
+    as->split_teeth = isl.teeth;
+    as->split_kernels = isl.kernels;
+    dissolveIsland(m, d, as, static_cast<int>(s));
+    for (int x = 0; x < n; ++x)
+      if (findRootOf(&as->split_parent, x) == x) rebuildComponent(m, d, as, x);
+  }
+}
+
+// Events of the window in time order (islands report theirs one after another).
+void flushWindowEvents(Data* d, AsyncState* as) {
+  std::vector<ContactEvent>& ev = as->window_events;
+  for (size_t i = 1; i < ev.size(); ++i)
+    for (size_t j = i; j > 0 && ev[j].t_s < ev[j - 1].t_s; --j) std::swap(ev[j], ev[j - 1]);
+  d->events.insert(d->events.end(), ev.begin(), ev.end());
+  ev.clear();
+}
+
+void setUp(const Model& m, Data* d, AsyncState* as) {
+  const int K = static_cast<int>(m.kernels.size()), T = static_cast<int>(m.teeth.size());
+  as->kernels.assign(K, KernelClock());
+  as->tooth_island.assign(T, -1);
+  for (Island& isl : as->islands) isl.alive = false;
+  as->stored_memory.clear();
+  as->stored_memory.reserve(static_cast<size_t>(K) * (T + 8) + 64);
+  as->heap.clear();
+  as->heap.reserve(K);
+  double a_max = 1e-6;
+  for (const KernelModel& k : m.kernels) a_max = std::max(a_max, k.semi_axis_a_m);
+  as->r_cap_m = a_max + 4.0 * m.broadphase_margin_m;
+  as->cell_m = 2.0 * as->r_cap_m;
+  as->max_horizon_s = 1.0;
+  size_t slots = 64;
+  while (slots < 4 * static_cast<size_t>(K) + 64) slots *= 2;
+  as->cell_key.assign(slots, kEmptyCell);
+  as->cell_head.assign(slots, -1);
+  as->cells_used = 0;
+  as->entity_slot.assign(T + K, -1);
+  as->prop.resize(T);
+  for (ToothPropagator& p : as->prop) p.n_modes = -1;
+  as->counters = SchedulerStats();
+  // Every kernel listed first with an ungrown circle, so that each prediction sees all its
+  // neighbours (and leaves them their half of each gap).
+  for (int i = 0; i < K; ++i) {
+    KernelClock& kc = as->kernels[i];
+    kc.t_s = d->t_s;
+    kc.motion = m.kernels[i].pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
+                                                                      : KernelMotion::kFree;
+    kc.bound_c_W = d->z.segment<2>(m.kernels[i].dof_offset);
+    kc.bound_r_m = m.kernels[i].semi_axis_a_m;
+    gridInsert(as, i);
+  }
+  for (int i = 0; i < K; ++i) {
+    gridRemove(as, i);
+    predictKernel(m, *d, as, i, d->t_s, d->t_s);
+  }
+  as->ready = true;
+}
+
+// Brings every lazy kernel to the data's time (the caller reads the whole state).
+bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
+  for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i)
+    if (!advanceLazyKernel(m, d, as, i, d->t_s)) return false;
+  return true;
+}
+
+void publishContacts(Data* d, const AsyncState& as) {
+  d->contacts.clear();
+  publishIslandContacts(as, &d->contacts);
+}
+
+}  // namespace
+
+StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
+  AsyncState& as = asyncState(m, d);
+  const double t0 = d->t_s;
+  const double t1 = windowEnd(m, *d, as, t_end_s);
+  if (!(t1 > t0)) return StepStatus::kFailed;  // no progress: a window of zero length
+  ++as.counters.windows;
+  if (!wakeDueKernels(m, d, &as, t0, t1)) return StepStatus::kFailed;
+  sweepTeeth(m, d, &as, t0, t1);
+  islandNeighbours(m, d, &as, t0, t1);
+  claimIntegratedTeeth(m, *d, &as);
+  if (!formIslands(m, d, &as)) return StepStatus::kFailed;
+  const StepStatus status = integrateIslands(m, d, &as, t1);
+  if (status == StepStatus::kFailed) return status;
+  advanceFreeTeeth(m, d, &as, t1 - t0);
+  advanceDrum(m, d, t1);
+  checkToothDeflection(m, d);
+  splitIslands(m, d, &as, t1 - t0);
+  flushWindowEvents(d, &as);
+  return status;
+}
+
+AsyncState& asyncState(const Model& m, Data* d) {
+  Workspace& ws = *d->ws;
+  if (!ws.async) ws.async = std::make_unique<AsyncState>();
+  if (!ws.async->ready) setUp(m, d, ws.async.get());
+  return *ws.async;
+}
+
+StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync) {
+  StepStatus worst = StepStatus::kOk;
+  const double half_step = timeStepping(m) ? 0.5 * m.integrator.dt_s : 0.0;
+  for (long w = 0; d->t_s < t_end_s - half_step; ++w) {
+    const StepStatus s = asyncWindow(m, d, t_end_s);
+    if (s == StepStatus::kFailed) {
+      worst = s;
+      break;
+    }
+    if (s == StepStatus::kRecovered) worst = s;
+  }
+  AsyncState& as = asyncState(m, d);
+  if (sync && !syncLazyKernels(m, d, &as)) worst = StepStatus::kFailed;
+  publishContacts(d, as);
+  d->stats.scheduler = as.counters;
+  return worst;
+}
+
+StepStatus asyncSync(const Model& m, Data* d) {
+  AsyncState& as = asyncState(m, d);
+  const bool ok = syncLazyKernels(m, d, &as);
+  d->stats.scheduler = as.counters;
+  return ok ? StepStatus::kOk : StepStatus::kFailed;
+}
+
+StepStatus asyncStep(const Model& m, Data* d) {
+  StepStatus s = asyncWindow(m, d, std::numeric_limits<double>::infinity());
+  AsyncState& as = asyncState(m, d);
+  if (!syncLazyKernels(m, d, &as)) s = StepStatus::kFailed;
+  publishContacts(d, as);
+  d->stats.scheduler = as.counters;
+  return s;
+}
+
+void resetAsync(Data* d) {
+  if (d->ws->async) d->ws->async->ready = false;
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,255 @@
+// Asynchronous core, stage "body motion": lone bodies between events, each on its own clock.
+//   - a free kernel (no pedicel, or a broken one) flies a parabola with constant spin: exact;
+//   - a kernel on its pedicel touching nothing: its own adaptive Dormand-Prince 5(4) over its
+//     3 dofs (6 states, fixed-size, no allocation), with the error norm and tolerance of the
+//     global integrator, breaking the pedicel at a step end as the global integrator does;
+//   - a free tooth at constant drum speed: the exact solution of its linear modal equations.
+#include <Eigen/Cholesky>
+
+#include "async.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;  // [c_x, c_y, psi, v_x, v_y, omega] [m, rad, m/s, rad/s]
+
+// Dormand-Prince 5(4) tableau (as in event_driven.cc).
+constexpr double kA[7][6] = {{0},
+                             {1. / 5},
+                             {3. / 40, 9. / 40},
+                             {44. / 45, -56. / 15, 32. / 9},
+                             {19372. / 6561, -25360. / 2187, 64448. / 6561, -212. / 729},
+                             {9017. / 3168, -355. / 33, 46732. / 5247, 49. / 176, -5103. / 18656},
+                             {35. / 384, 0, 500. / 1113, 125. / 192, -2187. / 6784, 11. / 84}};
+constexpr double kE[7] = {71. / 57600,      0,         -71. / 16695, 71. / 1920,
+                          -17253. / 339200, 22. / 525, -1. / 40};
+
+inline Vec2 rotated(double angle_rad, const Vec2& v) {
+  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y());
+}
+
+// Pedicel force on the kernel at state y [N] and its moment about the centre [N m]
+// (the law of pedicelForce in contact.cc).
+Vec2 pedicelForceOf(const KernelModel& k, const Vec6& y, double* moment_Nm) {
+  const Vec2 r = rotated(y[2], k.pedicel.p_KP_K);
+  const Vec2 v = y.segment<2>(3) + y[5] * Vec2(-r.y(), r.x());
+  const Vec2 d = y.head<2>() + r - k.pedicel.p_WA_W;
+  const double len = d.norm();
+  if (len <= 0.0) {
+    *moment_Nm = 0.0;
+    return Vec2::Zero();
+  }
+  const Vec2 dir = d / len;
+  const double tension = k.pedicel.stiffness_Npm * (len - k.pedicel.rest_length_m) +
+                         k.pedicel.damping_Nspm * dir.dot(v);
+  const Vec2 F = -tension * dir;
+  *moment_Nm = r.x() * F.y() - r.y() * F.x();
+  return F;
+}
+
+Vec6 pedicelRhs(const KernelModel& k, const Vec2& g, const Vec6& y) {
+  double moment = 0.0;
+  const Vec2 F = pedicelForceOf(k, y, &moment);
+  Vec6 f;
+  f.head<3>() = y.tail<3>();
+  f.segment<2>(3) = g + F / k.mass_kg;
+  f[5] = moment / k.inertia_kgm2;
+  return f;
+}
+
+// One Dormand-Prince step of length h; returns the scaled RMS error (the global norm).
+double pedicelDopri(const KernelModel& k, const Vec2& g, double tol, const Vec6& y0, double h,
+                    Vec6* y1) {
+  Vec6 stage[7];
+  for (int s = 0; s < 7; ++s) {
+    Vec6 y = y0;
+    for (int j = 0; j < s; ++j)
+      if (kA[s][j] != 0.0) y += h * kA[s][j] * stage[j];
+    stage[s] = pedicelRhs(k, g, y);
+    if (s == 6) *y1 = y;
+  }
+  double e2 = 0.0;
+  for (int i = 0; i < 6; ++i) {
+    double ei = 0.0;
+    for (int s = 0; s < 7; ++s) ei += kE[s] * stage[s][i];
+    ei *= h;
+    const double y = std::max(std::abs(y0[i]), std::abs((*y1)[i]));
+    const double scale = tol * ((i < 3 ? 1e-2 : 1.0) + y);
+    e2 += (ei / scale) * (ei / scale);
+  }
+  return std::sqrt(e2 / 6.0);
+}
+
+Vec6 kernelState(const Data& d, const KernelModel& k) {
+  Vec6 y;
+  y.head<3>() = d.z.segment<3>(k.dof_offset);
+  y.tail<3>() = d.u.segment<3>(k.dof_offset);
+  return y;
+}
+
+void setKernelState(Data* d, const KernelModel& k, const Vec6& y) {
+  d->z.segment<3>(k.dof_offset) = y.head<3>();
+  d->u.segment<3>(k.dof_offset) = y.tail<3>();
+}
+
+// Free flight over dt: parabola under gravity, constant spin.
+void freeFlight(const Model& m, Data* d, const KernelModel& k, double dt_s) {
+  auto z = d->z.segment<3>(k.dof_offset);
+  auto u = d->u.segment<3>(k.dof_offset);
+  z.head<2>() += dt_s * u.head<2>() + (0.5 * dt_s * dt_s) * m.gravity_mps2;
+  z[2] += dt_s * u[2];
+  u.head<2>() += dt_s * m.gravity_mps2;
+}
+
+// Whether a kernel on its pedicel is at rest over the jump dt_s: with velocity v and
+// acceleration a of any point, the state moves by at most |v| dt + |a| dt^2 / 2 and its
+// velocity by |a| dt, which must stay below the error scales of the global norm (positions
+// tolerance x 1e-2 m, velocities tolerance x 1 m/s). Such a kernel sleeps: its clock jumps.
+bool atRest(const KernelModel& k, const Vec2& g, double tol, const Vec6& y, double dt_s) {
+  const Vec6 f = pedicelRhs(k, g, y);
+  const double a = k.semi_axis_a_m;
+  const double v = f.head<2>().norm() + a * std::abs(f[2]);
+  const double acc = f.segment<2>(3).norm() + a * std::abs(f[5]);
+  return v * dt_s + 0.5 * acc * dt_s * dt_s <= tol * 1e-2 && acc * dt_s <= tol;
+}
+
+// The pedicel kernel's own clock from kc->t_s to t_s. Returns false on a numerical failure or
+// the step bound; sets *broke_at_s when the pedicel broke (the kernel is then at that time).
+bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, double* broke_at_s) {
+  const KernelModel& k = m.kernels[i];
+  KernelClock& kc = as->kernels[i];
+  const double tol = m.integrator.tolerance;
+  double h = kc.h_s > 0 ? kc.h_s : std::min(m.integrator.max_step_s, 1e-6);
+  Vec6 y = kernelState(*d, k), y1;
+  if (atRest(k, m.gravity_mps2, tol, y, t_s - kc.t_s)) {
+    ++as->counters.sleeps;
+    kc.t_s = t_s;
+    return true;
+  }
+  for (long n = 0; kc.t_s < t_s; ++n) {
+    if (n > 10000000) return false;  // the work bound: no lone kernel takes 1e7 steps
+    const double h_try = std::min({h, m.integrator.max_step_s, t_s - kc.t_s});
+    const double err = pedicelDopri(k, m.gravity_mps2, tol, y, h_try, &y1);
+    if (!(err <= 1.0)) {
+      ++as->counters.pedicel_rejected;
+      h = h_try * std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
+      if (!(h > 1e-15)) return false;
+      continue;
+    }
+    ++as->counters.pedicel_steps;
+    y = y1;
+    kc.t_s = (h_try == t_s - kc.t_s) ? t_s : kc.t_s + h_try;
+    if (h_try == h || h_try < h)
+      h = std::max(h, h_try * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2)));
+    double moment = 0.0;
+    if (pedicelForceOf(k, y, &moment).norm() > k.pedicel.detachment_force_N) {
+      *broke_at_s = kc.t_s;
+      break;
+    }
+  }
+  kc.h_s = h;
+  setKernelState(d, k, y);
+  return y.allFinite();
+}
+
+}  // namespace
+
+bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_s) {
+  KernelClock& kc = as->kernels[i];
+  if (kc.motion == KernelMotion::kIsland || t_s <= kc.t_s) return true;
+  const KernelModel& k = m.kernels[i];
+  if (kc.motion == KernelMotion::kPedicel) {
+    double broke_at_s = -1.0;
+    if (!pedicelClock(m, d, as, i, t_s, &broke_at_s)) return false;
+    if (broke_at_s < 0.0) return true;
+    // The stem broke at a step end: the kernel flies free from there.
+    d->kernel_attached[i] = 0;
+    d->stats.kernel_detach_time_s[i] = broke_at_s;
+    kc.motion = KernelMotion::kFree;
+    ++as->counters.pedicel_breaks;
+  }
+  ++as->counters.free_advances;
+  freeFlight(m, d, k, t_s - kc.t_s);
+  kc.t_s = t_s;
+  return true;
+}
+
+bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s) {
+  const KernelModel& k = m.kernels[i];
+  return atRest(k, m.gravity_mps2, m.integrator.tolerance, kernelState(d, k), horizon_s);
+}
+
+double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i,
+                      double horizon_s) {
+  const KernelModel& k = m.kernels[i];
+  const auto z = d.z.segment<3>(k.dof_offset);
+  const auto u = d.u.segment<3>(k.dof_offset);
+  const double g = m.gravity_mps2.norm();
+  if (as.kernels[i].motion != KernelMotion::kPedicel)
+    return u.head<2>().norm() + g * horizon_s + std::abs(u[2]) * k.semi_axis_a_m;
+  // On the pedicel: energy. Only gravity does positive work, so over a horizon H the kinetic
+  // plus spring energy stays below today's plus m g times the drop, and the drop is at most
+  // H times the largest centre speed. With the speed of any point |v| + a |omega| <=
+  // sqrt(2 E kappa), kappa = 1/m + a^2/J, that gives V^2 <= 2 kappa (E0 + m g H V): V is at
+  // most the positive root. While the stem holds, its tension stays below the detachment
+  // force, so the centre also cannot drop below the anchor by more than the stem reaches: the
+  // smaller of the two bounds holds. Past a break, gravity adds g t.
+  const PedicelModel& p = k.pedicel;
+  const Vec2 r = rotated(z[2], p.p_KP_K);
+  const double stretch_m = (z.head<2>() + r - p.p_WA_W).norm() - p.rest_length_m;
+  const double a = k.semi_axis_a_m;
+  const double kappa = 1.0 / k.mass_kg + a * a / k.inertia_kgm2;
+  const double e0_J = 0.5 * k.mass_kg * u.head<2>().squaredNorm() +
+                      0.5 * k.inertia_kgm2 * u[2] * u[2] +
+                      0.5 * p.stiffness_Npm * stretch_m * stretch_m;
+  const double pull = k.mass_kg * g * horizon_s * kappa;
+  const double v_short = pull + std::sqrt(pull * pull + 2.0 * kappa * e0_J);
+  const double reach_m =
+      p.rest_length_m + 2.0 * p.detachment_force_N / p.stiffness_Npm + p.p_KP_K.norm();
+  const Vec2 down = g > 0 ? Vec2(m.gravity_mps2 / g) : Vec2::Zero();
+  const double drop_m = std::max(0.0, reach_m - down.dot(z.head<2>() - p.p_WA_W));
+  const double v_long = std::sqrt(2.0 * kappa * (e0_J + k.mass_kg * g * drop_m));
+  return std::min(v_short, v_long) + g * horizon_s;
+}
+
+void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s) {
+  const ToothModel& tm = m.teeth[k];
+  if (tm.n_modes == 0 || !(h_s > 0)) return;
+  ToothPropagator& prop = as->prop[k];
+  SmallVec q1(tm.n_modes), qd1(tm.n_modes);
+  propagateTooth(&prop, h_s, d->z.segment(tm.dof_offset, tm.n_modes),
+                 d->u.segment(tm.dof_offset, tm.n_modes), q1, qd1);
+  d->z.segment(tm.dof_offset, tm.n_modes) = q1;
+  d->u.segment(tm.dof_offset, tm.n_modes) = qd1;
+  ++as->counters.tooth_advances;
+}
+
+double toothDeflectionBound(const Model& m, const Data& d, int k) {
+  const ToothModel& tm = m.teeth[k];
+  const int n = tm.n_modes;
+  if (n == 0) return 0.0;
+  // S = Lambda + Omega^2 (K_G - I); the modal energy E = 1/2 qd^T qd + 1/2 q^T S q does not
+  // grow while the tooth is free at constant speed, and |phi^T q| <= sqrt(2 E phi^T S^-1 phi).
+  using SmallMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 16, 16>;
+  const double w2 = d.omega_radps * d.omega_radps;
+  SmallMat S = w2 * tm.K_G;
+  S.diagonal().array() += tm.omega0_sq.array() - w2;
+  const Eigen::LLT<SmallMat> llt(S);
+  if (llt.info() != Eigen::Success) return 0.1 * tm.length_m;
+  const auto q = d.z.segment(tm.dof_offset, n);
+  const auto qd = d.u.segment(tm.dof_offset, n);
+  SmallVec Sq(n);
+  Sq.noalias() = S * q;
+  const double energy = 0.5 * qd.squaredNorm() + 0.5 * q.dot(Sq);
+  double worst = 0.0;
+  for (int s = 0; s < tm.n_stations; ++s) {
+    const SmallVec phi = tm.phi_s.row(s).transpose();
+    worst = std::max(worst, phi.dot(llt.solve(phi)));
+  }
+  return std::sqrt(2.0 * std::max(energy, 0.0) * worst);
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,270 @@
+// Asynchronous core, stage "calendar": when a lazy kernel must next be looked at.
+//   - every lazy kernel holds a bound circle (centre, radius) that contains it until its wake
+//     time: its pose at its own clock, grown by a bound on its speed times the horizon;
+//   - the wake times form a binary min-heap (ties broken by kernel index: deterministic);
+//   - the circles' centres sit in a uniform grid (open addressing, lists through the kernels),
+//     so that a query costs the cells it covers, not the kernel count;
+//   - predictKernel chooses the horizon: no longer than a cap on the circle's growth, and short
+//     enough that the kernel's ellipse, grown by its bound, stays a broad-phase margin away from
+//     every other lazy kernel's grown ellipse and every obstacle. Where even the current window
+//     does not fit, the two must share an island: a join.
+#include "async.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+bool earlier(const AsyncState& as, int i, int j) {
+  const double wi = as.kernels[i].wake_s, wj = as.kernels[j].wake_s;
+  return wi < wj || (wi == wj && i < j);
+}
+
+void heapSwap(AsyncState* as, int a, int b) {
+  std::swap(as->heap[a], as->heap[b]);
+  as->kernels[as->heap[a]].heap_pos = a;
+  as->kernels[as->heap[b]].heap_pos = b;
+}
+
+void siftUp(AsyncState* as, int pos) {
+  while (pos > 0) {
+    const int parent = (pos - 1) / 2;
+    if (!earlier(*as, as->heap[pos], as->heap[parent])) break;
+    heapSwap(as, pos, parent);
+    pos = parent;
+  }
+}
+
+void siftDown(AsyncState* as, int pos) {
+  const int n = static_cast<int>(as->heap.size());
+  while (true) {
+    const int l = 2 * pos + 1, r = l + 1;
+    int best = pos;
+    if (l < n && earlier(*as, as->heap[l], as->heap[best])) best = l;
+    if (r < n && earlier(*as, as->heap[r], as->heap[best])) best = r;
+    if (best == pos) break;
+    heapSwap(as, pos, best);
+    pos = best;
+  }
+}
+
+std::int64_t cellOf(const AsyncState& as, const Vec2& p) {
+  const std::int64_t cx = static_cast<std::int64_t>(std::floor(p.x() / as.cell_m));
+  const std::int64_t cy = static_cast<std::int64_t>(std::floor(p.y() / as.cell_m));
+  return (cy << 32) ^ (cx & 0xffffffffLL);
+}
+
+size_t slotHash(std::int64_t key, size_t n_slots) {
+  std::uint64_t h = static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL;
+  return static_cast<size_t>(h >> 17) & (n_slots - 1);
+}
+
+// Table slot of a cell key: its slot, or the empty slot where it would go.
+size_t findSlot(const AsyncState& as, std::int64_t key) {
+  const size_t n = as.cell_key.size();
+  size_t s = slotHash(key, n);
+  while (as.cell_key[s] != key && as.cell_key[s] != kEmptyCell) s = (s + 1) & (n - 1);
+  return s;
+}
+
+// Lists kernel i in the cell of its bound circle's centre (the table has room).
+void listInCell(AsyncState* as, int i) {
+  KernelClock& kc = as->kernels[i];
+  kc.cell = cellOf(*as, kc.bound_c_W);
+  const size_t s = findSlot(*as, kc.cell);
+  if (as->cell_key[s] == kEmptyCell) {
+    as->cell_key[s] = kc.cell;
+    as->cell_head[s] = -1;
+    ++as->cells_used;
+  }
+  kc.cell_prev = -1;
+  kc.cell_next = as->cell_head[s];
+  if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
+  as->cell_head[s] = i;
+  kc.in_grid = true;
+}
+
+// Rebuilds the table from the listed kernels once half its slots hold keys (cells that emptied
+// keep their keys until then); it doubles while the listed kernels alone would fill half.
+void compactGrid(AsyncState* as) {
+  size_t listed = 0;
+  for (const KernelClock& kc : as->kernels) listed += kc.in_grid ? 1 : 0;
+  size_t slots = std::max<size_t>(as->cell_key.size(), 16);
+  while (4 * (listed + 1) > slots) slots *= 2;
+  as->cell_key.assign(slots, kEmptyCell);
+  as->cell_head.assign(slots, -1);
+  as->cells_used = 0;
+  for (size_t i = 0; i < as->kernels.size(); ++i)
+    if (as->kernels[i].in_grid) listInCell(as, static_cast<int>(i));
+}
+
+}  // namespace
+
+double ellipseGapBound(const Ellipse& e1, const Ellipse& e2) {
+  const Vec2 d = e2.center - e1.center;
+  const double dist = d.norm();
+  if (!(dist > 0.0)) return -e1.a_m - e2.a_m;
+  const Vec2 n = d / dist;
+  auto reach = [&n](const Ellipse& e) {
+    const Vec2 axis(std::cos(e.angle_rad), std::sin(e.angle_rad));
+    const double na = e.a_m * n.dot(axis), nb = e.b_m * (axis.x() * n.y() - axis.y() * n.x());
+    return std::sqrt(na * na + nb * nb);
+  };
+  return dist - reach(e1) - reach(e2);
+}
+
+void heapPush(AsyncState* as, int i) {
+  as->kernels[i].heap_pos = static_cast<int>(as->heap.size());
+  as->heap.push_back(i);
+  siftUp(as, as->kernels[i].heap_pos);
+}
+
+void heapRemove(AsyncState* as, int i) {
+  const int pos = as->kernels[i].heap_pos;
+  if (pos < 0) return;
+  const int last = static_cast<int>(as->heap.size()) - 1;
+  if (pos != last) heapSwap(as, pos, last);
+  as->heap.pop_back();
+  as->kernels[i].heap_pos = -1;
+  if (pos < static_cast<int>(as->heap.size())) {
+    siftDown(as, pos);
+    siftUp(as, pos);
+  }
+}
+
+int heapTop(const AsyncState& as) { return as.heap.empty() ? -1 : as.heap[0]; }
+
+void gridInsert(AsyncState* as, int i) {
+  KernelClock& kc = as->kernels[i];
+  if (kc.in_grid) return;
+  if (2 * (as->cells_used + 1) > as->cell_key.size()) compactGrid(as);
+  listInCell(as, i);
+}
+
+void gridRemove(AsyncState* as, int i) {
+  KernelClock& kc = as->kernels[i];
+  if (!kc.in_grid) return;
+  if (kc.cell_prev >= 0) {
+    as->kernels[kc.cell_prev].cell_next = kc.cell_next;
+  } else {
+    as->cell_head[findSlot(*as, kc.cell)] = kc.cell_next;
+  }
+  if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = kc.cell_prev;
+  kc.cell_next = kc.cell_prev = -1;
+  kc.in_grid = false;
+}
+
+void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
+  as->found.clear();
+  const double pad = as->r_cap_m;
+  const std::int64_t x0 = static_cast<std::int64_t>(std::floor((lo.x() - pad) / as->cell_m));
+  const std::int64_t x1 = static_cast<std::int64_t>(std::floor((hi.x() + pad) / as->cell_m));
+  const std::int64_t y0 = static_cast<std::int64_t>(std::floor((lo.y() - pad) / as->cell_m));
+  const std::int64_t y1 = static_cast<std::int64_t>(std::floor((hi.y() + pad) / as->cell_m));
+  if ((x1 - x0 + 1) * (y1 - y0 + 1) > static_cast<std::int64_t>(as->cell_key.size())) {
+    // A box larger than the table: every listed kernel is a candidate.
+    for (size_t i = 0; i < as->kernels.size(); ++i)
+      if (as->kernels[i].in_grid) as->found.push_back(static_cast<int>(i));
+    return;
+  }
+  for (std::int64_t cy = y0; cy <= y1; ++cy) {
+    for (std::int64_t cx = x0; cx <= x1; ++cx) {
+      const size_t s = findSlot(*as, (cy << 32) ^ (cx & 0xffffffffLL));
+      if (as->cell_key[s] == kEmptyCell) continue;
+      for (int j = as->cell_head[s]; j >= 0; j = as->kernels[j].cell_next) as->found.push_back(j);
+    }
+  }
+}
+
+namespace {
+// Longest horizon (up to max_s) over which lazy kernel i's growth V(H) H stays within
+// grow_cap_m, and the speed bound V over it (bisection on the monotone growth).
+double horizonFor(const Model& m, const Data& d, const AsyncState& as, int i, double grow_cap_m,
+                  double max_s, double* v_mps) {
+  double lo = 0.0, hi = max_s;
+  if (lazySpeedBound(m, d, as, i, hi) * hi > grow_cap_m) {
+    for (int it = 0; it < 40; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (lazySpeedBound(m, d, as, i, mid) * mid > grow_cap_m ? hi : lo) = mid;
+    }
+    hi = lo;
+  }
+  *v_mps = std::max(lazySpeedBound(m, d, as, i, hi), 1e-12);
+  return hi;
+}
+}  // namespace
+
+bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
+                   double t_window_end_s, double grow_cap_m) {
+  KernelClock& kc = as->kernels[i];
+  const KernelModel& k = m.kernels[i];
+  const int T = static_cast<int>(m.teeth.size());
+  const double margin = m.broadphase_margin_m;
+  ++as->counters.predictions;
+  // Horizon: the circle may grow by at most the cap (and never past the grid's radius).
+  const double cap = std::min(grow_cap_m, as->r_cap_m - k.semi_axis_a_m);
+  // A kernel at rest on its pedicel over the longest horizon moves by less than the error scale
+  // until something reaches it: it sleeps, with a circle grown by that scale only.
+  double v = 0.0, horizon = as->max_horizon_s;
+  if (kc.motion == KernelMotion::kPedicel && lazyAtRest(m, d, i, horizon)) {
+    v = m.integrator.tolerance * 1e-2 / horizon;
+    ++as->counters.asleep;
+  } else {
+    horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
+  }
+  const double min_horizon = t_window_end_s - t_s;
+  const Ellipse e = kernelEllipse(m, d.z, i);
+  // Other lazy kernels: the grown ellipses must stay a margin apart.
+  const double reach = k.semi_axis_a_m + v * horizon + margin;
+  gridQuery(as, e.center - Vec2(reach, reach), e.center + Vec2(reach, reach));
+  bool joined = false;
+  for (int j : as->found) {
+    if (j == i) continue;
+    const KernelClock& kj = as->kernels[j];
+    if ((kj.bound_c_W - e.center).norm() > kj.bound_r_m + reach) continue;
+    // Each of two neighbours may grow into at most half of the free gap between them, so that
+    // the one predicted later still finds its share.
+    const double free_m = ellipseGapBound(e, kernelEllipse(m, d.z, j)) - margin;
+    const double grown_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
+    const double room = std::min(free_m - grown_j, 0.5 * free_m);
+    if (room >= v * min_horizon) {
+      horizon = std::min(horizon, room / v);
+    } else {
+      as->joins.emplace_back(T + i, T + j);
+      joined = true;
+    }
+  }
+  // Obstacles: the grown bounding circle must stay a margin away.
+  for (const ObstacleModel& o : m.obstacles) {
+    const double room = obstacleClearance(o, e.center) - k.semi_axis_a_m - margin;
+    if (room >= v * min_horizon) {
+      horizon = std::min(horizon, room / v);
+    } else {
+      as->joins.emplace_back(T + i, T + i);
+      joined = true;
+    }
+  }
+  kc.bound_c_W = e.center;
+  kc.bound_r_m = k.semi_axis_a_m + v * horizon;
+  kc.wake_s = t_s + horizon;
+  kc.speed_bound_mps = v;
+  if (!joined && kc.wake_s < t_window_end_s) {
+    // Too fast to stay lazy over the window: it is integrated, alone if nothing is near.
+    as->joins.emplace_back(T + i, T + i);
+    joined = true;
+  }
+  if (joined) return false;  // it goes into an island this window
+  gridInsert(as, i);
+  heapPush(as, i);
+  return true;
+}
+
+double obstacleClearance(const ObstacleModel& o, const Vec2& c) {
+  if (o.type == ObstacleType::kPlane) return o.normal.dot(c - o.point_m);
+  if (o.type == ObstacleType::kCircle) return (c - o.center_m).norm() - o.radius_m;
+  const Vec2 ab = o.point_b_m - o.point_m;
+  const double s = std::clamp((c - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  return (c - (o.point_m + s * ab)).norm() - o.radius_m;
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

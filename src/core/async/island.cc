@@ -1,0 +1,280 @@
+// Asynchronous core, stage "islands": sub-systems of the bodies that can touch.
+// An island's Model holds copies of its bodies' compiled models (teeth and kernels in
+// ascending global order, so that local pair order is global pair order) and every obstacle;
+// its Data holds their state, its own clock, steps, events, pair memory and integrator
+// workspace. The global integrator (integrator.islands: false) advances it. What it reports
+// (events, statistics, contacts) is mapped back to global indices here.
+#include <cstdio>
+
+#include "async.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+PairId pairOfKey(std::uint64_t key) {
+  return PairId{static_cast<PairKind>(key >> 60), static_cast<int>((key >> 30) & 0x3fffffff),
+                static_cast<int>(key & 0x3fffffff)};
+}
+
+// The sub-model of an island: the full model's constants, the members' compiled models.
+void buildSubModel(const Model& m, Island* isl) {
+  Model& sm = isl->model;
+  sm.drum = m.drum;
+  for (int p = 0; p < 3; ++p) sm.contact[p] = m.contact[p];
+  sm.gravity_mps2 = m.gravity_mps2;
+  sm.integrator = m.integrator;
+  sm.integrator.islands = false;
+  sm.duration_s = m.duration_s;
+  sm.broadphase_margin_m = m.broadphase_margin_m;
+  sm.hc_min_impact_speed_mps = m.hc_min_impact_speed_mps;
+  sm.macro_collision_gap_s = m.macro_collision_gap_s;
+  sm.deflection_validity_fraction = m.deflection_validity_fraction;
+  sm.obstacles = m.obstacles;
+  int offset = 0;
+  sm.teeth.resize(isl->teeth.size());
+  for (size_t l = 0; l < isl->teeth.size(); ++l) {
+    sm.teeth[l] = m.teeth[isl->teeth[l]];
+    sm.teeth[l].dof_offset = offset;
+    offset += sm.teeth[l].n_modes;
+  }
+  sm.kernels.resize(isl->kernels.size());
+  for (size_t l = 0; l < isl->kernels.size(); ++l) {
+    sm.kernels[l] = m.kernels[isl->kernels[l]];
+    sm.kernels[l].dof_offset = offset;
+    offset += 3;
+  }
+  sm.n_dof = offset;
+  sm.compiled = true;
+}
+
+PairId localToGlobal(const Island& isl, const PairId& p) {
+  switch (p.kind) {
+    case PairKind::kToothKernel:
+      return PairId{p.kind, isl.teeth[p.a], isl.kernels[p.b]};
+    case PairKind::kKernelKernel:
+      return PairId{p.kind, isl.kernels[p.a], isl.kernels[p.b]};
+    default:
+      return PairId{p.kind, isl.kernels[p.a], p.b};
+  }
+}
+
+// Stored pair memory of the island's pairs, into its workspace under local keys.
+void loadPairMemory(const Model& m, AsyncState* as, Island* isl) {
+  PairTable& local = isl->data.ws->memory;
+  const int T = static_cast<int>(isl->teeth.size()), K = static_cast<int>(isl->kernels.size());
+  auto load = [&](const PairId& p_local) {
+    const PairMemory* mem = as->stored_memory.find(pairKey(localToGlobal(*isl, p_local)));
+    if (mem != nullptr) local[pairKey(p_local)] = *mem;
+  };
+  for (int b = 0; b < K; ++b) {
+    for (int a = 0; a < T; ++a) load(PairId{PairKind::kToothKernel, a, b});
+    for (int a = 0; a < b; ++a) load(PairId{PairKind::kKernelKernel, a, b});
+    for (size_t o = 0; o < m.obstacles.size(); ++o)
+      load(PairId{PairKind::kKernelObstacle, b, static_cast<int>(o)});
+  }
+}
+
+bool worthKeeping(const PairMemory& mem) {
+  return mem.state != ContactState::kSeparated || mem.macro_index >= 0 ||
+         mem.impulse_n_acc != 0.0 || mem.impulse_t_acc != 0.0;
+}
+
+// Warnings of an island name its local tooth index: rewritten to the global one.
+std::string globalWarning(const Island& isl, const std::string& text) {
+  size_t local = 0;
+  int used = 0;
+  if (std::sscanf(text.c_str(), "tooth %zu:%n", &local, &used) == 1 && used > 0 &&
+      local < isl.teeth.size())
+    return "tooth " + std::to_string(isl.teeth[local]) + ":" + text.substr(used);
+  return text;
+}
+
+void mergeCounters(Data* d, AsyncState* as, Island* isl) {
+  const RunStats& s = isl->data.stats;
+  RunStats& g = d->stats;
+  g.impacts += s.impacts - isl->merged_impacts;
+  g.contact_episodes += s.contact_episodes - isl->merged_episodes;
+  g.numerical_recoveries += s.numerical_recoveries - isl->merged_recoveries;
+  g.rejected_steps += s.rejected_steps - isl->merged_rejected;
+  g.depth_corrections += s.depth_corrections - isl->merged_depth_corrections;
+  g.total_normal_impulse_Ns += s.total_normal_impulse_Ns - isl->merged_impulse_Ns;
+  g.drive_work_J += s.drive_work_J - isl->merged_drive_work_J;
+  d->steps += isl->data.steps - isl->merged_steps;
+  as->counters.island_steps += isl->data.steps - isl->merged_steps;
+  isl->merged_impacts = s.impacts;
+  isl->merged_episodes = s.contact_episodes;
+  isl->merged_recoveries = s.numerical_recoveries;
+  isl->merged_rejected = s.rejected_steps;
+  isl->merged_depth_corrections = s.depth_corrections;
+  isl->merged_impulse_Ns = s.total_normal_impulse_Ns;
+  isl->merged_drive_work_J = s.drive_work_J;
+  isl->merged_steps = isl->data.steps;
+}
+
+void mergePeaks(Data* d, Island* isl) {
+  const RunStats& s = isl->data.stats;
+  RunStats& g = d->stats;
+  if (s.peak_normal_force_N > g.peak_normal_force_N) {
+    g.peak_normal_force_N = s.peak_normal_force_N;
+    g.time_of_peak_normal_s = s.time_of_peak_normal_s;
+  }
+  if (s.peak_tangential_force_N > g.peak_tangential_force_N) {
+    g.peak_tangential_force_N = s.peak_tangential_force_N;
+    g.time_of_peak_tangential_s = s.time_of_peak_tangential_s;
+  }
+  g.max_penetration_m = std::max(g.max_penetration_m, s.max_penetration_m);
+  g.max_energy_gain_at_impact_J =
+      std::max(g.max_energy_gain_at_impact_J, s.max_energy_gain_at_impact_J);
+  g.max_tip_deflection_ratio = std::max(g.max_tip_deflection_ratio, s.max_tip_deflection_ratio);
+  if (s.deflection_warning_time_s >= 0 &&
+      (g.deflection_warning_time_s < 0 ||
+       s.deflection_warning_time_s < g.deflection_warning_time_s))
+    g.deflection_warning_time_s = s.deflection_warning_time_s;
+  for (; isl->merged_warnings < s.warnings.size(); ++isl->merged_warnings) {
+    const std::string w = globalWarning(*isl, s.warnings[isl->merged_warnings]);
+    if (std::find(g.warnings.begin(), g.warnings.end(), w) == g.warnings.end())
+      g.warnings.push_back(w);
+  }
+}
+
+void mergeKernelStats(Data* d, Island* isl) {
+  const RunStats& s = isl->data.stats;
+  RunStats& g = d->stats;
+  for (size_t l = 0; l < isl->kernels.size(); ++l) {
+    const int i = isl->kernels[l];
+    g.kernel_peak_normal_force_N[i] =
+        std::max(g.kernel_peak_normal_force_N[i], s.kernel_peak_normal_force_N[l]);
+    g.kernel_impacts[i] += s.kernel_impacts[l] - isl->merged_kernel_impacts[l];
+    isl->merged_kernel_impacts[l] = s.kernel_impacts[l];
+    if (s.kernel_detach_time_s[l] >= 0 && g.kernel_detach_time_s[i] < 0)
+      g.kernel_detach_time_s[i] = s.kernel_detach_time_s[l];
+    const KernelToothPeaks& p = s.kernel_tooth_peaks[l];
+    KernelToothPeaks& q = g.kernel_tooth_peaks[i];
+    if (p.normal_force_N > q.normal_force_N) {
+      q.normal_force_N = p.normal_force_N;
+      q.time_of_normal_s = p.time_of_normal_s;
+    }
+    if (p.tangential_force_N > q.tangential_force_N) {
+      q.tangential_force_N = p.tangential_force_N;
+      q.time_of_tangential_s = p.time_of_tangential_s;
+    }
+  }
+}
+
+}  // namespace
+
+void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vector<int>& teeth,
+                 const std::vector<int>& kernels) {
+  Island& isl = as->islands[s];
+  isl.alive = true;
+  isl.teeth = teeth;
+  isl.kernels = kernels;
+  buildSubModel(m, &isl);
+  const Model& sm = isl.model;
+  Data& sd = isl.data;
+  resetData(sm, &sd);
+  sd.ws->ed_memo.valid = false;  // the slot's model now holds other bodies
+  sd.t_s = d->t_s;
+  sd.theta_rad = d->theta_rad;
+  sd.omega_radps = d->omega_radps;
+  sd.omega_target_radps = d->omega_target_radps;
+  sd.alpha_radps2 = d->alpha_radps2;
+  for (size_t l = 0; l < teeth.size(); ++l) {
+    const ToothModel& tg = m.teeth[teeth[l]];
+    const ToothModel& tl = sm.teeth[l];
+    sd.z.segment(tl.dof_offset, tl.n_modes) = d->z.segment(tg.dof_offset, tg.n_modes);
+    sd.u.segment(tl.dof_offset, tl.n_modes) = d->u.segment(tg.dof_offset, tg.n_modes);
+    as->tooth_island[teeth[l]] = s;
+  }
+  for (size_t l = 0; l < kernels.size(); ++l) {
+    const int i = kernels[l];
+    sd.z.segment<3>(sm.kernels[l].dof_offset) = d->z.segment<3>(m.kernels[i].dof_offset);
+    sd.u.segment<3>(sm.kernels[l].dof_offset) = d->u.segment<3>(m.kernels[i].dof_offset);
+    sd.kernel_attached[l] = d->kernel_attached[i];
+    sd.stats.kernel_detach_time_s[l] = d->stats.kernel_detach_time_s[i];
+    KernelClock& kc = as->kernels[i];
+    heapRemove(as, i);
+    gridRemove(as, i);
+    kc.motion = KernelMotion::kIsland;
+    kc.island = s;
+  }
+  sd.stats.energy_initial_J = mechanicalEnergy(sm, sd);
+  loadPairMemory(m, as, &isl);
+  isl.merged_impacts = isl.merged_episodes = isl.merged_recoveries = isl.merged_rejected =
+      isl.merged_depth_corrections = isl.merged_steps = 0;
+  isl.merged_impulse_Ns = isl.merged_drive_work_J = 0;
+  isl.merged_kernel_impacts.assign(kernels.size(), 0);
+  isl.merged_warnings = 0;
+  ++as->counters.islands_built;
+}
+
+void storeIslandState(const Model& m, Data* d, const AsyncState& as, int s) {
+  const Island& isl = as.islands[s];
+  const Model& sm = isl.model;
+  const Data& sd = isl.data;
+  for (size_t l = 0; l < isl.teeth.size(); ++l) {
+    const ToothModel& tg = m.teeth[isl.teeth[l]];
+    const ToothModel& tl = sm.teeth[l];
+    d->z.segment(tg.dof_offset, tg.n_modes) = sd.z.segment(tl.dof_offset, tl.n_modes);
+    d->u.segment(tg.dof_offset, tg.n_modes) = sd.u.segment(tl.dof_offset, tl.n_modes);
+  }
+  for (size_t l = 0; l < isl.kernels.size(); ++l) {
+    const int i = isl.kernels[l];
+    d->z.segment<3>(m.kernels[i].dof_offset) = sd.z.segment<3>(sm.kernels[l].dof_offset);
+    d->u.segment<3>(m.kernels[i].dof_offset) = sd.u.segment<3>(sm.kernels[l].dof_offset);
+    d->kernel_attached[i] = sd.kernel_attached[l];
+  }
+}
+
+void dissolveIsland(const Model& m, Data* d, AsyncState* as, int s) {
+  Island& isl = as->islands[s];
+  storeIslandState(m, d, *as, s);
+  for (auto& entry : isl.data.ws->memory) {
+    if (!worthKeeping(entry.second)) continue;
+    as->stored_memory[pairKey(localToGlobal(isl, pairOfKey(entry.first)))] = entry.second;
+  }
+  for (int k : isl.teeth) as->tooth_island[k] = -1;
+  for (int i : isl.kernels) {
+    KernelClock& kc = as->kernels[i];
+    kc.motion = m.kernels[i].pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
+                                                                      : KernelMotion::kFree;
+    kc.island = -1;
+    kc.t_s = isl.data.t_s;
+    kc.h_s = 0;
+  }
+  isl.alive = false;
+  ++as->counters.islands_dissolved;
+}
+
+void mergeIslandResults(const Model& m, Data* d, AsyncState* as, int s) {
+  (void)m;
+  Island& isl = as->islands[s];
+  for (const ContactEvent& ev : isl.data.events) {
+    as->window_events.push_back(ev);
+    as->window_events.back().pair = localToGlobal(isl, ev.pair);
+  }
+  isl.data.events.clear();
+  mergeCounters(d, as, &isl);
+  mergePeaks(d, &isl);
+  mergeKernelStats(d, &isl);
+}
+
+bool islandInContact(AsyncState* as, int s) {
+  for (auto& entry : as->islands[s].data.ws->memory)
+    if (entry.second.state != ContactState::kSeparated) return true;
+  return false;
+}
+
+void publishIslandContacts(const AsyncState& as, std::vector<ContactInfo>* out) {
+  for (const Island& isl : as.islands) {
+    if (!isl.alive) continue;
+    for (const ContactInfo& c : isl.data.contacts) {
+      out->push_back(c);
+      out->back().pair = localToGlobal(isl, c.pair);
+    }
+  }
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

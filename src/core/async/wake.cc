@@ -1,0 +1,221 @@
+// Asynchronous core, stage "wake": what can touch what over one window [t0, t1].
+//   - calendar: lazy kernels whose wake time falls in the window are brought to t0 and get a
+//     new bound circle (or, when even the window does not fit, a join);
+//   - tooth sweeps: the drum's motion over the window is known, so each tooth sweeps a known
+//     annular sector (padded by its deflection bound, capsule radius and the margin); lazy
+//     kernels' circles and other islands' kernels that meet it are joined to the tooth;
+//   - island neighbourhoods: each island kernel's reach over the window (its ellipse grown by
+//     its speed bound and two margins) against lazy kernels and other islands' kernels.
+// A join is a pair of entity ids (tooth k -> k, kernel i -> T + i) that must share an island.
+#include "async.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586;
+
+// Bounding box of the annular sector {rho e(phi): phi in [phi0, phi1], rho in [r_in, r_out]}.
+void sectorBox(double phi0, double phi1, double r_in, double r_out, Vec2* lo, Vec2* hi) {
+  *lo = Vec2::Constant(std::numeric_limits<double>::infinity());
+  *hi = -*lo;
+  auto add = [&](double phi, double r) {
+    const Vec2 p(r * std::cos(phi), r * std::sin(phi));
+    *lo = lo->cwiseMin(p);
+    *hi = hi->cwiseMax(p);
+  };
+  add(phi0, r_in), add(phi0, r_out), add(phi1, r_in), add(phi1, r_out);
+  // Axis directions inside the angular range reach the outer radius.
+  const double q = kTwoPi / 4;
+  for (double a = std::ceil(phi0 / q) * q; a <= phi1; a += q) add(a, r_out);
+}
+
+// Growth of island kernel i's ellipse over the window: its speed bound over the window plus
+// two margins (it may be struck mid-window) [m].
+double islandReach(const Model& m, const Data& d, int i, double window_s) {
+  return kernelSpeedBound(m, d.u, i) * window_s + 2.0 * m.broadphase_margin_m;
+}
+
+// Pad around tooth k's undeformed centreline within which its surface stays over the window:
+// deflection bound (generous inside an island, where contact forces work on it), capsule
+// radius, margin [m].
+double toothPad(const Model& m, const Data& d, const AsyncState& as, int k) {
+  const ToothModel& tm = m.teeth[k];
+  double deflection = toothDeflectionBound(m, d, k);
+  if (as.tooth_island[k] >= 0)
+    deflection = 2.0 * deflection + m.deflection_validity_fraction * tm.length_m;
+  return deflection + 0.5 * tm.diameter_m + m.broadphase_margin_m;
+}
+
+void joinOnce(AsyncState* as, int a, int b) { as->joins.emplace_back(a, b); }
+
+}  // namespace
+
+double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, double r_out) {
+  const double rho = p.norm();
+  double rel = std::atan2(p.y(), p.x()) - phi0;
+  rel -= kTwoPi * std::floor(rel / kTwoPi);
+  if (rel <= phi1 - phi0) return std::max({0.0, r_in - rho, rho - r_out});
+  auto toSegment = [&](double phi) {
+    const Vec2 e(std::cos(phi), std::sin(phi));
+    const double s = std::clamp(p.dot(e), r_in, r_out);
+    return (p - s * e).norm();
+  };
+  return std::min(toSegment(phi0), toSegment(phi1));
+}
+
+bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
+  for (int i = heapTop(*as); i >= 0 && as->kernels[i].wake_s < t1; i = heapTop(*as)) {
+    heapRemove(as, i);
+    gridRemove(as, i);
+    if (!advanceLazyKernel(m, d, as, i, t0)) return false;
+    predictKernel(m, *d, as, i, t0, t1);
+  }
+  return true;
+}
+
+namespace {
+// A lazy kernel j met by something whose reach leaves it room_m [m] of growth: if its speed
+// bound lets it stay lazy over the window within that room, it is brought to t0 and given a
+// new, smaller bound circle, and stays lazy (returns true). DynamO's re-prediction of the
+// neighbours: the island does not swallow a kernel only because its old circle was large.
+bool tryShrink(const Model& m, Data* d, AsyncState* as, int j, double t0, double t1,
+               double room_m) {
+  if (!(room_m > 0.0) || as->kernels[j].t_s > t0) return false;
+  if (lazySpeedBound(m, *d, *as, j, t1 - t0) * (t1 - t0) >= room_m) return false;
+  heapRemove(as, j);
+  gridRemove(as, j);
+  if (!advanceLazyKernel(m, d, as, j, t0)) return false;
+  ++as->counters.shrinks;
+  return predictKernel(m, *d, as, j, t0, t1, room_m);
+}
+}  // namespace
+
+void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
+  const Drive end = driveAt(m, *d, t1 - t0);
+  const double th_lo = std::min(d->theta_rad, end.theta_rad);
+  const double th_hi = std::max(d->theta_rad, end.theta_rad);
+  const int T = static_cast<int>(m.teeth.size());
+  for (int k = 0; k < T; ++k) {
+    const ToothModel& tm = m.teeth[k];
+    const double pad = toothPad(m, *d, *as, k);
+    const double r_in = tm.p_DR_D.norm(), r_out = r_in + tm.length_m;
+    const double phi0 = th_lo + tm.mount_angle_rad, phi1 = th_hi + tm.mount_angle_rad;
+    Vec2 lo, hi;
+    sectorBox(phi0, phi1, r_in, r_out, &lo, &hi);
+    gridQuery(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad));
+    as->found_copy = as->found;  // tryShrink queries the grid again
+    for (int j : as->found_copy) {
+      const KernelClock& kj = as->kernels[j];
+      if (!kj.in_grid) continue;  // re-listed or joined meanwhile
+      if (sectorDistance(kj.bound_c_W, phi0, phi1, r_in, r_out) > kj.bound_r_m + pad) continue;
+      const Vec2 c = d->z.segment<2>(m.kernels[j].dof_offset);
+      const double room =
+          sectorDistance(c, phi0, phi1, r_in, r_out) - pad - m.kernels[j].semi_axis_a_m;
+      if (tryShrink(m, d, as, j, t0, t1, room)) continue;
+      joinOnce(as, k, T + j);
+      ++as->counters.tooth_wakes;
+    }
+    // Kernels of other islands.
+    for (size_t s = 0; s < as->islands.size(); ++s) {
+      const Island& isl = as->islands[s];
+      if (!isl.alive || static_cast<int>(s) == as->tooth_island[k]) continue;
+      for (int i : isl.kernels) {
+        const double r = m.kernels[i].semi_axis_a_m + islandReach(m, *d, i, t1 - t0);
+        const Vec2 c = d->z.segment<2>(m.kernels[i].dof_offset);
+        if (sectorDistance(c, phi0, phi1, r_in, r_out) <= r + pad) joinOnce(as, k, T + i);
+      }
+    }
+  }
+}
+
+void islandNeighbours(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
+  const int T = static_cast<int>(m.teeth.size());
+  const double window_s = t1 - t0;
+  for (size_t s = 0; s < as->islands.size(); ++s) {
+    if (!as->islands[s].alive) continue;
+    for (int i : as->islands[s].kernels) {
+      const Ellipse ei = kernelEllipse(m, d->z, i);
+      const double grow_i = islandReach(m, *d, i, window_s);
+      const double reach = ei.a_m + grow_i + as->r_cap_m;
+      gridQuery(as, ei.center - Vec2(reach, reach), ei.center + Vec2(reach, reach));
+      as->found_copy = as->found;
+      for (int j : as->found_copy) {
+        const KernelClock& kj = as->kernels[j];
+        if (!kj.in_grid) continue;
+        const double grow_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
+        const double gap = ellipseGapBound(ei, kernelEllipse(m, d->z, j));
+        if (gap > grow_i + grow_j) continue;
+        if (tryShrink(m, d, as, j, t0, t1, gap - grow_i)) continue;
+        joinOnce(as, T + i, T + j);
+        ++as->counters.kernel_wakes;
+      }
+      // Kernels of later islands (each pair of islands once).
+      for (size_t s2 = s + 1; s2 < as->islands.size(); ++s2) {
+        if (!as->islands[s2].alive) continue;
+        for (int i2 : as->islands[s2].kernels) {
+          const double grow_2 = islandReach(m, *d, i2, window_s);
+          if (ellipseGapBound(ei, kernelEllipse(m, d->z, i2)) <= grow_i + grow_2)
+            joinOnce(as, T + i, T + i2);
+        }
+      }
+    }
+  }
+}
+
+void islandProximity(const Model& m, const Data& d, const AsyncState& as, int s, double window_s,
+                     std::vector<std::pair<int, int>>* edges, std::vector<std::uint8_t>* pinned) {
+  const Island& isl = as.islands[s];
+  const int nT = static_cast<int>(isl.teeth.size()), nK = static_cast<int>(isl.kernels.size());
+  edges->clear();
+  pinned->assign(nT + nK, 0);
+  // Pairs in contact.
+  for (const auto& entry : isl.data.ws->memory) {
+    if (entry.second.state == ContactState::kSeparated) continue;
+    const std::uint64_t key = entry.first;
+    const int a = static_cast<int>((key >> 30) & 0x3fffffff),
+              b = static_cast<int>(key & 0x3fffffff);
+    switch (static_cast<PairKind>(key >> 60)) {
+      case PairKind::kToothKernel:
+        edges->emplace_back(a, nT + b);
+        break;
+      case PairKind::kKernelKernel:
+        edges->emplace_back(nT + a, nT + b);
+        break;
+      default:
+        (*pinned)[nT + a] = 1;
+    }
+  }
+  // Pairs within reach over the next window.
+  const Drive end = driveAt(m, d, window_s);
+  const double th_lo = std::min(d.theta_rad, end.theta_rad);
+  const double th_hi = std::max(d.theta_rad, end.theta_rad);
+  for (int a = 0; a < nT; ++a) {
+    const ToothModel& tm = m.teeth[isl.teeth[a]];
+    const double pad = toothPad(m, d, as, isl.teeth[a]);
+    const double r_in = tm.p_DR_D.norm(), r_out = r_in + tm.length_m;
+    for (int b = 0; b < nK; ++b) {
+      const int i = isl.kernels[b];
+      const double r = m.kernels[i].semi_axis_a_m + islandReach(m, d, i, window_s);
+      const Vec2 c = d.z.segment<2>(m.kernels[i].dof_offset);
+      if (sectorDistance(c, th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out) <=
+          r + pad)
+        edges->emplace_back(a, nT + b);
+    }
+  }
+  for (int a = 0; a < nK; ++a) {
+    const int i = isl.kernels[a];
+    const Ellipse ei = kernelEllipse(m, d.z, i);
+    const double grow_i = islandReach(m, d, i, window_s);
+    for (int b = a + 1; b < nK; ++b) {
+      const int j = isl.kernels[b];
+      if (ellipseGapBound(ei, kernelEllipse(m, d.z, j)) <= grow_i + islandReach(m, d, j, window_s))
+        edges->emplace_back(nT + a, nT + b);
+    }
+    for (const ObstacleModel& o : m.obstacles)
+      if (obstacleClearance(o, ei.center) - ei.a_m <= grow_i) (*pinned)[nT + a] = 1;
+  }
+}
+
+}  // namespace internal
+}  // namespace threshing_sim
