@@ -192,6 +192,8 @@ void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const Ve
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
 struct Workspace {
+  long trial_steps = 0;  // event-driven: Dormand-Prince trial steps since construction, the
+                         // work advanceTo() counts against its budget [-]
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/failure.h"
 #include "threshing_sim/core/model.h"
 
 namespace threshing_sim {
@@ -107,6 +108,7 @@ struct RunStats {
                                           // model.deflection_validity_fraction; < 0 = never [s]
   // Per kernel: peak tooth contact forces [N] and their times [s] (sized by resetData).
   std::vector<KernelToothPeaks> kernel_tooth_peaks;
+  FailureInfo failure;  // why the last advanceTo() failed (cause kNone if it did not)
 };
 
 struct Workspace;  // integrator scratch memory, opaque
