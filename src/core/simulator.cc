@@ -420,13 +420,15 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
           internal::timeSteppingStep(model, data, h_small) == StepStatus::kOk && finiteState(*data);
     }
     if (!ok) {
+      // A NaN inside an event-driven step shows as rejected steps; the time steps reveal it.
+      const FailureCause why = finiteState(*data) ? cause : FailureCause::kNonFinite;
       data->z = ws.guard_z;
       data->u = ws.guard_u;
       data->steps = steps0;
       data->t_s = t0;
       data->theta_rad = th0;
       data->omega_radps = om0;
-      return fail(data, cause, t_end_s, work, budget);
+      return fail(data, why, t_end_s, work, budget);
     }
     checkToothDeflection(model, data);
     worst = StepStatus::kRecovered;
