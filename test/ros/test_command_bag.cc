@@ -157,6 +157,16 @@ TEST(CommandBag, OffGridStampIsPrintedExactly) {
       << message;
 }
 
+// Found by fuzz_command_bag: a record whose chunk declares 2.3 GB made rosbag allocate it
+// (out of memory under the fuzzer, bad_alloc or swapping without). Refused before rosbag reads.
+TEST(CommandBag, CorruptChunkSizeIsRefusedBeforeRosbagAllocatesIt) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/oom_chunk_size.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(message.find("~command_bag (" + path + "): corrupt record"), std::string::npos)
+      << message;
+}
+
 TEST(CommandBag, MissingAndNonBagFilesAreRefused) {
   EXPECT_NE(refusal("/nonexistent/x.bag").find("~command_bag (/nonexistent/x.bag)"),
             std::string::npos);
