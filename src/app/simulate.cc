@@ -36,7 +36,8 @@ const char kUsage[] =
     "usage: simulate SCENE.yaml [--duration S] [--integrator event_driven|time_stepping] "
     "[--dt S] [--tolerance X] [--set-file FILE.yaml]... [--set key.path=value]... "
     "[--summary FILE.json] [--trace FILE.csv] [--trace-every N] [--events FILE.csv] "
-    "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--modes] [--quiet]";
+    "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--modes] [--quiet] "
+    "[--print-schema]";
 
 // Simulation time between two trace samples / progress checks [s].
 constexpr double kChunk_s = 1e-4;
@@ -72,6 +73,7 @@ struct Options {
   bool modes = false;
   bool quiet = false;
   bool help = false;
+  bool print_schema = false;  // print the scene key table (types, units, ranges) and exit
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -130,7 +132,7 @@ Options parseOptions(int argc, char** argv) {
       } catch (const std::logic_error&) {
         used = 0;
       }
-      if (used != text.size() || !(options.sample_interval_s > 0) ||
+      if (text.empty() || used != text.size() || !(options.sample_interval_s > 0) ||
           !std::isfinite(options.sample_interval_s)) {
         throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
       }
@@ -142,13 +144,15 @@ Options parseOptions(int argc, char** argv) {
       } catch (const std::logic_error&) {
         used = 0;
       }
-      if (used != text.size() || options.trace_every < 1) {
+      if (text.empty() || used != text.size() || options.trace_every < 1) {
         throw UsageError("--trace-every expects an integer >= 1 (got '" + text + "')");
       }
     } else if (arg == "--modes") {
       options.modes = flag();
     } else if (arg == "--quiet") {
       options.quiet = flag();
+    } else if (arg == "--print-schema") {
+      options.print_schema = flag();
     } else if (arg == "--help" || arg == "-h") {
       options.help = flag();
     } else if (arg.rfind("-", 0) == 0) {
@@ -159,7 +163,8 @@ Options parseOptions(int argc, char** argv) {
       throw UsageError("more than one scene file ('" + options.scene_path + "', '" + arg + "')");
     }
   }
-  if (options.scene_path.empty() && !options.help) throw UsageError("no scene file given");
+  if (options.scene_path.empty() && !options.help && !options.print_schema)
+    throw UsageError("no scene file given");
 
   // Sugar options, after the --set ones.
   if (duration) options.overrides.push_back("duration=" + *duration);
@@ -241,10 +246,12 @@ void openOutput(const std::string& path, const char* option, std::ofstream* out)
   if (!*out) throw OptionError(std::string("cannot open ") + option + " file '" + path + "'");
 }
 
-void checkWritten(const std::string& path, std::ofstream* out) {
+// A write that failed (disk full, /dev/full) is refused like a bad path (exit 2).
+void checkWritten(const std::string& path, const char* option, std::ofstream* out) {
   if (!out->is_open()) return;
   out->close();
-  if (out->fail()) throw std::runtime_error("error writing '" + path + "'");
+  if (out->fail())
+    throw OptionError(std::string("error writing ") + option + " file '" + path + "'");
 }
 
 // Whether contacts must be sampled finely: some tooth-kernel pair is within the broad-phase
@@ -266,6 +273,30 @@ double coarseInterval(const Model& model, const Data& data) {
     speed_mps = std::max(speed_mps, data.u.segment<2>(kernel.dof_offset).norm());
   }
   return std::max(model.broadphase_margin_m, 1e-6) / speed_mps;
+}
+
+// "ok", or why a run that returned no failure still has no valid result: energies not finite
+// (an overflow the state guard cannot see), or time that did not reach the duration (a time
+// step longer than the whole run). Sets *failed then (exit 1).
+std::string checkResult(const Model& model, const Data& data, double energy_final_J, bool* failed) {
+  char text[160];
+  const double h =
+      model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s : 0.0;
+  if (!std::isfinite(energy_final_J) || !std::isfinite(data.stats.energy_initial_J) ||
+      !std::isfinite(data.stats.drive_work_J)) {
+    std::snprintf(text, sizeof(text),
+                  "failed: non-finite energy (initial %g J, final %g J, drive work %g J)",
+                  data.stats.energy_initial_J, energy_final_J, data.stats.drive_work_J);
+  } else if (!(data.t_s > 0) ||
+             std::abs(data.t_s - model.duration_s) > 0.5 * h + 1e-9 * model.duration_s) {
+    std::snprintf(text, sizeof(text),
+                  "failed: simulated %.9g s of the %.9g s duration (time step %g s)", data.t_s,
+                  model.duration_s, h);
+  } else {
+    return "ok";
+  }
+  *failed = true;
+  return text;
 }
 
 // Steps to the duration chunk by chunk, writing trace rows, draining events and sampling
@@ -319,10 +350,7 @@ int run(const Model& model, const DamageThresholds& damage, const Options& optio
       tracker.addEvents(data.events);
       data.events.clear();
       if (step_status == StepStatus::kFailed) {
-        char text[96];
-        std::snprintf(text, sizeof(text), "failed: non-finite state at t = %.9g s, not recovered",
-                      data.t_s);
-        status = text;
+        status = "failed: " + describe(data.stats.failure);
         failed = true;
         break;
       }
@@ -340,6 +368,7 @@ int run(const Model& model, const DamageThresholds& damage, const Options& optio
   // Summary and outcomes.
   const double wall_time_s = std::chrono::duration<double>(stepping_time).count();
   const double energy_final_J = mechanicalEnergy(model, data);
+  if (!failed) status = checkResult(model, data, energy_final_J, &failed);
   OutcomeReport report;
   report.kernels = tracker.outcomes(data);
   report.thresholds = damage;
@@ -351,11 +380,11 @@ int run(const Model& model, const DamageThresholds& damage, const Options& optio
   if (!options.quiet) {
     printSummary(std::cout, model, data, status, wall_time_s, energy_final_J, &report);
   }
-  checkWritten(options.summary_path, &summary);
-  checkWritten(options.trace_path, &trace);
-  checkWritten(options.events_path, &events);
-  checkWritten(options.outcomes_path, &outcomes_csv);
-  checkWritten(options.forces_path, &forces);
+  checkWritten(options.summary_path, "--summary", &summary);
+  checkWritten(options.trace_path, "--trace", &trace);
+  checkWritten(options.events_path, "--events", &events);
+  checkWritten(options.outcomes_path, "--outcomes", &outcomes_csv);
+  checkWritten(options.forces_path, "--forces", &forces);
   return failed ? 1 : 0;
 }
 
@@ -368,6 +397,10 @@ int main(int argc, char** argv) {
     const Options options = parseOptions(argc, argv);
     if (options.help) {
       std::cout << kUsage << "\n";
+      return 0;
+    }
+    if (options.print_schema) {
+      std::cout << sceneSchemaTable();
       return 0;
     }
     // Override files first, so that --set wins over them.

@@ -195,6 +195,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
   t.dphi_s.resize(n_stations, n);
   for (int s = 0; s < n_stations; ++s) {
     t.station_x_m[s] = L * (static_cast<double>(s) / (n_stations - 1));
+    if (n == 0) continue;  // rigid tooth: no mode shapes (a row of a 0-column matrix is UB)
     evaluateModes(t, t.station_x_m[s], &phi, &dphi);
     t.phi_s.row(s) = phi.transpose();
     t.dphi_s.row(s) = dphi.transpose();

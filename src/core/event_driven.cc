@@ -550,6 +550,7 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
                VecX* u1, double* err, double* torque1) {
   const int n = c.m.n_dof;
   Workspace& ws = c.ws;
+  ++ws.trial_steps;
   for (auto& k : ws.rk_k) k.resize(2 * n);
   ws.rk_tmp.resize(2 * n);
   VecX& zz = ws.ed_zz;

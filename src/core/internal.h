@@ -240,6 +240,8 @@ struct Workspace {
   ~Workspace();  // out of line (simulator.cc), where AsyncState is complete
   // The asynchronous island-local scheduler's state (integrator.islands); built on first use.
   std::unique_ptr<internal::AsyncState> async;
+  long trial_steps = 0;  // event-driven: Dormand-Prince trial steps since construction, the
+                         // work advanceTo() counts against its budget [-]
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;

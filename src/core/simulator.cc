@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
 #include <tuple>
 
 #include "async/async.h"
@@ -335,6 +336,7 @@ void resetData(const Model& model, Data* data) {
 void resetBodiesKeepTime(const Model& model, Data* data) {
   resetBodies(model, data);
   internal::resetAsync(data);
+  data->stats.failure = FailureInfo();
   data->stats.drive_work_J = 0;
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
   data->ws->ed_h = 0;
@@ -357,13 +359,48 @@ StepStatus step(const Model& model, Data* data) {
   return s;
 }
 
+namespace {
+
+// Work budget of one advanceTo() call, in work units: kBaseWork plus kWorkPerSecond per second
+// of simulated time the call covers. A unit is one integrator step (time stepping) or one
+// Dormand-Prince trial step (event-driven: accepted, rejected, or one of an event's bisection).
+// The scenes of config/ and the tests use far less (simulate's steps + rejected_steps: 1e4-1e5
+// per simulated second); the budget allows an average trial step of 33 ns over a long interval
+// and 2,000 units however short it is. A trial step near a contact costs ~1e6 instructions, so
+// a call that cannot progress fails within about a second of wall time.
+constexpr double kBaseWork = 2e3;
+constexpr double kWorkPerSecond = 3e7;
+// Accepted steps in a row that leave t_s unchanged before the call fails as kTimeStalled.
+constexpr int kMaxStalledSteps = 100;
+
+// Work done since the step and trial-step counters were at steps0, trials0.
+long workSince(const Data& d, long steps0, long trials0) {
+  return (d.steps - steps0) + (d.ws->trial_steps - trials0);
+}
+
+StepStatus fail(Data* d, FailureCause cause, double t_end_s, long work, long budget) {
+  d->stats.failure = {cause, d->t_s, t_end_s, work, budget};
+  return StepStatus::kFailed;
+}
+
+}  // namespace
+
 StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
-  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s);
   StepStatus worst = StepStatus::kOk;
   const double h = model.integrator.dt_s;
+  data->stats.failure = FailureInfo();
+  if (!std::isfinite(t_end_s)) return fail(data, FailureCause::kBadTarget, t_end_s, 0, 0);
+  // The island scheme: each island's advanceTo() has this budget over its own work.
+  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s);
+  const long budget = static_cast<long>(
+      std::min(1e15, kBaseWork + kWorkPerSecond * std::max(0.0, t_end_s - data->t_s)));
+  const long steps_start = data->steps, trials_start = data->ws->trial_steps;
+  int stalled = 0;
   while (true) {
     const bool ts = model.integrator.type == IntegratorType::kTimeStepping;
     if (ts ? data->t_s >= t_end_s - 0.5 * h : data->t_s >= t_end_s) break;
+    const long work = workSince(*data, steps_start, trials_start);
+    if (work > budget) return fail(data, FailureCause::kWorkBudget, t_end_s, work, budget);
     // Keep the last good state so that a non-finite result can be undone.
     Workspace& ws = *data->ws;
     ws.guard_z = data->z;
@@ -374,8 +411,14 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
                       : internal::eventDrivenStep(model, data, t_end_s);
     if (s == StepStatus::kOk && finiteState(*data)) {
       internal::checkToothDeflection(model, data);
+      stalled = data->t_s > t0 ? 0 : stalled + 1;
+      if (stalled >= kMaxStalledSteps)
+        return fail(data, FailureCause::kTimeStalled, t_end_s, work, budget);
       continue;
     }
+    const FailureCause cause = s == StepStatus::kOk || !finiteState(*data)
+                                   ? FailureCause::kNonFinite
+                                   : FailureCause::kStepSizeLimit;
     // Recovery: restore, then cross the same interval with ten small time steps.
     data->z = ws.guard_z;
     data->u = ws.guard_u;
@@ -390,13 +433,15 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
           internal::timeSteppingStep(model, data, h_small) == StepStatus::kOk && finiteState(*data);
     }
     if (!ok) {
+      // A NaN inside an event-driven step shows as rejected steps; the time steps reveal it.
+      const FailureCause why = finiteState(*data) ? cause : FailureCause::kNonFinite;
       data->z = ws.guard_z;
       data->u = ws.guard_u;
       data->steps = steps0;
       data->t_s = t0;
       data->theta_rad = th0;
       data->omega_radps = om0;
-      return StepStatus::kFailed;
+      return fail(data, why, t_end_s, work, budget);
     }
     internal::checkToothDeflection(model, data);
     worst = StepStatus::kRecovered;
@@ -405,6 +450,8 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
 }
 
 StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s) {
+  data->stats.failure = FailureInfo();
+  if (!std::isfinite(t_end_s)) return fail(data, FailureCause::kBadTarget, t_end_s, 0, 0);
   if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s, false);
   return advanceTo(model, data, t_end_s);
 }
@@ -412,6 +459,51 @@ StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s) {
 StepStatus syncBodies(const Model& model, Data* data) {
   if (!model.integrator.islands) return StepStatus::kOk;
   return internal::asyncSync(model, data);
+}
+
+const char* toString(FailureCause cause) {
+  switch (cause) {
+    case FailureCause::kNone:
+      return "none";
+    case FailureCause::kNonFinite:
+      return "non_finite";
+    case FailureCause::kStepSizeLimit:
+      return "step_size_limit";
+    case FailureCause::kWorkBudget:
+      return "work_budget";
+    case FailureCause::kTimeStalled:
+      return "time_stalled";
+    case FailureCause::kBadTarget:
+      return "bad_target";
+  }
+  return "?";
+}
+
+std::string describe(const FailureInfo& f) {
+  const char* what = "no failure";
+  switch (f.cause) {
+    case FailureCause::kNone:
+      break;
+    case FailureCause::kNonFinite:
+      what = "non-finite state, not recovered by small steps";
+      break;
+    case FailureCause::kStepSizeLimit:
+      what = "event-driven step size below its floor (too many rejected trial steps)";
+      break;
+    case FailureCause::kWorkBudget:
+      what = "work budget exceeded (steps, rejected steps and events)";
+      break;
+    case FailureCause::kTimeStalled:
+      what = "time stalled (accepted steps below the rounding of t)";
+      break;
+    case FailureCause::kBadTarget:
+      what = "target time not finite";
+      break;
+  }
+  char text[256];
+  std::snprintf(text, sizeof(text), "%s [%s] at t = %.9g s (target %.9g s, %ld of %ld work units)",
+                what, toString(f.cause), f.t_s, f.t_target_s, f.work, f.budget);
+  return text;
 }
 
 Vec2 toothPointWorld(const Model& model, const Data& data, int tooth, double x_m) {

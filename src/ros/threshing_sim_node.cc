@@ -1,7 +1,5 @@
 #include "threshing_sim/ros/threshing_sim_node.h"
 
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 #include <rosgraph_msgs/Clock.h>
 #include <unistd.h>
 
@@ -12,7 +10,10 @@
 #include <stdexcept>
 #include <utility>
 
+#include "threshing_sim/core/overlap.h"
 #include "threshing_sim/core/simulator.h"
+#include "threshing_sim/ros/command_bag.h"
+#include "threshing_sim/ros/reconfigure_check.h"
 
 namespace threshing_sim {
 namespace {
@@ -32,6 +33,12 @@ constexpr double kLinger_s = 1.0;
 constexpr double kServiceTimeout_s = 30.0;
 // A measured real-time factor below this fraction of the target is a warning [-].
 constexpr double kSlowFraction = 0.9;
+// Watchdog: a physics step (one advanceTo call) running longer than this is an error [wall s].
+// The core's work budget ends a call that cannot progress within about a second.
+constexpr double kWatchdog_s = 5.0;
+// A reset whose start poses overlap a body (the tooth passing the kernel's start) waits for
+// the drum to turn on, at most this much simulated time, then is skipped [s].
+constexpr double kMaxResetWait_s = 0.1;
 
 PacerOptions pacerOptions(const NodeParams& params, double dt_s) {
   PacerOptions o;
@@ -109,40 +116,15 @@ void ThreshingSimNode::stop() {
 // Start-up
 
 void ThreshingSimNode::loadCommandBag() {
-  const std::string where = "~command_bag (" + params_.command_bag + "): ";
-  try {
-    rosbag::Bag bag(params_.command_bag, rosbag::bagmode::Read);
-    // The boundary index of a stamp; stamps off the step grid mean another ~physics_dt.
-    auto stepOf = [&](const ros::Time& stamp) {
-      const std::int64_t ns = static_cast<std::int64_t>(stamp.toNSec());
-      const long k = static_cast<long>((ns + dt_ns_ / 2) / dt_ns_);
-      if (std::abs(ns - k * dt_ns_) * 1000 > dt_ns_)
-        throw std::invalid_argument(where + "stamp " + std::to_string(stamp.toSec()) +
-                                    " s is not on this node's step grid (recorded with another "
-                                    "~physics_dt or in wall clock mode?)");
-      return k;
-    };
-    // The applied commands, in boundary order.
-    for (const rosbag::MessageInstance& m :
-         rosbag::View(bag, rosbag::TypeQuery("threshing_sim/DrumSpeedCommand"))) {
-      const auto c = m.instantiate<DrumSpeedCommand>();
-      schedule_.push_back({stepOf(c->header.stamp), c->speed});
-    }
-    std::stable_sort(
-        schedule_.begin(), schedule_.end(),
-        [](const ScheduledCommand& a, const ScheduledCommand& b) { return a.step < b.step; });
-    // Without ~end_time, run up to the last contact_state the recording holds.
-    if (end_step_ == 0) {
-      for (const rosbag::MessageInstance& m :
-           rosbag::View(bag, rosbag::TypeQuery("threshing_sim/ContactStateArray")))
-        end_step_ = std::max(end_step_, stepOf(m.instantiate<ContactStateArray>()->header.stamp));
-      if (end_step_ == 0)
-        throw std::invalid_argument(where +
-                                    "holds no contact_state to end the run at; set "
-                                    "~end_time");
-    }
-  } catch (const rosbag::BagException& e) {
-    throw std::invalid_argument(where + e.what());
+  const CommandBagContents bag =
+      readCommandBag(params_.command_bag, dt_ns_, params_.max_drum_speed_radps);
+  for (const BagCommand& c : bag.commands) schedule_.push_back({c.step, c.speed_radps});
+  // Without ~end_time, run up to the last contact_state the recording holds.
+  if (end_step_ == 0) {
+    end_step_ = bag.last_contact_step;
+    if (end_step_ == 0)
+      throw std::invalid_argument("~command_bag (" + params_.command_bag +
+                                  "): holds no contact_state to end the run at; set ~end_time");
   }
   ROS_INFO("re-simulating %zu drum speed commands up to t = %g s", schedule_.size(),
            end_step_ * dt_s_);
@@ -180,9 +162,8 @@ void ThreshingSimNode::startReconfigure(ros::NodeHandle& pnh) {
   }
   reconfigure_ =
       std::make_unique<dynamic_reconfigure::Server<ThreshingSimConfig>>(reconfigure_mutex_, pnh);
-  reconfigure_->setCallback([this](const ThreshingSimConfig& config, std::uint32_t level) {
-    onReconfigure(config, level);
-  });
+  reconfigure_->setCallback(
+      [this](ThreshingSimConfig& config, std::uint32_t level) { onReconfigure(config, level); });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -239,15 +220,30 @@ bool ThreshingSimNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::R
   staged_.reset = true;
   staged_dirty_ = true;
   staged_cv_.notify_all();
-  res.success = served_cv_.wait_for(lock, seconds(kServiceTimeout_s), [&] {
+  const bool served = served_cv_.wait_for(lock, seconds(kServiceTimeout_s), [&] {
     return resets_done_ >= ticket || stop_;
   }) && !stop_;
-  res.message = "bodies reset at t = " + std::to_string(step_ * dt_s_) + " s";
+  res.success = served && reset_ok_;
+  res.message = served ? reset_result_ : "no answer from the physics thread";
   return true;
 }
 
-void ThreshingSimNode::onReconfigure(const ThreshingSimConfig& config, std::uint32_t) {
+// Values NaN, inf or outside the cfg ranges are refused and replaced, in the configuration the
+// server keeps, by the last good ones (the server stores what this callback leaves in config).
+void ThreshingSimNode::onReconfigure(ThreshingSimConfig& config, std::uint32_t) {
   std::lock_guard<std::mutex> lock(staged_mutex_);
+  const std::vector<std::string> refused = sanitizeConfig(
+      &config, last_good_config_ ? *last_good_config_ : ThreshingSimConfig::__getDefault__());
+  if (!refused.empty()) {
+    std::string list;
+    for (const std::string& r : refused) list += (list.empty() ? "" : ", ") + r;
+    const long n = ++refused_reconfigures_;
+    ROS_ERROR(
+        "reconfigure refused %s (NaN, inf or out of range); the last good values stay "
+        "(%ld refused requests so far)",
+        list.c_str(), n);
+  }
+  last_good_config_ = config;
   staged_.config = config;
   staged_dirty_ = true;
 }
@@ -314,15 +310,20 @@ void ThreshingSimNode::servePaused() {
 void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   applyStaged();
   const long k = step_ + 1;
+  advance_started_s_ = clock_.nowSeconds();
   const StepStatus status = advanceTo(*model_, &data_, k * dt_s_);
+  advance_started_s_ = -1;
   step_ = k;
   if (status == StepStatus::kFailed) {
+    const std::string text = describe(data_.stats.failure);
+    {
+      std::lock_guard<std::mutex> lock(staged_mutex_);
+      failure_text_ = text;
+    }
     failed_ = true;
     paused_ = true;
-    ROS_ERROR(
-        "the integrator failed at t = %g s (state kept at the last good step); paused: "
-        "call ~reset to continue",
-        data_.t_s);
+    ROS_ERROR("the integrator failed: %s; state kept at the last good step; paused: call ~reset",
+              text.c_str());
   }
   // Completed impacts go out with the next snapshot.
   for (const ContactEvent& e : data_.events)
@@ -333,11 +334,9 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   // The last step of a bounded run and a periodic reset publish everything.
   const bool last = end_step_ > 0 && k >= end_step_;
   unsigned streams = dueStreams() | forced_streams | (last ? kAllStreams : 0u);
-  if (reset_steps_ > 0 && k % reset_steps_ == 0) {
-    resetBodies();
-    streams = kAllStreams;
-  }
+  if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_wanted_) requestReset(0);
   if (streams != 0) takeSnapshot(streams);
+  tryPendingReset();
   if (last) finished_ = true;
 }
 
@@ -360,12 +359,53 @@ void ThreshingSimNode::applyStaged() {
   if (staged.drum_target_radps) applyDrumTarget(*staged.drum_target_radps);
   if (staged.config) applyConfig(*staged.config);
   if (staged.reset) {
+    requestReset(reset_ticket);
+    tryPendingReset();
+  }
+}
+
+void ThreshingSimNode::requestReset(long ticket) {
+  if (reset_wanted_ && reset_ticket_ > 0) finishReset(false, "superseded by a later ~reset");
+  reset_wanted_ = true;
+  reset_ticket_ = ticket;
+  reset_wait_steps_ = 0;
+}
+
+// A reset puts the kernels back at their start poses: only when that overlaps no tooth, kernel
+// or obstacle (the scene loader's test at the current drum angle). Otherwise it waits for the
+// tooth to pass, up to kMaxResetWait_s of simulated time (while paused the drum cannot move:
+// refused at once), then is skipped. Deferred and skipped resets are counted (/diagnostics).
+void ThreshingSimNode::tryPendingReset() {
+  if (!reset_wanted_) return;
+  const Overlap overlap = findInitialOverlap(*model_, data_.theta_rad);
+  const std::string at = " at t = " + std::to_string(step_ * dt_s_) + " s";
+  if (!overlap.found) {
     resetBodies();
     takeSnapshot(kAllStreams);
-    std::lock_guard<std::mutex> lock(staged_mutex_);
-    resets_done_ = reset_ticket;
-    served_cv_.notify_all();
+    finishReset(true, "bodies reset" + at);
+    return;
   }
+  if (reset_wait_steps_++ == 0) ++resets_deferred_;
+  const bool give_up = paused_ || reset_wait_steps_ * dt_s_ > kMaxResetWait_s;
+  if (!give_up) return;
+  ++resets_skipped_;
+  const std::string why = "reset skipped" + at + ": the start poses overlap (" + describe(overlap) +
+                          ") at drum angle " + std::to_string(data_.theta_rad) + " rad" +
+                          (paused_ ? "; unpause to let the tooth pass" : "");
+  ROS_WARN("%s (%ld skipped so far)", why.c_str(), resets_skipped_.load());
+  finishReset(false, why);
+}
+
+void ThreshingSimNode::finishReset(bool done, const std::string& message) {
+  const long ticket = reset_ticket_;
+  reset_wanted_ = false;
+  reset_ticket_ = 0;
+  if (ticket == 0) return;  // the periodic reset answers nobody
+  std::lock_guard<std::mutex> lock(staged_mutex_);
+  reset_ok_ = done;
+  reset_result_ = message;
+  resets_done_ = ticket;
+  served_cv_.notify_all();
 }
 
 void ThreshingSimNode::applyDrumTarget(double speed_radps) {
@@ -396,6 +436,20 @@ void ThreshingSimNode::applyConfig(const ThreshingSimConfig& config) {
     ROS_INFO("contact parameters reconfigured at t = %g s", step_ * dt_s_);
   } catch (const std::exception& e) {
     ROS_ERROR("reconfigure rejected, contact parameters unchanged: %s", e.what());
+    // Hand the contact values in force back to the server, so that it does not keep the
+    // refused ones (which would make every later request fail as well).
+    ThreshingSimConfig restored = config;
+    restored.tooth_kernel_restitution = model_->contact[0].restitution;
+    restored.tooth_kernel_friction = model_->contact[0].friction;
+    restored.kernel_kernel_restitution = model_->contact[1].restitution;
+    restored.kernel_kernel_friction = model_->contact[1].friction;
+    restored.kernel_obstacle_restitution = model_->contact[2].restitution;
+    restored.kernel_obstacle_friction = model_->contact[2].friction;
+    {
+      std::lock_guard<std::mutex> lock(staged_mutex_);
+      last_good_config_ = restored;
+    }
+    reconfigure_->updateConfig(restored);
   }
 }
 
@@ -592,15 +646,31 @@ void ThreshingSimNode::printStatus(bool final_line) {
 void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const double rtf = measured_rtf_;
   const double target = params_.real_time_factor;
-  if (failed_)
-    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "integrator failed: call ~reset");
-  else if (recoveries_ > 0)
+  const double started_s = advance_started_s_;
+  const double busy_s = started_s >= 0 ? clock_.nowSeconds() - started_s : 0.0;
+  std::string failure;
+  {
+    std::lock_guard<std::mutex> lock(staged_mutex_);
+    failure = failure_text_;
+  }
+  if (busy_s > kWatchdog_s) {
+    ROS_ERROR_THROTTLE(5.0, "watchdog: the physics thread has not returned for %.1f s (t = %g s)",
+                       busy_s, step_ * dt_s_);
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 "watchdog: physics step running for " + std::to_string(busy_s) + " s");
+  } else if (failed_) {
+    stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                 "integrator failed (" + failure + "): call ~reset");
+  } else if (recoveries_ > 0)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "numerical recoveries");
   else if (!paused_ && !finished_ && target > 0 && rtf < kSlowFraction * target)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN, "slower than the target real time");
   else if (deflection_warning_s_ >= 0)
     stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                  "tooth deflection outside the small-deflection range of the beam model");
+  else if (resets_skipped_ > 0)
+    stat.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                 "resets skipped: the start poses overlapped a body");
   else
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, finished_ ? "finished"
                                                         : paused_ ? "paused"
@@ -619,6 +689,11 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("paused", static_cast<bool>(paused_));
   stat.add("max tip deflection / length", max_deflection_ratio_.load());
   stat.add("first deflection warning [s]", deflection_warning_s_.load());
+  stat.add("failure", failed_ ? failure : std::string("none"));
+  stat.add("physics step running [wall s]", busy_s);
+  stat.add("resets deferred (overlap)", resets_deferred_.load());
+  stat.add("resets skipped (overlap)", resets_skipped_.load());
+  stat.add("refused reconfigure requests", refused_reconfigures_.load());
 }
 
 ros::Time ThreshingSimNode::stampOf(long step) const {

@@ -5,6 +5,8 @@
 // which missing keys may be created. Every refusal names the full key path and the bad value.
 #include "threshing_sim/scene/scene_loader.h"
 
+#include <sys/stat.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -14,6 +16,7 @@
 #include <utility>
 
 #include "threshing_sim/core/geometry.h"
+#include "threshing_sim/core/overlap.h"
 
 namespace threshing_sim {
 namespace {
@@ -26,105 +29,138 @@ namespace {
 // kList: a list of mappings.
 enum class KeyKind { kValue, kSection, kOptionalSection, kList };
 
+// The interval a number (each number of an [x, y] pair, an integer) must lie in. Every range
+// is finite: a value the integrator cannot run with in bounded work (1e300 m/s, a step of
+// 1e-300 s) is a scene error naming the key, not a hang.
+struct Bound {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false;
+  bool hi_open = false;
+
+  bool contains(double x) const {
+    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
+  }
+  std::string text() const;
+};
+
+// No range (sections, lists, words).
+const Bound kNoRange{};
+
 struct KeySpec {
   const char* path;
   KeyKind kind;
+  const char* type;  // number, integer, [x, y], word, section, list
+  const char* unit;  // SI unit ("" = dimensionless or none)
+  Bound range;       // accepted values of a number, integer or of each number of a pair
 };
 
+// The one table of scene keys and their ranges: the readers below take each range from here
+// (Section::number, integer, vec2), and `simulate --print-schema` prints it
+// (docs/scene_ranges.md is its output).
 const KeySpec kSchema[] = {
-    {"drum", KeyKind::kSection},
-    {"drum.radius", KeyKind::kValue},
-    {"drum.speed", KeyKind::kValue},
-    {"drum.max_acceleration", KeyKind::kValue},
-    {"drum.angle", KeyKind::kValue},
-    {"teeth", KeyKind::kList},
-    {"teeth.*.mount_angle", KeyKind::kValue},
-    {"teeth.*.length", KeyKind::kValue},
-    {"teeth.*.diameter", KeyKind::kValue},
-    {"teeth.*.youngs_modulus", KeyKind::kValue},
-    {"teeth.*.density", KeyKind::kValue},
-    {"teeth.*.modes", KeyKind::kValue},
-    {"teeth.*.damping_ratio", KeyKind::kValue},
-    {"teeth.*.poisson_ratio", KeyKind::kValue},
-    {"teeth.*.stations", KeyKind::kValue},
-    {"kernels", KeyKind::kList},
-    {"kernels.*.position", KeyKind::kValue},
-    {"kernels.*.angle", KeyKind::kValue},
-    {"kernels.*.velocity", KeyKind::kValue},
-    {"kernels.*.angular_velocity", KeyKind::kValue},
-    {"kernels.*.semi_axes", KeyKind::kValue},
-    {"kernels.*.mass", KeyKind::kValue},
-    {"kernels.*.youngs_modulus", KeyKind::kValue},
-    {"kernels.*.poisson_ratio", KeyKind::kValue},
-    {"kernels.*.pedicel", KeyKind::kOptionalSection},
-    {"kernels.*.pedicel.anchor", KeyKind::kValue},
-    {"kernels.*.pedicel.attach_point", KeyKind::kValue},
-    {"kernels.*.pedicel.stiffness", KeyKind::kValue},
-    {"kernels.*.pedicel.damping", KeyKind::kValue},
-    {"kernels.*.pedicel.rest_length", KeyKind::kValue},
-    {"kernels.*.pedicel.detachment_force", KeyKind::kValue},
-    {"stream", KeyKind::kOptionalSection},
-    {"stream.count", KeyKind::kValue},
-    {"stream.rate", KeyKind::kValue},
-    {"stream.start", KeyKind::kValue},
-    {"stream.seed", KeyKind::kValue},
-    {"stream.depth", KeyKind::kValue},
-    {"stream.position_scatter", KeyKind::kValue},
-    {"stream.angle_scatter", KeyKind::kValue},
-    {"stream.semi_axes", KeyKind::kValue},
-    {"stream.mass_range", KeyKind::kValue},
-    {"stream.youngs_modulus", KeyKind::kValue},
-    {"stream.poisson_ratio", KeyKind::kValue},
-    {"stream.pedicel_length", KeyKind::kValue},
-    {"stream.pedicel_stiffness", KeyKind::kValue},
-    {"stream.pedicel_damping", KeyKind::kValue},
-    {"stream.detachment_force_range", KeyKind::kValue},
-    {"obstacles", KeyKind::kList},
-    {"obstacles.*.type", KeyKind::kValue},
-    {"obstacles.*.point", KeyKind::kValue},
-    {"obstacles.*.normal", KeyKind::kValue},
-    {"obstacles.*.point_b", KeyKind::kValue},
-    {"obstacles.*.center", KeyKind::kValue},
-    {"obstacles.*.radius", KeyKind::kValue},
-    {"obstacles.*.youngs_modulus", KeyKind::kValue},
-    {"obstacles.*.poisson_ratio", KeyKind::kValue},
-    {"contact", KeyKind::kSection},
-    {"contact.tooth_kernel", KeyKind::kSection},
-    {"contact.tooth_kernel.law", KeyKind::kValue},
-    {"contact.tooth_kernel.restitution", KeyKind::kValue},
-    {"contact.tooth_kernel.friction", KeyKind::kValue},
-    {"contact.kernel_kernel", KeyKind::kSection},
-    {"contact.kernel_kernel.law", KeyKind::kValue},
-    {"contact.kernel_kernel.restitution", KeyKind::kValue},
-    {"contact.kernel_kernel.friction", KeyKind::kValue},
-    {"contact.kernel_obstacle", KeyKind::kSection},
-    {"contact.kernel_obstacle.law", KeyKind::kValue},
-    {"contact.kernel_obstacle.restitution", KeyKind::kValue},
-    {"contact.kernel_obstacle.friction", KeyKind::kValue},
-    {"contact.hc_min_impact_speed", KeyKind::kValue},
-    {"gravity", KeyKind::kValue},
-    {"integrator", KeyKind::kSection},
-    {"integrator.type", KeyKind::kValue},
-    {"integrator.tolerance", KeyKind::kValue},
-    {"integrator.dt", KeyKind::kValue},
-    {"integrator.theta", KeyKind::kValue},
-    {"integrator.zeno_velocity", KeyKind::kValue},
-    {"integrator.max_step", KeyKind::kValue},
-    {"integrator.free_teeth", KeyKind::kValue},
-    {"integrator.islands", KeyKind::kValue},
-    {"duration", KeyKind::kValue},
-    {"broadphase_margin", KeyKind::kValue},
-    {"macro_collision_gap", KeyKind::kValue},
-    {"deflection_validity", KeyKind::kValue},
-    {"damage", KeyKind::kSection},
-    {"damage.plastic_force", KeyKind::kValue},
-    {"damage.fracture_force", KeyKind::kValue},
+    {"drum", KeyKind::kSection, "section", "", kNoRange},
+    {"drum.radius", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false}},
+    {"drum.speed", KeyKind::kValue, "number", "rad/s", Bound{-1e4, 1e4, false, false}},
+    {"drum.max_acceleration", KeyKind::kValue, "number", "rad/s^2", Bound{0.0, 1e7, true, false}},
+    {"drum.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
+    {"teeth", KeyKind::kList, "list", "", kNoRange},
+    {"teeth.*.mount_angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
+    {"teeth.*.length", KeyKind::kValue, "number", "m", Bound{1e-5, 10.0, false, false}},
+    {"teeth.*.diameter", KeyKind::kValue, "number", "m", Bound{1e-5, 1.0, false, false}},
+    {"teeth.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
+    {"teeth.*.density", KeyKind::kValue, "number", "kg/m^3", Bound{1.0, 1e5, false, false}},
+    {"teeth.*.modes", KeyKind::kValue, "integer", "", Bound{0.0, 12.0, false, false}},
+    {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true}},
+    {"teeth.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
+    {"teeth.*.stations", KeyKind::kValue, "integer", "", Bound{2.0, 65.0, false, false}},
+    {"kernels", KeyKind::kList, "list", "", kNoRange},
+    {"kernels.*.position", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
+    {"kernels.*.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
+    {"kernels.*.velocity", KeyKind::kValue, "[x, y]", "m/s", Bound{-1e3, 1e3, false, false}},
+    {"kernels.*.angular_velocity", KeyKind::kValue, "number", "rad/s",
+     Bound{-1e5, 1e5, false, false}},
+    {"kernels.*.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false}},
+    {"kernels.*.mass", KeyKind::kValue, "number", "kg", Bound{1e-12, 1e3, false, false}},
+    {"kernels.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
+    {"kernels.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
+    {"kernels.*.pedicel", KeyKind::kOptionalSection, "section", "", kNoRange},
+    {"kernels.*.pedicel.anchor", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
+    {"kernels.*.pedicel.attach_point", KeyKind::kValue, "[x, y]", "m",
+     Bound{-1.0, 1.0, false, false}},
+    {"kernels.*.pedicel.stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false}},
+    {"kernels.*.pedicel.damping", KeyKind::kValue, "number", "N s/m",
+     Bound{0.0, 1e6, false, false}},
+    {"kernels.*.pedicel.rest_length", KeyKind::kValue, "number", "m",
+     Bound{-1.0, 10.0, false, false}},
+    {"kernels.*.pedicel.detachment_force", KeyKind::kValue, "number", "N",
+     Bound{0.0, 1e6, true, false}},
+    {"stream", KeyKind::kOptionalSection, "section", "", kNoRange},
+    {"stream.count", KeyKind::kValue, "integer", "", Bound{1.0, 10000.0, false, false}},
+    {"stream.rate", KeyKind::kValue, "number", "Hz", Bound{0.0, 1e7, true, false}},
+    {"stream.start", KeyKind::kValue, "number", "s", Bound{0.0, 1e4, false, false}},
+    {"stream.seed", KeyKind::kValue, "integer", "", Bound{0.0, 2147483647.0, false, false}},
+    {"stream.depth", KeyKind::kValue, "number", "m", Bound{-10.0, 10.0, false, false}},
+    {"stream.position_scatter", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false}},
+    {"stream.angle_scatter", KeyKind::kValue, "number", "rad", Bound{0.0, 10.0, false, false}},
+    {"stream.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false}},
+    {"stream.mass_range", KeyKind::kValue, "[lo, hi]", "kg", Bound{1e-12, 1e3, false, false}},
+    {"stream.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
+    {"stream.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
+    {"stream.pedicel_length", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false}},
+    {"stream.pedicel_stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false}},
+    {"stream.pedicel_damping", KeyKind::kValue, "number", "N s/m", Bound{0.0, 1e6, false, false}},
+    {"stream.detachment_force_range", KeyKind::kValue, "[lo, hi]", "N",
+     Bound{0.0, 1e6, true, false}},
+    {"obstacles", KeyKind::kList, "list", "", kNoRange},
+    {"obstacles.*.type", KeyKind::kValue, "word", "", kNoRange},
+    {"obstacles.*.point", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
+    {"obstacles.*.normal", KeyKind::kValue, "[x, y]", "", Bound{-1e3, 1e3, false, false}},
+    {"obstacles.*.point_b", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
+    {"obstacles.*.center", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
+    {"obstacles.*.radius", KeyKind::kValue, "number", "m", Bound{0.0, 1e3, false, false}},
+    {"obstacles.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
+    {"obstacles.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
+    {"contact", KeyKind::kSection, "section", "", kNoRange},
+    {"contact.tooth_kernel", KeyKind::kSection, "section", "", kNoRange},
+    {"contact.tooth_kernel.law", KeyKind::kValue, "word", "", kNoRange},
+    {"contact.tooth_kernel.restitution", KeyKind::kValue, "number", "",
+     Bound{0.0, 1.0, false, false}},
+    {"contact.tooth_kernel.friction", KeyKind::kValue, "number", "",
+     Bound{0.0, 100.0, false, false}},
+    {"contact.kernel_kernel", KeyKind::kSection, "section", "", kNoRange},
+    {"contact.kernel_kernel.law", KeyKind::kValue, "word", "", kNoRange},
+    {"contact.kernel_kernel.restitution", KeyKind::kValue, "number", "",
+     Bound{0.0, 1.0, false, false}},
+    {"contact.kernel_kernel.friction", KeyKind::kValue, "number", "",
+     Bound{0.0, 100.0, false, false}},
+    {"contact.kernel_obstacle", KeyKind::kSection, "section", "", kNoRange},
+    {"contact.kernel_obstacle.law", KeyKind::kValue, "word", "", kNoRange},
+    {"contact.kernel_obstacle.restitution", KeyKind::kValue, "number", "",
+     Bound{0.0, 1.0, false, false}},
+    {"contact.kernel_obstacle.friction", KeyKind::kValue, "number", "",
+     Bound{0.0, 100.0, false, false}},
+    {"contact.hc_min_impact_speed", KeyKind::kValue, "number", "m/s", Bound{0.0, 1e3, true, false}},
+    {"gravity", KeyKind::kValue, "[x, y]", "m/s^2", Bound{-1e4, 1e4, false, false}},
+    {"integrator", KeyKind::kSection, "section", "", kNoRange},
+    {"integrator.type", KeyKind::kValue, "word", "", kNoRange},
+    {"integrator.tolerance", KeyKind::kValue, "number", "", Bound{1e-13, 0.1, false, false}},
+    {"integrator.dt", KeyKind::kValue, "number", "s", Bound{1e-9, 1e-2, false, false}},
+    {"integrator.theta", KeyKind::kValue, "number", "", Bound{0.5, 1.0, false, false}},
+    {"integrator.zeno_velocity", KeyKind::kValue, "number", "m/s", Bound{0.0, 1e3, true, false}},
+    {"integrator.max_step", KeyKind::kValue, "number", "s", Bound{1e-9, 1.0, false, false}},
+    {"integrator.free_teeth", KeyKind::kValue, "word", "", kNoRange},
+    {"integrator.islands", KeyKind::kValue, "word", "", kNoRange},
+    {"duration", KeyKind::kValue, "number", "s", Bound{0.0, 1e5, true, false}},
+    {"broadphase_margin", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false}},
+    {"macro_collision_gap", KeyKind::kValue, "number", "s", Bound{0.0, 1e3, true, false}},
+    {"deflection_validity", KeyKind::kValue, "number", "", Bound{0.0, 1.0, true, false}},
+    {"damage", KeyKind::kSection, "section", "", kNoRange},
+    {"damage.plastic_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false}},
+    {"damage.fracture_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false}},
 };
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Most bending modes the beam model evaluates accurately (kMaxModes in src/core/beam.cc).
-constexpr int kMaxModes = 12;
 
 // Keys allowed on each obstacle type.
 const std::vector<std::string> kPlaneKeys = {"type", "point", "normal", "youngs_modulus",
@@ -163,6 +199,22 @@ std::vector<std::string> childKeys(const std::string& pattern) {
     if (rest.find('.') == std::string::npos) keys.push_back(rest);
   }
   return keys;
+}
+
+// The schema pattern of a written path: list indices become "*" ("teeth.3.length" ->
+// "teeth.*.length").
+std::string patternOf(const std::string& path) {
+  std::string out, part;
+  for (size_t i = 0; i <= path.size(); ++i) {
+    if (i < path.size() && path[i] != '.') {
+      part += path[i];
+      continue;
+    }
+    const bool index = !part.empty() && part.find_first_not_of("0123456789") == std::string::npos;
+    out += (out.empty() ? "" : ".") + (index ? std::string("*") : part);
+    part.clear();
+  }
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -240,30 +292,11 @@ std::string unknownKey(const std::string& key, const std::vector<std::string>& k
 // ---------------------------------------------------------------------------------------------
 // Reading values with their bounds.
 
-// The interval a number must lie in.
-struct Bound {
-  double lo = -std::numeric_limits<double>::infinity();
-  double hi = std::numeric_limits<double>::infinity();
-  bool lo_open = false;
-  bool hi_open = false;
-
-  bool contains(double x) const {
-    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
-  }
-  std::string text() const {
-    if (std::isinf(hi)) return (lo_open ? "> " : ">= ") + show(lo);
-    return std::string("in ") + (lo_open ? "(" : "[") + show(lo) + ", " + show(hi) +
-           (hi_open ? ")" : "]");
-  }
-};
-
-const Bound kAnyValue{};
-const Bound kPositive{0.0, std::numeric_limits<double>::infinity(), true, false};
-const Bound kNonNegative{0.0, std::numeric_limits<double>::infinity(), false, false};
-const Bound kUnitInterval{0.0, 1.0, false, false};
-const Bound kPoissonRatio{0.0, 0.5, false, true};
-const Bound kDampingRatio{0.0, 1.0, false, true};
-const Bound kTheta{0.5, 1.0, false, false};
+std::string Bound::text() const {
+  if (std::isinf(hi)) return (lo_open ? "> " : ">= ") + show(lo);
+  return std::string("in ") + (lo_open ? "(" : "[") + show(lo) + ", " + show(hi) +
+         (hi_open ? ")" : "]");
+}
 
 // An unquoted scalar that reads as a number (.nan and .inf included).
 bool decodeNumber(const YAML::Node& node, double* value) {
@@ -314,33 +347,33 @@ class Section {
     if (!has(key)) fail(path(key), "required key is missing");
   }
 
-  double number(const std::string& key, double fallback, const Bound& bound) const {
+  // A finite number in the key's schema range.
+  double number(const std::string& key, double fallback) const {
     if (!has(key)) return fallback;
     const double value = toNumber(node(key), path(key));
+    const Bound& bound = rangeOf(key);
     if (!bound.contains(value)) {
       fail(path(key), "must be " + bound.text() + " (got " + show(node(key)) + ")");
     }
     return value;
   }
 
-  int integer(const std::string& key, int fallback, int minimum, int maximum) const {
+  // An integer in the key's schema range.
+  int integer(const std::string& key, int fallback) const {
     if (!has(key)) return fallback;
     const YAML::Node n = node(key);
     int value = 0;
     if (!n.IsScalar() || n.Tag() == "!" || !YAML::convert<int>::decode(n, value)) {
       fail(path(key), "expected an integer (got " + show(n) + ")");
     }
-    if (value < minimum || value > maximum) {
-      const std::string range =
-          maximum == std::numeric_limits<int>::max()
-              ? ">= " + std::to_string(minimum)
-              : "in [" + std::to_string(minimum) + ", " + std::to_string(maximum) + "]";
-      fail(path(key), "must be " + range + " (got " + show(n) + ")");
+    const Bound& bound = rangeOf(key);
+    if (!bound.contains(value)) {
+      fail(path(key), "must be " + bound.text() + " (got " + show(n) + ")");
     }
     return value;
   }
 
-  // [x, y] of two finite numbers.
+  // [x, y] of two finite numbers, each in the key's schema range.
   Vec2 vec2(const std::string& key, const Vec2& fallback) const {
     if (!has(key)) return fallback;
     const YAML::Node n = node(key);
@@ -348,13 +381,23 @@ class Section {
       fail(path(key), "expected a list of 2 numbers [x, y] (got " + show(n) + ")");
     }
     Vec2 v;
+    const Bound& bound = rangeOf(key);
     for (int i = 0; i < 2; ++i) {
       if (!decodeNumber(n[i], &v[i])) {
         fail(path(key), "expected a list of 2 numbers [x, y] (got " + show(n) + ")");
       }
       if (!std::isfinite(v[i])) fail(path(key), "must be finite (got " + show(n) + ")");
+      if (!bound.contains(v[i])) {
+        fail(path(key), "each number must be " + bound.text() + " (got " + show(n) + ")");
+      }
     }
     return v;
+  }
+
+  // The schema range of a key of this section ("teeth.3" + "length" -> "teeth.*.length").
+  const Bound& rangeOf(const std::string& key) const {
+    const KeySpec* spec = findKey(patternOf(path(key)));
+    return spec != nullptr ? spec->range : kNoRange;
   }
 
   // One of a fixed set of words.
@@ -395,24 +438,23 @@ class Section {
 
 void readDrum(const Section& scene, DrumModel* drum) {
   const Section s = scene.section("drum", "drum");
-  drum->radius_m = s.number("radius", drum->radius_m, kPositive);
-  drum->initial_speed_radps = s.number("speed", drum->initial_speed_radps, kAnyValue);
-  drum->max_acceleration_radps2 =
-      s.number("max_acceleration", drum->max_acceleration_radps2, kPositive);
-  drum->initial_angle_rad = s.number("angle", drum->initial_angle_rad, kAnyValue);
+  drum->radius_m = s.number("radius", drum->radius_m);
+  drum->initial_speed_radps = s.number("speed", drum->initial_speed_radps);
+  drum->max_acceleration_radps2 = s.number("max_acceleration", drum->max_acceleration_radps2);
+  drum->initial_angle_rad = s.number("angle", drum->initial_angle_rad);
 }
 
 ToothModel readTooth(const Section& s) {
   ToothModel t;
-  t.mount_angle_rad = s.number("mount_angle", t.mount_angle_rad, kAnyValue);
-  t.length_m = s.number("length", t.length_m, kPositive);
-  t.diameter_m = s.number("diameter", t.diameter_m, kPositive);
-  t.youngs_modulus_Pa = s.number("youngs_modulus", t.youngs_modulus_Pa, kPositive);
-  t.density_kgpm3 = s.number("density", t.density_kgpm3, kPositive);
-  t.n_modes = s.integer("modes", t.n_modes, 0, kMaxModes);
-  t.damping_ratio = s.number("damping_ratio", t.damping_ratio, kDampingRatio);
-  t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio, kPoissonRatio);
-  t.n_stations = s.integer("stations", t.n_stations, 2, std::numeric_limits<int>::max());
+  t.mount_angle_rad = s.number("mount_angle", t.mount_angle_rad);
+  t.length_m = s.number("length", t.length_m);
+  t.diameter_m = s.number("diameter", t.diameter_m);
+  t.youngs_modulus_Pa = s.number("youngs_modulus", t.youngs_modulus_Pa);
+  t.density_kgpm3 = s.number("density", t.density_kgpm3);
+  t.n_modes = s.integer("modes", t.n_modes);
+  t.damping_ratio = s.number("damping_ratio", t.damping_ratio);
+  t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio);
+  t.n_stations = s.integer("stations", t.n_stations);
   return t;
 }
 
@@ -430,10 +472,10 @@ PedicelModel readPedicel(const Section& s, const KernelModel& kernel) {
                                      show(s.node("attach_point")) + " with semi-axes " +
                                      show(Vec2(kernel.semi_axis_a_m, kernel.semi_axis_b_m)) + ")");
   }
-  p.stiffness_Npm = s.number("stiffness", p.stiffness_Npm, kPositive);
-  p.damping_Nspm = s.number("damping", p.damping_Nspm, kNonNegative);
-  p.rest_length_m = s.number("rest_length", p.rest_length_m, kAnyValue);
-  p.detachment_force_N = s.number("detachment_force", p.detachment_force_N, kPositive);
+  p.stiffness_Npm = s.number("stiffness", p.stiffness_Npm);
+  p.damping_Nspm = s.number("damping", p.damping_Nspm);
+  p.rest_length_m = s.number("rest_length", p.rest_length_m);
+  p.detachment_force_N = s.number("detachment_force", p.detachment_force_N);
   return p;
 }
 
@@ -441,10 +483,9 @@ KernelModel readKernel(const Section& s) {
   KernelModel k;
   s.require("position");
   k.initial_position_m = s.vec2("position", k.initial_position_m);
-  k.initial_angle_rad = s.number("angle", k.initial_angle_rad, kAnyValue);
+  k.initial_angle_rad = s.number("angle", k.initial_angle_rad);
   k.initial_velocity_mps = s.vec2("velocity", k.initial_velocity_mps);
-  k.initial_angular_velocity_radps =
-      s.number("angular_velocity", k.initial_angular_velocity_radps, kAnyValue);
+  k.initial_angular_velocity_radps = s.number("angular_velocity", k.initial_angular_velocity_radps);
   // Semi-axes: both positive, the first the larger.
   const Vec2 axes = s.vec2("semi_axes", Vec2(k.semi_axis_a_m, k.semi_axis_b_m));
   if (axes.minCoeff() <= 0) {
@@ -455,9 +496,9 @@ KernelModel readKernel(const Section& s) {
   }
   k.semi_axis_a_m = axes.x();
   k.semi_axis_b_m = axes.y();
-  k.mass_kg = s.number("mass", k.mass_kg, kPositive);
-  k.youngs_modulus_Pa = s.number("youngs_modulus", k.youngs_modulus_Pa, kPositive);
-  k.poisson_ratio = s.number("poisson_ratio", k.poisson_ratio, kPoissonRatio);
+  k.mass_kg = s.number("mass", k.mass_kg);
+  k.youngs_modulus_Pa = s.number("youngs_modulus", k.youngs_modulus_Pa);
+  k.poisson_ratio = s.number("poisson_ratio", k.poisson_ratio);
   const YAML::Node pedicel = s.node("pedicel");
   if (pedicel.IsDefined() && !pedicel.IsNull()) {
     k.pedicel = readPedicel(s.section("pedicel", "kernels.*.pedicel"), k);
@@ -487,7 +528,9 @@ ObstacleModel readObstacle(const YAML::Node& node, const std::string& path) {
     o.type = ObstacleType::kCircle;
     s.require("center");
     o.center_m = s.vec2("center", o.center_m);
-    o.radius_m = s.number("radius", o.radius_m, kPositive);
+    o.radius_m = s.number("radius", o.radius_m);
+    if (!(o.radius_m > 0))
+      fail(s.path("radius"), "must be > 0 for a circle (got " + show(s.node("radius")) + ")");
   } else {
     const Section s(node, path, kSegmentKeys, "a segment obstacle");
     o.type = ObstacleType::kSegment;
@@ -498,10 +541,10 @@ ObstacleModel readObstacle(const YAML::Node& node, const std::string& path) {
     if (o.point_b_m == o.point_m) {
       fail(s.path("point_b"), "must differ from point (got " + show(s.node("point_b")) + ")");
     }
-    o.radius_m = s.number("radius", o.radius_m, kNonNegative);
+    o.radius_m = s.number("radius", o.radius_m);
   }
-  o.youngs_modulus_Pa = any.number("youngs_modulus", o.youngs_modulus_Pa, kPositive);
-  o.poisson_ratio = any.number("poisson_ratio", o.poisson_ratio, kPoissonRatio);
+  o.youngs_modulus_Pa = any.number("youngs_modulus", o.youngs_modulus_Pa);
+  o.poisson_ratio = any.number("poisson_ratio", o.poisson_ratio);
   return o;
 }
 
@@ -514,12 +557,11 @@ void readContact(const Section& scene, Model* model) {
     const std::string law = pair.word("law", p.law == ContactLaw::kRigid ? "rigid" : "compliant",
                                       "contact law", {"compliant", "rigid"});
     p.law = law == "rigid" ? ContactLaw::kRigid : ContactLaw::kCompliant;
-    p.restitution = pair.number("restitution", p.restitution, kUnitInterval);
-    p.friction = pair.number("friction", p.friction, kNonNegative);
+    p.restitution = pair.number("restitution", p.restitution);
+    p.friction = pair.number("friction", p.friction);
     model->contact[kind] = p;
   }
-  model->hc_min_impact_speed_mps =
-      s.number("hc_min_impact_speed", model->hc_min_impact_speed_mps, kPositive);
+  model->hc_min_impact_speed_mps = s.number("hc_min_impact_speed", model->hc_min_impact_speed_mps);
 }
 
 void readIntegrator(const Section& scene, IntegratorParams* integrator) {
@@ -529,12 +571,11 @@ void readIntegrator(const Section& scene, IntegratorParams* integrator) {
       "integrator type", {"event_driven", "time_stepping"});
   integrator->type =
       type == "time_stepping" ? IntegratorType::kTimeStepping : IntegratorType::kEventDriven;
-  integrator->tolerance = s.number("tolerance", integrator->tolerance, kPositive);
-  integrator->dt_s = s.number("dt", integrator->dt_s, kPositive);
-  integrator->theta = s.number("theta", integrator->theta, kTheta);
-  integrator->zeno_velocity_mps =
-      s.number("zeno_velocity", integrator->zeno_velocity_mps, kPositive);
-  integrator->max_step_s = s.number("max_step", integrator->max_step_s, kPositive);
+  integrator->tolerance = s.number("tolerance", integrator->tolerance);
+  integrator->dt_s = s.number("dt", integrator->dt_s);
+  integrator->theta = s.number("theta", integrator->theta);
+  integrator->zeno_velocity_mps = s.number("zeno_velocity", integrator->zeno_velocity_mps);
+  integrator->max_step_s = s.number("max_step", integrator->max_step_s);
   const std::string free_teeth =
       s.word("free_teeth", integrator->exact_free_teeth ? "exact" : "integrated",
              "free tooth propagation", {"exact", "integrated"});
@@ -547,71 +588,38 @@ void readIntegrator(const Section& scene, IntegratorParams* integrator) {
 // ---------------------------------------------------------------------------------------------
 // Bodies overlapping at the start.
 
-Ellipse kernelEllipse(const KernelModel& k) {
-  Ellipse e;
-  e.center = k.initial_position_m;
-  e.angle_rad = k.initial_angle_rad;
-  e.a_m = k.semi_axis_a_m;
-  e.b_m = k.semi_axis_b_m;
-  return e;
-}
-
-// Smallest signed distance from kernel k to the first n_kernels kernels of the model, the
-// undeformed teeth at the initial drum angle (capsules of radius d/2 from root to tip) and the
-// obstacles; *other names the nearest body.
-double clearance(const Model& model, const KernelModel& k, size_t n_kernels, std::string* other) {
-  const Ellipse e = kernelEllipse(k);
-  double nearest_m = std::numeric_limits<double>::infinity();
-  const auto consider = [&](double distance_m, const std::string& name) {
-    if (distance_m < nearest_m) {
-      nearest_m = distance_m;
-      *other = name;
-    }
-  };
-  for (size_t j = 0; j < n_kernels; ++j) {
-    consider(ellipseEllipse(kernelEllipse(model.kernels[j]), e).distance_m,
-             "kernels." + std::to_string(j));
-  }
-  const Eigen::Matrix2d A_WD = Eigen::Rotation2Dd(model.drum.initial_angle_rad).toRotationMatrix();
-  for (size_t t = 0; t < model.teeth.size(); ++t) {
-    const ToothModel& tooth = model.teeth[t];
-    const Vec2 axis_W =
-        A_WD * Vec2(std::cos(tooth.mount_angle_rad), std::sin(tooth.mount_angle_rad));
-    const Vec2 root_W = model.drum.radius_m * axis_W;
-    const Vec2 tip_W = root_W + tooth.length_m * axis_W;
-    consider(segmentEllipse(root_W, tip_W, e).distance_m - tooth.diameter_m / 2,
-             "teeth." + std::to_string(t));
-  }
-  for (size_t o = 0; o < model.obstacles.size(); ++o) {
-    const ObstacleModel& ob = model.obstacles[o];
-    double distance_m = 0;
-    switch (ob.type) {
-      case ObstacleType::kPlane:
-        distance_m = planeEllipse(ob.point_m, ob.normal, e).distance_m;
-        break;
-      case ObstacleType::kCircle:
-        distance_m = circleEllipse(ob.center_m, ob.radius_m, e).distance_m;
-        break;
-      case ObstacleType::kSegment:
-        distance_m = segmentEllipse(ob.point_m, ob.point_b_m, e).distance_m - ob.radius_m;
-        break;
-    }
-    consider(distance_m, "obstacles." + std::to_string(o));
-  }
-  return nearest_m;
-}
-
-// Every kernel against the earlier kernels, the teeth and the obstacles.
+// Every kernel against the earlier kernels, the teeth and the obstacles (the core's test,
+// O(n) ellipse tests through a grid).
 void checkInitialOverlaps(const Model& model) {
-  for (size_t i = 0; i < model.kernels.size(); ++i) {
-    const KernelModel& k = model.kernels[i];
-    std::string other;
-    const double distance_m = clearance(model, k, i, &other);
-    if (distance_m >= 0) continue;
-    fail("kernels." + std::to_string(i) + ".position",
-         "kernel overlaps " + other + " at start by " + show(-distance_m) + " m (got " +
-             show(k.initial_position_m) + ")");
-  }
+  const Overlap o = findInitialOverlap(model, model.drum.initial_angle_rad);
+  if (!o.found) return;
+  fail("kernels." + std::to_string(o.kernel) + ".position",
+       "kernel overlaps " + bodyName(o.other_kind, o.other) + " at start by " +
+           show(-o.distance_m) + " m (got " + show(model.kernels[o.kernel].initial_position_m) +
+           ")");
+}
+
+// Smallest signed distance from kernel k to the kernels in the grid, the undeformed teeth at
+// the initial drum angle and the obstacles; *other names the nearest body.
+double clearance(const Model& model, const KernelGrid& grid, const KernelModel& k,
+                 std::string* other) {
+  const Ellipse e = kernelEllipseAt(k, k.initial_position_m, k.initial_angle_rad);
+  Overlap nearest;
+  double nearest_m = clearanceFromFixedBodies(model, model.drum.initial_angle_rad, e, &nearest);
+  grid.forEachNear(e.center, [&](int j) {
+    const KernelModel& kj = model.kernels[j];
+    if ((kj.initial_position_m - e.center).norm() > kj.semi_axis_a_m + e.a_m) return;
+    const double d_m =
+        ellipseEllipse(kernelEllipseAt(kj, kj.initial_position_m, kj.initial_angle_rad), e)
+            .distance_m;
+    if (d_m < nearest_m) {
+      nearest_m = d_m;
+      nearest.other_kind = PairKind::kKernelKernel;
+      nearest.other = j;
+    }
+  });
+  if (nearest.other >= 0) *other = bodyName(nearest.other_kind, nearest.other);
+  return nearest_m;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -668,13 +676,13 @@ void readStream(const Section& scene, Model* model) {
   // Parameters.
   s.require("count");
   s.require("rate");
-  const int count = s.integer("count", 1, 1, 10000);
-  const double rate_Hz = s.number("rate", 1.0, kPositive);
-  const double start_s = s.number("start", 5e-4, kNonNegative);
-  const int seed = s.integer("seed", 1, 0, std::numeric_limits<int>::max());
-  const double depth_m = s.number("depth", 0.005, kAnyValue);
-  const double position_scatter_m = s.number("position_scatter", 0.001, kNonNegative);
-  const double angle_scatter_rad = s.number("angle_scatter", 0.5, kNonNegative);
+  const int count = s.integer("count", 1);
+  const double rate_Hz = s.number("rate", 1.0);
+  const double start_s = s.number("start", 5e-4);
+  const int seed = s.integer("seed", 1);
+  const double depth_m = s.number("depth", 0.005);
+  const double position_scatter_m = s.number("position_scatter", 0.001);
+  const double angle_scatter_rad = s.number("angle_scatter", 0.5);
   KernelModel base;
   const Vec2 axes = s.vec2("semi_axes", Vec2(base.semi_axis_a_m, base.semi_axis_b_m));
   if (axes.minCoeff() <= 0 || axes.x() < axes.y()) {
@@ -684,12 +692,12 @@ void readStream(const Section& scene, Model* model) {
   base.semi_axis_a_m = axes.x();
   base.semi_axis_b_m = axes.y();
   const Vec2 mass_kg = positiveRange(s, "mass_range", Vec2(2.4e-5, 3.1e-5));
-  base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa, kPositive);
-  base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio, kPoissonRatio);
-  const double pedicel_length_m = s.number("pedicel_length", 0.003, kPositive);
+  base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa);
+  base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio);
+  const double pedicel_length_m = s.number("pedicel_length", 0.003);
   base.pedicel.present = true;
-  base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm, kPositive);
-  base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm, kNonNegative);
+  base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm);
+  base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm);
   base.pedicel.rest_length_m = -1.0;
   base.pedicel.p_KP_K = Vec2(base.semi_axis_a_m, 0.0);
   const Vec2 detach_N = positiveRange(s, "detachment_force_range", Vec2(0.27, 2.6));
@@ -716,6 +724,11 @@ void readStream(const Section& scene, Model* model) {
   Uniform uniform(static_cast<unsigned long long>(seed));
   const double theta0_rad = model->drum.initial_angle_rad + model->teeth[0].mount_angle_rad;
   constexpr int kMaxDraws = 100;
+  double largest_a_m = base.semi_axis_a_m;
+  for (const KernelModel& k : model->kernels) largest_a_m = std::max(largest_a_m, k.semi_axis_a_m);
+  KernelGrid grid(2.0 * largest_a_m);
+  for (size_t i = 0; i < model->kernels.size(); ++i)
+    grid.insert(static_cast<int>(i), model->kernels[i].initial_position_m);
   for (int j = 0; j < count; ++j) {
     const double arrival_s = start_s + j / rate_Hz;
     KernelModel k = base;
@@ -732,13 +745,14 @@ void readStream(const Section& scene, Model* model) {
       k.pedicel.p_WA_W = k.initial_position_m + (k.semi_axis_a_m + pedicel_length_m) * axis;
       k.mass_kg = uniform(mass_kg.x(), mass_kg.y());
       k.pedicel.detachment_force_N = uniform(detach_N.x(), detach_N.y());
-      distance_m = clearance(*model, k, model->kernels.size(), &other);
+      distance_m = clearance(*model, grid, k, &other);
     }
     if (distance_m < 0) {
       fail("stream", "kernel " + std::to_string(j) + " still overlaps " + other + " after " +
                          std::to_string(kMaxDraws) +
                          " draws; lower the scatter or the rate, or change the seed");
     }
+    grid.insert(static_cast<int>(model->kernels.size()), k.initial_position_m);
     model->kernels.push_back(k);
   }
 }
@@ -749,8 +763,8 @@ void readStream(const Section& scene, Model* model) {
 DamageThresholds readDamage(const Section& scene) {
   const Section s = scene.section("damage", "damage");
   DamageThresholds d;
-  d.plastic_force_N = s.number("plastic_force", d.plastic_force_N, kPositive);
-  d.fracture_force_N = s.number("fracture_force", d.fracture_force_N, kPositive);
+  d.plastic_force_N = s.number("plastic_force", d.plastic_force_N);
+  d.fracture_force_N = s.number("fracture_force", d.fracture_force_N);
   if (d.fracture_force_N < d.plastic_force_N) {
     fail(s.path(s.has("fracture_force") ? "fracture_force" : "plastic_force"),
          "the fracture force must be >= the plastic force (got plastic " + show(d.plastic_force_N) +
@@ -797,6 +811,9 @@ std::vector<std::string> splitKeyPath(const std::string& assignment, const std::
 // Public API.
 
 YAML::Node loadSceneYaml(const std::string& path) {
+  struct stat info;
+  if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
+    throw SceneError(path + ": is a directory, not a YAML file");
   try {
     return YAML::LoadFile(path);
   } catch (const YAML::BadFile&) {
@@ -945,13 +962,11 @@ Model modelFromYaml(const YAML::Node& root) {
   readContact(scene, &model);
   model.gravity_mps2 = scene.vec2("gravity", model.gravity_mps2);
   readIntegrator(scene, &model.integrator);
-  model.duration_s = scene.number("duration", model.duration_s, kPositive);
-  model.broadphase_margin_m =
-      scene.number("broadphase_margin", model.broadphase_margin_m, kNonNegative);
-  model.macro_collision_gap_s =
-      scene.number("macro_collision_gap", model.macro_collision_gap_s, kPositive);
+  model.duration_s = scene.number("duration", model.duration_s);
+  model.broadphase_margin_m = scene.number("broadphase_margin", model.broadphase_margin_m);
+  model.macro_collision_gap_s = scene.number("macro_collision_gap", model.macro_collision_gap_s);
   model.deflection_validity_fraction =
-      scene.number("deflection_validity", model.deflection_validity_fraction, kPositive);
+      scene.number("deflection_validity", model.deflection_validity_fraction);
   readDamage(scene);  // validated here; damageFromYaml() returns it
 
   // Start configuration, then the core's own checks and derived quantities.
@@ -972,6 +987,11 @@ DamageThresholds damageFromYaml(const YAML::Node& root) {
 Model loadScene(const std::string& path, const std::vector<std::string>& overrides,
                 DamageThresholds* damage) {
   YAML::Node root = loadSceneYaml(path);
+  // An empty file, or one holding a single value, is no scene, with or without overrides.
+  if (!root.IsMap())
+    throw SceneError(
+        path + ": expected a mapping of sections at the top level (got " +
+        (root.IsNull() || !root.IsDefined() ? std::string("an empty file") : show(root)) + ")");
   for (const std::string& assignment : overrides) applyOverride(&root, assignment);
   try {
     Model model = modelFromYaml(root);
@@ -980,6 +1000,18 @@ Model loadScene(const std::string& path, const std::vector<std::string>& overrid
   } catch (const SceneError& e) {
     throw SceneError(path + ": " + e.what());
   }
+}
+
+std::string sceneSchemaTable() {
+  std::string out =
+      "| key path | type | unit | range |\n"
+      "|---|---|---|---|\n";
+  for (const KeySpec& spec : kSchema) {
+    const bool ranged = !std::isinf(spec.range.lo) || !std::isinf(spec.range.hi);
+    out += std::string("| `") + spec.path + "` | " + spec.type + " | " + spec.unit + " | " +
+           (ranged ? spec.range.text() : "") + " |\n";
+  }
+  return out;
 }
 
 std::vector<std::string> sceneKeyPaths() {

@@ -415,6 +415,7 @@ TEST(Simulator, NonFiniteResultIsReportedAndStateKept) {
     resetData(m, &d);
     const StepStatus s = advanceTo(m, &d, 1e-4);
     EXPECT_EQ(s, StepStatus::kFailed) << "type " << static_cast<int>(type);
+    EXPECT_EQ(d.stats.failure.cause, FailureCause::kNonFinite) << describe(d.stats.failure);
     EXPECT_EQ(d.t_s, 0.0);
     EXPECT_TRUE(d.z.allFinite());
     EXPECT_TRUE(d.u.allFinite());

@@ -80,7 +80,7 @@ class ThreshingSimNode {
   bool onPause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res);
   bool onStep(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
-  void onReconfigure(const ThreshingSimConfig& config, std::uint32_t level);
+  void onReconfigure(ThreshingSimConfig& config, std::uint32_t level);
 
   // --- physics thread ---
   void physicsLoop();
@@ -91,6 +91,9 @@ class ThreshingSimNode {
   void applyDrumTarget(double speed_radps);
   void applyConfig(const ThreshingSimConfig& config);
   void resetBodies();
+  void requestReset(long ticket);
+  void tryPendingReset();
+  void finishReset(bool done, const std::string& message);
   void setRates(double contact_hz, double state_hz, double marker_hz);
   unsigned dueStreams();
   void trackPeaks();
@@ -128,8 +131,12 @@ class ThreshingSimNode {
   std::vector<ContactEvent> pending_impacts_;
   std::vector<AppliedCommand> pending_commands_;
   bool pending_reset_ = false;
-  double start_wall_s_ = 0;  // steady time the stepping began [s]
-  double run_wall_s_ = 0;    // wall time from then until the physics thread ended [s]
+  bool reset_wanted_ = false;  // a reset (service or period) waits for a placement without
+                               // overlaps
+  long reset_ticket_ = 0;      // the service ticket it answers (0: the periodic reset)
+  long reset_wait_steps_ = 0;  // boundaries it has waited so far
+  double start_wall_s_ = 0;    // steady time the stepping began [s]
+  double run_wall_s_ = 0;      // wall time from then until the physics thread ended [s]
 
   // --- shared: staged inputs and service hand-shakes (staged_mutex_) ---
   std::mutex staged_mutex_;
@@ -139,6 +146,10 @@ class ThreshingSimNode {
   std::atomic<bool> staged_dirty_{false};
   long resets_requested_ = 0, resets_done_ = 0;
   long steps_requested_ = 0, steps_done_ = 0;
+  std::string reset_result_;                            // the answer to the last served ~reset
+  bool reset_ok_ = false;                               // whether it reset the bodies
+  std::string failure_text_;                            // describe() of the last integrator failure
+  std::optional<ThreshingSimConfig> last_good_config_;  // last reconfiguration accepted
 
   // --- shared: snapshot queue (queue_mutex_) ---
   std::mutex queue_mutex_;
@@ -150,6 +161,10 @@ class ThreshingSimNode {
   std::atomic<long> step_{0};  // last boundary reached
   std::atomic<long> rejected_commands_{0}, impacts_{0}, recoveries_{0};
   std::atomic<long> overruns_{0}, resyncs_{0};
+  std::atomic<long> resets_deferred_{0}, resets_skipped_{0};  // resets that would overlap
+  std::atomic<long> refused_reconfigures_{0};  // requests with a value NaN, inf or out of range
+  std::atomic<double> advance_started_s_{-1};  // steady time the running advanceTo() began,
+                                               // < 0 when none runs (the watchdog's input) [s]
   std::atomic<double> measured_rtf_{0}, step_rate_hz_{0}, peak_force_N_{0};
   std::atomic<double> max_deflection_ratio_{0};  // largest |w(L)| / L of the run [-]
   std::atomic<double> deflection_warning_s_{

@@ -50,6 +50,10 @@ DamageThresholds damageFromYaml(const YAML::Node& root);
 Model loadScene(const std::string& path, const std::vector<std::string>& overrides = {},
                 DamageThresholds* damage = nullptr);
 
+// The schema as a Markdown table: every key path with its type, unit and accepted range (each
+// range finite). `simulate --print-schema` prints it; docs/scene_ranges.md is its output.
+std::string sceneSchemaTable();
+
 // Every key path a scene may hold, list items written as "*" (e.g. "teeth.*.length"), in
 // document order. README.md ("Scene file reference") has one row per path.
 std::vector<std::string> sceneKeyPaths();

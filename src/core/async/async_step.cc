@@ -159,7 +159,10 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
     if (!timeStepping(m)) isl.data.t_s = t1;  // it lands on t1 or an ulp past it
     mergeIslandResults(m, d, as, static_cast<int>(s));
     storeIslandState(m, d, *as, static_cast<int>(s));
-    if (st == StepStatus::kFailed) return st;
+    if (st == StepStatus::kFailed) {
+      d->stats.failure = isl.data.stats.failure;  // the island's cause, where it stalled
+      return st;
+    }
     if (st == StepStatus::kRecovered) worst = st;
   }
   return worst;
@@ -314,7 +317,10 @@ StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
   AsyncState& as = asyncState(m, d);
   const double t0 = d->t_s;
   const double t1 = windowEnd(m, *d, as, t_end_s);
-  if (!(t1 > t0)) return StepStatus::kFailed;  // no progress: a window of zero length
+  if (!(t1 > t0)) {  // no progress: a window of zero length
+    d->stats.failure = {FailureCause::kTimeStalled, t0, t_end_s, 0, 0};
+    return StepStatus::kFailed;
+  }
   ++as.counters.windows;
   if (!wakeDueKernels(m, d, &as, t0, t1)) return StepStatus::kFailed;
   sweepTeeth(m, d, &as, t0, t1);

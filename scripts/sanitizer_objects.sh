@@ -1,0 +1,41 @@
+# Sourced by scripts/fuzz.sh and scripts/sanitize.sh: compiles the core, the scene loader,
+# simulate (main renamed simulate_main) and the command-bag reader once with clang 14, ASan,
+# UBSan and libFuzzer's coverage instrumentation, into .build/san/obj (two at a time, only what
+# changed). Sets SAN_CXX, SAN_FLAGS, SAN_OBJ (directory) and SAN_LIB_OBJS (core + scene).
+SAN_CXX=clang++-14
+SAN_OBJ="$ROOT/.build/san/obj"
+SAN_FLAGS=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
+           -fno-sanitize-recover=undefined -fsanitize=fuzzer-no-link -I"$ROOT/include"
+           -I"$ROOT/.build/ws/devel/include" -isystem /usr/include/eigen3)
+# Debian's ROS headers outside /usr/include proper (rosbag needs pluginlib, class_loader, ...).
+for d in ament_index_cpp class_loader pluginlib rcpputils rcutils xmlrpcpp; do
+  [ -d "/usr/include/$d" ] && SAN_FLAGS+=(-isystem "/usr/include/$d")
+done
+mkdir -p "$SAN_OBJ"
+for p in clang-14 libclang-rt-14-dev; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || {
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq && apt-get install -y -qq --no-install-recommends clang-14 libclang-rt-14-dev >/dev/null
+    break
+  }
+done
+[ -d "$ROOT/.build/ws/devel/include/threshing_sim" ] || bash "$ROOT/scripts/setup.sh"
+san_stale() {  # object source: true if the object must be rebuilt
+  [ ! -f "$1" ] || [ -n "$(find "$2" "$ROOT/include" "$ROOT/src/core/internal.h" -newer "$1" | head -1)" ]
+}
+san_jobs=()
+SAN_LIB_OBJS=()
+for src in "$ROOT"/src/core/*.cc "$ROOT"/src/scene/*.cc "$ROOT/src/ros/command_bag.cc"; do
+  obj="$SAN_OBJ/$(basename "$src" .cc).o"
+  san_stale "$obj" "$src" && san_jobs+=("$src|$obj|")
+  case "$src" in */command_bag.cc) ;; *) SAN_LIB_OBJS+=("$obj") ;; esac
+done
+san_stale "$SAN_OBJ/simulate_main.o" "$ROOT/src/app/simulate.cc" &&
+  san_jobs+=("$ROOT/src/app/simulate.cc|$SAN_OBJ/simulate_main.o|-Dmain=simulate_main")
+if [ ${#san_jobs[@]} -gt 0 ]; then
+  echo "sanitizer build: compiling ${#san_jobs[@]} files"
+  export SAN_CXX
+  printf '%s\n' "${san_jobs[@]}" | SAN_FLAGS_STR="${SAN_FLAGS[*]}" xargs -P 2 -I{} bash -c '
+    IFS="|" read -r src obj def <<< "{}"
+    $SAN_CXX $SAN_FLAGS_STR $def -c "$src" -o "$obj" || exit 255'
+fi

@@ -1,0 +1,25 @@
+// libFuzzer target: the ~command_bag reader. The input is written to a file and read as a bag
+// with a 1e-5 s step and ~max_drum_speed 400 rad/s; refusals (std::invalid_argument naming
+// ~command_bag) are expected; a crash, another exception or a sanitizer report is a finding.
+#include <unistd.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+
+#include "threshing_sim/ros/command_bag.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  static const std::string path = "/tmp/fuzz_command_bag." + std::to_string(getpid()) + ".bag";
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) return 0;
+  std::fwrite(data, 1, size, f);
+  std::fclose(f);
+  try {
+    threshing_sim::readCommandBag(path, 10000, 400.0);
+  } catch (const std::invalid_argument&) {
+  }
+  return 0;
+}

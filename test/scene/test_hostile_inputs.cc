@@ -1,0 +1,175 @@
+// Hostile scene inputs and command lines (issue 14, defects 5-7): values the loader used to
+// accept and the integrator then could not run in bounded work are scene errors naming the key;
+// 10,000 kernels load in well under a second; simulate refuses empty option values, directories
+// and empty scenes with exit 2 and fails runs that simulated nothing with exit 1.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "script_test_util.h"
+#include "threshing_sim/scene/scene_loader.h"
+
+namespace threshing_sim {
+namespace {
+
+const std::string kDefaultScene =
+    std::string(THRESHING_SIM_SOURCE_DIR) + "/config/default_scene.yaml";
+
+// The SceneError message of loading the default scene with the overrides ("" if it loads).
+std::string refusal(const std::vector<std::string>& overrides,
+                    const std::string& path = kDefaultScene) {
+  try {
+    loadScene(path, overrides);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// The issue's simulate hang inputs (> 20 s at --duration 1e-4 before): each a scene error naming
+// its key now. density 1e-300 failed at t = 0 (exit 1) instead.
+TEST(HostileScene, HangInputsAreSceneErrorsNamingTheKey) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"kernels.0.velocity=[1e300, 0]"}, "kernels.0.velocity"},
+      {{"gravity=[0, -1e308]"}, "gravity"},
+      {{"drum.radius=1e300"}, "drum.radius"},
+      {{"teeth.*.modes=0", "drum.speed=1e300"}, "drum.speed"},
+      {{"integrator.max_step=1e-300"}, "integrator.max_step"},
+      {{"integrator.tolerance=1e-300"}, "integrator.tolerance"},
+      {{"integrator.type=time_stepping", "integrator.dt=1e-300"}, "integrator.dt"},
+      {{"integrator.dt=1e300"}, "integrator.dt"},
+      {{"duration=1e300"}, "duration"},
+      {{"kernels.0.pedicel={anchor: [0.235, 0.03], rest_length: 1e200}"},
+       "kernels.0.pedicel.rest_length"},
+      {{"teeth.0.density=1e-300"}, "teeth.0.density"},
+  };
+  for (const auto& c : cases) {
+    const std::string message = refusal(c.first);
+    EXPECT_NE(message.find(c.second + ": "), std::string::npos)
+        << c.first.back() << " -> '" << message << "'";
+  }
+  // The ranges are generous: the config scenes' values load.
+  EXPECT_EQ(refusal({"kernels.0.velocity=[30, -5]", "drum.speed=150", "integrator.dt=1e-6"}), "");
+}
+
+// The core holds at most 65 centreline stations (compileModel); the loader's range says so.
+TEST(HostileScene, StationsRangeIsTheCoresRange) {
+  EXPECT_EQ(refusal({"teeth.0.stations=65"}), "");
+  EXPECT_NE(refusal({"teeth.0.stations=66"}).find("teeth.0.stations: must be in [2, 65]"),
+            std::string::npos);
+}
+
+// An empty file and a scalar are refused with or without overrides; a directory names itself.
+TEST(HostileScene, EmptyScalarAndDirectoryScenesAreRefused) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "hostile_scenes";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "empty.yaml").close();
+  std::ofstream(dir / "scalar.yaml") << "42\n";
+  for (const char* name : {"empty.yaml", "scalar.yaml"}) {
+    const std::string path = (dir / name).string();
+    EXPECT_NE(refusal({}, path).find("expected a mapping"), std::string::npos) << name;
+    EXPECT_NE(refusal({"duration=0.1"}, path).find("expected a mapping"), std::string::npos)
+        << name;
+  }
+  EXPECT_NE(refusal({}, dir.string()).find("is a directory"), std::string::npos);
+  try {
+    overridesFromFile(dir.string());
+    ADD_FAILURE() << "a directory as override file was read";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("is a directory"), std::string::npos) << e.what();
+  }
+}
+
+// stream.count 10000 (the documented maximum) on a 5.26 m circle: the start-overlap test used
+// O(n^2) ellipse tests (minutes); through the grid it is O(n), well under a second.
+TEST(HostileScene, TenThousandKernelsLoadInUnderASecond) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Model m =
+      loadScene(kDefaultScene, {"obstacles=[]",
+                                "stream={count: 10000, rate: 140000, start: 0, depth: -5, "
+                                "position_scatter: 0, angle_scatter: 0}"});
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  RecordProperty("load_wall_s", std::to_string(wall_s));
+  EXPECT_EQ(m.kernels.size(), 10001u);
+  EXPECT_LT(wall_s, 1.0);
+}
+
+// The schema's reference page is its output (regenerate: simulate --print-schema).
+TEST(HostileScene, SchemaReferencePageIsCurrent) {
+  const std::string page =
+      test::readFile(std::string(THRESHING_SIM_SOURCE_DIR) + "/docs/scene_ranges.md");
+  const std::string table = sceneSchemaTable();
+  ASSERT_FALSE(page.empty());
+  EXPECT_NE(page.find(table), std::string::npos)
+      << "docs/scene_ranges.md is out of date: regenerate it with scripts/scene_ranges.sh";
+}
+
+// ---------------------------------------------------------------------------------------------
+// simulate's command line.
+
+// Exit status of simulate with the arguments (stderr to *err).
+int simulate(const std::string& args, std::string* err = nullptr) {
+  const std::string log =
+      (std::filesystem::temp_directory_path() / "hostile_simulate.log").string();
+  const int rc = std::system(
+      (std::string(THRESHING_SIM_SIMULATE) + " " + args + " --quiet > /dev/null 2> " + log)
+          .c_str());
+  if (err) *err = test::readFile(log);
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+TEST(HostileCommandLine, EmptyOptionValuesAreRefused) {
+  std::string err;
+  EXPECT_EQ(simulate(kDefaultScene + " --trace-every ''", &err), 2);
+  EXPECT_NE(err.find("--trace-every"), std::string::npos) << err;
+  EXPECT_EQ(simulate(kDefaultScene + " --sample-interval ''", &err), 2);
+  EXPECT_NE(err.find("--sample-interval"), std::string::npos) << err;
+}
+
+TEST(HostileCommandLine, DirectoriesAndEmptyScenesExitTwo) {
+  std::string err;
+  EXPECT_EQ(simulate(std::string(THRESHING_SIM_SOURCE_DIR) + "/config", &err), 2);
+  EXPECT_NE(err.find("is a directory"), std::string::npos) << err;
+  EXPECT_EQ(simulate(kDefaultScene + " --set-file " + THRESHING_SIM_SOURCE_DIR + "/config", &err),
+            2);
+  EXPECT_NE(err.find("is a directory"), std::string::npos) << err;
+  EXPECT_EQ(simulate("/dev/null --set duration=0.001", &err), 2);
+  EXPECT_NE(err.find("expected a mapping"), std::string::npos) << err;
+}
+
+// A time step longer than the run simulates nothing: exit 1 and a status saying so (was 0, ok).
+TEST(HostileCommandLine, NothingSimulatedIsAFailure) {
+  std::string err;
+  const std::string summary =
+      (std::filesystem::temp_directory_path() / "hostile_nothing.json").string();
+  EXPECT_EQ(simulate(kDefaultScene +
+                         " --integrator time_stepping --dt 1e-2 --duration 1e-4 "
+                         "--summary " +
+                         summary,
+                     &err),
+            1);
+  EXPECT_NE(test::readFile(summary).find("failed: simulated 0 s"), std::string::npos)
+      << test::readFile(summary);
+}
+
+// Out-of-range values through the sugar options are scene errors (exit 2), not hangs.
+TEST(HostileCommandLine, HangValuesExitTwoQuickly) {
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const char* args : {"--dt 1e-300 --integrator time_stepping", "--duration 1e300",
+                           "--tolerance 1e-300", "--set drum.radius=1e300"}) {
+    std::string err;
+    EXPECT_EQ(simulate(kDefaultScene + " --duration 1e-4 " + args, &err), 2) << args << ": " << err;
+  }
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 20.0);
+}
+
+}  // namespace
+}  // namespace threshing_sim
