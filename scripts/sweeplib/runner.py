@@ -1,0 +1,309 @@
+"""Runs a sweep on Dask distributed: a local cluster by default, or an existing scheduler.
+
+Results are cached in OUT/sweep.sqlite by run key (hash of the resolved scene, the binary and
+the kept outputs): runs with status ok or failed (deterministic) are not run again, so an
+interrupted sweep resumes where it stopped. Crashes, timeouts and errors are recorded but run
+again by the next invocation. The table (OUT/runs.csv, one row per run, and the `runs` table
+of OUT/sweep.sqlite) is written as results arrive and rewritten in sweep order at the end.
+"""
+import csv
+import io
+import json
+import math
+import os
+import pathlib
+import sqlite3
+import sys
+import time
+
+from . import spec as spec_module
+from . import task as task_module
+
+META_COLUMNS = ["run", "status", "message"]
+TAIL_COLUMNS = ["wall_s", "cpu_s", "worker", "key"]
+# Columns that may differ between two runs of the same sweep (where and how fast it ran).
+VOLATILE_COLUMNS = {"wall_s", "cpu_s", "worker"}
+CACHED_STATUSES = {"ok", "failed"}
+
+
+class Cache:
+    """Run results by key, in SQLite (WAL, one commit per result)."""
+
+    def __init__(self, path):
+        self.db = sqlite3.connect(str(path), timeout=30)
+        self.db.execute("PRAGMA journal_mode=WAL")
+        self.db.execute("PRAGMA synchronous=NORMAL")
+        self.db.execute("CREATE TABLE IF NOT EXISTS cache (key TEXT PRIMARY KEY, result TEXT)")
+        self.db.commit()
+
+    def load(self, keys):
+        found = {}
+        keys = list(keys)
+        for i in range(0, len(keys), 500):
+            chunk = keys[i:i + 500]
+            marks = ",".join("?" * len(chunk))
+            for key, text in self.db.execute(
+                    f"SELECT key, result FROM cache WHERE key IN ({marks})", chunk):
+                found[key] = json.loads(text)
+        return found
+
+    def store(self, result):
+        if result["status"] in CACHED_STATUSES:
+            self.db.execute("INSERT OR REPLACE INTO cache VALUES (?, ?)",
+                            (result["key"], json.dumps(result)))
+            self.db.commit()
+
+
+def _lookup(summary, path):
+    value = summary
+    for part in path.split("."):
+        if isinstance(value, list) and part.isdigit() and int(part) < len(value):
+            value = value[int(part)]
+        elif isinstance(value, dict) and part in value:
+            value = value[part]
+        else:
+            return None
+    return value
+
+
+class Table:
+    """Turns results into rows and writes them: CSV (incrementally) and SQLite."""
+
+    def __init__(self, sweep, out, db):
+        self.sweep = sweep
+        self.columns = (["run"] + sweep.axis_columns() + META_COLUMNS[1:] +
+                        list(sweep.outcomes) + list(sweep.derived) + TAIL_COLUMNS)
+        self.csv_path = out / "runs.csv"
+        self.kernels_path = out / "kernels.csv"
+        self.files_dir = out / "files"
+        self.db = db
+        self.rows = {}        # run index -> row
+        self.kernels = {}     # run index -> list of per-kernel rows
+        self.file = open(self.csv_path, "w", newline="")
+        self.writer = csv.DictWriter(self.file, self.columns, extrasaction="ignore")
+        self.writer.writeheader()
+
+    def row(self, run, result):
+        row = {"run": run.index, **run.labels, "status": result["status"],
+               "message": result["message"], "wall_s": round(result["wall_s"], 6),
+               "cpu_s": round(result["cpu_s"], 6), "worker": result["worker"], "key": run.key}
+        summary = None
+        if result["summary"]:
+            try:
+                summary = json.loads(result["summary"])
+            except ValueError:
+                row["status"], row["message"] = "error", "unreadable summary"
+        if summary is not None and result["status"] == "failed":
+            row["message"] = summary.get("status", row["message"])
+        for column, path in self.sweep.outcomes.items():
+            value = _lookup(summary, path) if summary is not None else None
+            row[column] = "" if value is None else value
+        for column, expression in self.sweep.derived.items():
+            value = expression.evaluate(row)
+            row[column] = "" if math.isnan(value) else value
+        return row
+
+    def add(self, run, result):
+        row = self.row(run, result)
+        self.rows[run.index] = row
+        self.writer.writerow(row)
+        self.file.flush()
+        if result["outcomes"]:
+            reader = csv.DictReader(io.StringIO(result["outcomes"]))
+            self.kernels[run.index] = [{"run": run.index, **run.labels, **k} for k in reader]
+        for name, text in (result.get("files") or {}).items():
+            if text is not None:
+                folder = self.files_dir / run.key
+                folder.mkdir(parents=True, exist_ok=True)
+                (folder / f"{name}.csv").write_text(text)
+        return row
+
+    def finish(self):
+        """Rewrites the CSV files and the SQLite tables in sweep order."""
+        self.file.close()
+        ordered = [self.rows[i] for i in sorted(self.rows)]
+        _write_csv(self.csv_path, self.columns, ordered)
+        kernels = [k for i in sorted(self.kernels) for k in self.kernels[i]]
+        kernel_columns = list(kernels[0]) if kernels else ["run"]
+        _write_csv(self.kernels_path, kernel_columns, kernels)
+        _write_sqlite(self.db, "runs", self.columns, ordered)
+        _write_sqlite(self.db, "kernels", kernel_columns, kernels)
+
+
+def _write_csv(path, columns, rows):
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, columns, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp, path)
+
+
+def _write_sqlite(db, name, columns, rows):
+    quoted = ", ".join(f'"{c}"' for c in columns)
+    db.execute(f'DROP TABLE IF EXISTS "{name}"')
+    db.execute(f'CREATE TABLE "{name}" ({quoted})')
+    db.executemany(f'INSERT INTO "{name}" VALUES ({", ".join("?" * len(columns))})',
+                   [[_sql_value(r.get(c)) for c in columns] for r in rows])
+    db.commit()
+
+
+def _sql_value(value):
+    if value is None or isinstance(value, (int, float, str)):
+        return value
+    return json.dumps(value)
+
+
+# ------------------------------------------------------------------------------------------
+
+class Progress:
+    """done/total, failures, elapsed and ETA on stderr: one rewritten line on a terminal, a
+    line every 10 % otherwise."""
+
+    def __init__(self, total, done=0, stream=sys.stderr):
+        self.total, self.done, self.failed = total, done, 0
+        self.first = done
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.started = time.monotonic()
+        self.last = 0.0
+        self.decile = -1
+
+    def update(self, status):
+        self.done += 1
+        self.failed += status != "ok"
+        now = time.monotonic()
+        decile = 10 * self.done // max(self.total, 1)
+        if self.done == self.total or (self.tty and now - self.last > 0.25) or \
+                (not self.tty and decile != self.decile):
+            self.last, self.decile = now, decile
+            self.draw(now)
+
+    def draw(self, now):
+        elapsed = now - self.started
+        fresh = self.done - self.first
+        left = self.total - self.done
+        eta = f"{elapsed / fresh * left:.0f} s" if fresh else "?"
+        width = 30
+        filled = width * self.done // max(self.total, 1)
+        line = (f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} runs, "
+                f"{self.failed} failed, {elapsed:.0f} s, ETA {eta}")
+        self.stream.write(("\r" + line) if self.tty else line + "\n")
+        if self.tty and self.done == self.total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+# ------------------------------------------------------------------------------------------
+
+def _connect(scheduler, workers, processes):
+    """A Dask client: to an existing scheduler, or to a new local cluster of `workers`
+    single-threaded workers (processes, or threads of this process)."""
+    import logging
+
+    import cloudpickle
+    from distributed import Client, LocalCluster
+
+    # Workers need nothing from this repository: the task module travels by value.
+    cloudpickle.register_pickle_by_value(task_module)
+    if scheduler:
+        return Client(scheduler, timeout=30), None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=None,
+              processes=False, progress_stream=sys.stderr, log=print):
+    """Runs every run not in the cache; returns the table (rows in sweep order) and stats."""
+    out.mkdir(parents=True, exist_ok=True)
+    cache = Cache(out / "sweep.sqlite")
+    table = Table(sweep, out, cache.db)
+    cached = cache.load({r.key for r in runs})
+    by_key = {}
+    for run in runs:
+        by_key.setdefault(run.key, []).append(run)
+    for run in runs:
+        if run.key in cached:
+            table.add(run, cached[run.key])
+    todo = [key for key in by_key if key not in cached]
+    log(f"sweep {sweep.name}: {len(runs)} runs, {len(runs) - sum(len(by_key[k]) for k in todo)}"
+        f" from the cache, {sum(len(by_key[k]) for k in todo)} to run -> {out}")
+    progress = Progress(len(runs), len(runs) - sum(len(by_key[k]) for k in todo),
+                        progress_stream)
+    stats = {"runs": len(runs), "cached": len(runs) - sum(len(by_key[k]) for k in todo)}
+    started = time.monotonic()
+    if todo:
+        _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes,
+                  cache, table, progress, stats)
+    stats["dispatch_s"] = time.monotonic() - started
+    table.finish()
+    rows = [table.rows[i] for i in sorted(table.rows)]
+    stats["failed"] = sum(r["status"] != "ok" for r in rows)
+    return rows, stats
+
+
+def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes, cache,
+              table, progress, stats):
+    from distributed import as_completed
+
+    client, cluster = _connect(scheduler, workers or os.cpu_count() or 1, processes)
+    try:
+        stats["workers"] = len(client.scheduler_info()["workers"])
+        payloads = [{"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
+                     "sha": binary_sha, "timeout_s": sweep.timeout_s, "keep": sweep.keep}
+                    for key in todo]
+        futures = client.map(task_module.run_simulate, payloads,
+                             key=[f"threshing-run-{k}" for k in todo], retries=0)
+        key_of = {f.key: k for f, k in zip(futures, todo)}
+        for future in as_completed(futures):
+            key = key_of[future.key]
+            if future.status == "finished":
+                result = future.result()
+            else:
+                error = future.exception()
+                result = {"key": key, "status": "error", "files": {},
+                          "message": f"{type(error).__name__}: {error}", "summary": None,
+                          "outcomes": None, "wall_s": 0.0, "cpu_s": 0.0, "worker": ""}
+            future.release()
+            cache.store(result)
+            for run in by_key[key]:
+                table.add(run, result)
+                progress.update(result["status"])
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def compare_tables(a_path, b_path):
+    """Differences between two runs.csv files apart from the volatile columns (wall and CPU
+    time, worker): a list of messages, empty when equal."""
+    def load(path):
+        with open(path, newline="") as f:
+            return list(csv.DictReader(f))
+    a, b = load(a_path), load(b_path)
+    if not a or not b:
+        return [f"empty table: {a_path if not a else b_path}"]
+    if list(a[0]) != list(b[0]):
+        return [f"columns differ: {list(a[0])} != {list(b[0])}"]
+    if len(a) != len(b):
+        return [f"{len(a)} rows != {len(b)} rows"]
+    diffs = []
+    for ra, rb in zip(a, b):
+        for column in ra:
+            if column not in VOLATILE_COLUMNS and ra[column] != rb[column]:
+                diffs.append(f"run {ra['run']}: {column} {ra[column]!r} != {rb[column]!r}")
+    return diffs
+
+
+def binary_sha(simulate):
+    return spec_module.file_sha256(simulate)
+
+
+def resolve_simulate(path, root):
+    candidate = pathlib.Path(path) if path else root / ".build/ws/devel/lib/threshing_sim/simulate"
+    if not (candidate.is_file() and os.access(candidate, os.X_OK)):
+        raise SystemExit(f"simulate not found at {candidate}; build it (scripts/setup.sh) or "
+                         "pass --simulate PATH")
+    return candidate.resolve()

@@ -1,0 +1,124 @@
+"""The work of one run on a Dask worker: one `simulate` process on the resolved scene.
+
+This module is shipped to the workers by value (cloudpickle), so a worker needs only Python,
+python3-distributed and the simulate binary at the given path; it imports nothing from the
+repository. The run's CPU time is the child's own (user + system from wait4), so that the
+runner's overhead can be measured against it.
+"""
+import hashlib
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import tempfile
+import threading
+import time
+
+# Per worker process: verified binaries, (path, size, mtime) -> sha256 (no lock: two threads
+# hashing the same binary at once only repeat the work).
+_VERIFIED = {}
+
+
+def _binary_sha(path):
+    st = os.stat(path)
+    stamp = (path, st.st_size, st.st_mtime_ns)
+    if stamp not in _VERIFIED:
+        digest = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+        _VERIFIED[stamp] = digest.hexdigest()
+    return _VERIFIED[stamp]
+
+
+def _read(path):
+    try:
+        with open(path) as f:
+            return f.read()
+    except OSError:
+        return None
+
+
+def _signal_name(number):
+    try:
+        return signal.Signals(number).name
+    except ValueError:
+        return f"signal {number}"
+
+
+def run_simulate(task):
+    """Runs one simulation. task: key, scene (resolved YAML text), simulate (path), sha
+    (expected sha256 of the binary), timeout_s, keep (extra outputs: events, forces).
+    Returns a dict: key, status (ok, failed, crash, timeout, error), message, summary (JSON
+    text), outcomes (CSV text), files (kept outputs), wall_s, cpu_s (the child's user + system
+    time), worker (host:pid)."""
+    started = time.perf_counter()
+    result = {"key": task["key"], "status": "error", "message": "", "summary": None,
+              "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0,
+              "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    try:
+        sha = _binary_sha(task["simulate"])
+    except OSError as e:
+        result["message"] = f"cannot read simulate at {task['simulate']}: {e.strerror}"
+        return result
+    if sha != task["sha"]:
+        result["message"] = (f"simulate at {task['simulate']} on this worker is not the "
+                             f"client's binary (sha256 {sha[:12]} != {task['sha'][:12]})")
+        return result
+    folder = tempfile.mkdtemp(prefix="sweep-run-")
+    try:
+        _execute(task, folder, result)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    result["wall_s"] = time.perf_counter() - started
+    return result
+
+
+def _execute(task, folder, result):
+    scene = os.path.join(folder, "scene.yaml")
+    with open(scene, "w") as f:
+        f.write(task["scene"])
+    summary, outcomes = os.path.join(folder, "summary.json"), os.path.join(folder, "outcomes.csv")
+    command = [task["simulate"], scene, "--summary", summary, "--outcomes", outcomes, "--quiet"]
+    for name in task["keep"]:
+        command += [f"--{name}", os.path.join(folder, f"{name}.csv")]
+    with open(os.path.join(folder, "stderr.txt"), "w+") as err:
+        proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=err)
+        timed_out = threading.Event()
+
+        def kill():
+            timed_out.set()
+            proc.kill()
+
+        timer = threading.Timer(task["timeout_s"], kill)
+        timer.start()
+        try:
+            _, status, usage = os.wait4(proc.pid, 0)
+        finally:
+            timer.cancel()
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        stderr = err.read().strip()
+    result["cpu_s"] = usage.ru_utime + usage.ru_stime
+    result["summary"] = _read(summary)
+    result["outcomes"] = _read(outcomes)
+    for name in task["keep"]:
+        result["files"][name] = _read(os.path.join(folder, f"{name}.csv"))
+    code = proc.returncode
+    if timed_out.is_set():
+        result["status"] = "timeout"
+        result["message"] = f"no result after {task['timeout_s']:g} s; killed"
+    elif code < 0:
+        result["status"] = "crash"
+        result["message"] = f"simulate killed by {_signal_name(-code)}" + \
+            (f": {stderr[-500:]}" if stderr else "")
+    elif code == 0 and result["summary"] is not None:
+        result["status"] = "ok"
+    elif code == 1 and result["summary"] is not None:
+        result["status"] = "failed"
+        result["message"] = stderr[-500:] if stderr else "status failed"
+    else:
+        result["status"] = "error"
+        result["message"] = f"exit status {code}" + (f": {stderr[-500:]}" if stderr else "")
