@@ -202,19 +202,27 @@ def _connect(scheduler, workers, processes):
     import logging
 
     import cloudpickle
+    import dask
     from distributed import Client, LocalCluster
 
     # Workers need nothing from this repository: the task module travels by value.
     cloudpickle.register_pickle_by_value(task_module)
     if scheduler:
         return Client(scheduler, timeout=30), None
+    # The local cluster shares the cores with the runs: no statistical profiler (a sample of
+    # every thread each 10 ms), no work stealing (the scheduler queues the batches), and
+    # slower health checks and memory monitor.
+    dask.config.set({"distributed.worker.profile.enabled": False,
+                     "distributed.scheduler.work-stealing": False,
+                     "distributed.admin.tick.interval": "500ms",
+                     "distributed.worker.memory.monitor-interval": "1s"})
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                            dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
 def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=None,
-              processes=False, progress_stream=sys.stderr, log=print):
+              processes=False, batch=None, progress_stream=sys.stderr, log=print):
     """Runs every run not in the cache; returns the table (rows in sweep order) and stats."""
     out.mkdir(parents=True, exist_ok=True)
     cache = Cache(out / "sweep.sqlite")
@@ -235,7 +243,7 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     started = time.monotonic()
     if todo:
         _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes,
-                  cache, table, progress, stats)
+                  cache, table, progress, stats, batch)
     stats["dispatch_s"] = time.monotonic() - started
     table.finish()
     rows = [table.rows[i] for i in sorted(table.rows)]
@@ -243,37 +251,103 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     return rows, stats
 
 
+def batch_size(n_runs, workers):
+    """Runs per Dask task: up to 8, and at least 16 tasks per worker, so that the task overhead
+    (about 1 ms) is spread over several runs and the last tasks still balance the workers."""
+    return max(1, min(8, math.ceil(n_runs / (16 * max(workers, 1)))))
+
+
+def _error_result(key, message):
+    return {"key": key, "status": "error", "message": message, "summary": None,
+            "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": ""}
+
+
 def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes, cache,
-              table, progress, stats):
-    from distributed import as_completed
+              table, progress, stats, batch=None):
+    """Sends the runs in batches (task.run_batch); results arrive one by one on a Pub/Sub
+    topic as each run ends. Runs whose batch finished without their result (a lost message)
+    are sent again one per task, returning their result."""
+    import queue
+    import uuid
+
+    from distributed import Sub, Variable
 
     client, cluster = _connect(scheduler, workers or os.cpu_count() or 1, processes)
     try:
-        stats["workers"] = len(client.scheduler_info()["workers"])
-        payloads = [{"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
-                     "sha": binary_sha, "timeout_s": sweep.timeout_s, "keep": sweep.keep}
-                    for key in todo]
-        futures = client.map(task_module.run_simulate, payloads,
-                             key=[f"threshing-run-{k}" for k in todo], retries=0)
-        key_of = {f.key: k for f, k in zip(futures, todo)}
-        for future in as_completed(futures):
-            key = key_of[future.key]
-            if future.status == "finished":
-                result = future.result()
-            else:
-                error = future.exception()
-                result = {"key": key, "status": "error", "files": {},
-                          "message": f"{type(error).__name__}: {error}", "summary": None,
-                          "outcomes": None, "wall_s": 0.0, "cpu_s": 0.0, "worker": ""}
-            future.release()
+        threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
+        stats["workers"] = threads
+        payload = {key: {"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
+                         "sha": binary_sha, "timeout_s": sweep.timeout_s, "keep": sweep.keep}
+                   for key in todo}
+        topic = f"threshing-sweep-{uuid.uuid4().hex}"
+        sub = Sub(topic, client=client)
+        done_keys = Variable(topic + "-done", client=client)
+        done_keys.set([])
+        departures = queue.Queue()
+        client.subscribe_topic("all", lambda event: departures.put(event)
+                               if event[1].get("action") == "remove-worker" else None)
+        k = batch or batch_size(len(todo), threads)
+        stats["batch"] = k
+        batches = [todo[i:i + k] for i in range(0, len(todo), k)]
+        # One map call: every submit call would read the caller's source (Dask records it).
+        futures = client.map(task_module.run_batch,
+                             [[payload[key] for key in keys] for keys in batches],
+                             [topic] * len(batches),
+                             key=[f"{topic}-batch-{i}" for i in range(len(batches))], pure=False)
+        pending = set(todo)
+
+        def accept(result):
+            if result["key"] not in pending:
+                return  # a run redone after a worker died: the first result stands
+            pending.discard(result["key"])
             cache.store(result)
-            for run in by_key[key]:
+            for run in by_key[result["key"]]:
                 table.add(run, result)
                 progress.update(result["status"])
+
+        deadline = None
+        while pending:
+            try:
+                accept(sub.get(timeout=0.2))
+                continue
+            except TimeoutError:
+                pass
+            if not departures.empty():
+                while not departures.empty():
+                    departures.get()
+                done_keys.set([key for key in todo if key not in pending])
+            if all(f.done() for f in futures):
+                # Every batch ended. Results of the batches that finished are at most a moment
+                # behind; those of failed batches (e.g. KilledWorker) will not come.
+                expected = {key for f, keys in zip(futures, batches) if f.status == "finished"
+                            for key in keys} & pending
+                deadline = deadline or time.monotonic() + 10
+                if not expected or time.monotonic() > deadline:
+                    break
+        if pending:
+            _run_singly(client, [payload[key] for key in todo if key in pending], accept)
+        client.unsubscribe_topic("all")
+        del sub
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _run_singly(client, payloads, accept):
+    """One task per run, results returned by the tasks (the fallback path)."""
+    from distributed import as_completed
+
+    futures = client.map(task_module.run_simulate, payloads,
+                         key=[f"threshing-run-{p['key']}" for p in payloads], pure=False)
+    key_of = {f.key: p["key"] for f, p in zip(futures, payloads)}
+    for future in as_completed(futures):
+        if future.status == "finished":
+            accept(future.result())
+        else:
+            error = future.exception()
+            accept(_error_result(key_of[future.key], f"{type(error).__name__}: {error}"))
+        future.release()
 
 
 def compare_tables(a_path, b_path):

@@ -365,10 +365,8 @@ def file_sha256(path):
     return digest.hexdigest()
 
 
-def validate(sweep, runs, simulate, binary_sha, timeout_s=600):
-    """Resolves every run with `simulate --check-batch` (one process for the whole sweep) and
-    sets each run's scene and key. Raises SweepError naming the first bad run's axis values,
-    its key path and value (the loader's message), and how many runs are bad."""
+def _check_batch(simulate, runs, timeout_s):
+    """Lines of `simulate --check-batch` for the runs (one process)."""
     text = "".join("\t".join(r.arguments) + "\n" for r in runs)
     proc = subprocess.run([str(simulate), "--check-batch", "-"], input=text, capture_output=True,
                           text=True, timeout=timeout_s)
@@ -376,6 +374,22 @@ def validate(sweep, runs, simulate, binary_sha, timeout_s=600):
     if len(lines) != len(runs):
         raise SweepError(f"{simulate} --check-batch answered {len(lines)} lines for "
                          f"{len(runs)} runs: {proc.stderr.strip()}")
+    return lines
+
+
+def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
+    """Resolves every run with `simulate --check-batch` (`jobs` processes, each a share of the
+    runs) and sets each run's scene and key. Raises SweepError naming the first bad run's axis
+    values, its key path and value (the loader's message), and how many runs are bad."""
+    import concurrent.futures
+
+    jobs = max(1, min(jobs, len(runs) // 50 + 1))
+    shares = [runs[i::jobs] for i in range(jobs)]
+    with concurrent.futures.ThreadPoolExecutor(jobs) as pool:
+        answers = list(pool.map(lambda share: _check_batch(simulate, share, timeout_s), shares))
+    lines = [None] * len(runs)
+    for i, answer in enumerate(answers):
+        lines[i::jobs] = answer
     bad = []
     outputs = ",".join(sweep.keep)
     for run, line in zip(runs, lines):

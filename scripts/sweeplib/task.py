@@ -7,6 +7,7 @@ runner's overhead can be measured against it.
 """
 import hashlib
 import os
+import select
 import shutil
 import signal
 import socket
@@ -75,6 +76,26 @@ def run_simulate(task):
     return result
 
 
+def _wait_exit(proc, timeout_s):
+    """Whether the child exits within timeout_s, without reaping it (wait4 then reads its
+    resource usage): a poll on a pidfd (Linux >= 5.3), else a timer thread."""
+    try:
+        fd = os.pidfd_open(proc.pid)
+    except (AttributeError, OSError):
+        fired = []
+        timer = threading.Timer(timeout_s, lambda: fired.append(proc.kill()))
+        timer.start()
+        os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOWAIT)
+        timer.cancel()
+        return not fired
+    try:
+        poller = select.poll()
+        poller.register(fd, select.POLLIN)
+        return bool(poller.poll(timeout_s * 1000.0))
+    finally:
+        os.close(fd)
+
+
 def _execute(task, folder, result):
     scene = os.path.join(folder, "scene.yaml")
     with open(scene, "w") as f:
@@ -86,18 +107,10 @@ def _execute(task, folder, result):
     with open(os.path.join(folder, "stderr.txt"), "w+") as err:
         proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                 stderr=err)
-        timed_out = threading.Event()
-
-        def kill():
-            timed_out.set()
+        timed_out = not _wait_exit(proc, task["timeout_s"])
+        if timed_out:
             proc.kill()
-
-        timer = threading.Timer(task["timeout_s"], kill)
-        timer.start()
-        try:
-            _, status, usage = os.wait4(proc.pid, 0)
-        finally:
-            timer.cancel()
+        _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)
         err.seek(0)
         stderr = err.read().strip()
@@ -107,7 +120,7 @@ def _execute(task, folder, result):
     for name in task["keep"]:
         result["files"][name] = _read(os.path.join(folder, f"{name}.csv"))
     code = proc.returncode
-    if timed_out.is_set():
+    if timed_out:
         result["status"] = "timeout"
         result["message"] = f"no result after {task['timeout_s']:g} s; killed"
     elif code < 0:
@@ -122,3 +135,25 @@ def _execute(task, folder, result):
     else:
         result["status"] = "error"
         result["message"] = f"exit status {code}" + (f": {stderr[-500:]}" if stderr else "")
+
+
+def run_batch(tasks, topic):
+    """Runs a batch of runs on one worker, publishing each result at once (Dask Pub/Sub topic
+    `topic`, to the client), so that a worker that dies loses only its current run. Runs
+    whose keys are in the client's Variable `topic`-done (set when a worker left) are skipped:
+    a batch rerun after a worker died does not redo the runs that worker finished. Returns the
+    keys it ran."""
+    from distributed import Pub, Variable
+
+    try:
+        done = set(Variable(topic + "-done").get(timeout=10))
+    except Exception:  # no answer: run everything (duplicates are ignored by the client)
+        done = set()
+    pub = Pub(topic)
+    ran = []
+    for task in tasks:
+        if task["key"] in done:
+            continue
+        pub.put(run_simulate(task))
+        ran.append(task["key"])
+    return ran

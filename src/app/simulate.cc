@@ -22,6 +22,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -384,6 +385,23 @@ std::vector<std::string> collectOverrides(const Options& options) {
   return overrides;
 }
 
+// --check-batch: the tree of each scene with each list of override files applied, parsed once
+// for all the lines that share them (key: scene path and file paths, tab-separated).
+using TreeCache = std::map<std::string, YAML::Node>;
+
+// The scene's tree with its override files applied (from the cache when given).
+YAML::Node sceneWithFiles(const Options& options, TreeCache* cache) {
+  std::string key = options.scene_path;
+  for (const std::string& path : options.set_files) key += "\t" + path;
+  if (cache != nullptr && cache->count(key) != 0) return YAML::Clone(cache->at(key));
+  YAML::Node root = loadSceneYaml(options.scene_path);
+  for (const std::string& path : options.set_files) {
+    for (const std::string& assignment : overridesFromFile(path)) applyOverride(&root, assignment);
+  }
+  if (cache != nullptr) (*cache)[key] = YAML::Clone(root);
+  return root;
+}
+
 // Every mapping and list of the tree in flow style (one line when emitted).
 void setFlowStyle(YAML::Node node) {
   if (!node.IsMap() && !node.IsSequence()) return;
@@ -416,9 +434,9 @@ YAML::Node withoutRestitutionFit(const YAML::Node& root) {
 
 // Loads, overrides, validates and compiles the scene as a run would, and returns the resolved
 // scene (every override applied) as one line of flow-style YAML. Throws SceneError.
-std::string resolvedScene(const Options& options) {
-  YAML::Node root = loadSceneYaml(options.scene_path);
-  for (const std::string& assignment : collectOverrides(options)) applyOverride(&root, assignment);
+std::string resolvedScene(const Options& options, TreeCache* cache = nullptr) {
+  YAML::Node root = sceneWithFiles(options, cache);
+  for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
   try {
     modelFromYaml(withoutRestitutionFit(root));
     damageFromYaml(root);
@@ -444,6 +462,7 @@ int checkBatch(const std::string& path) {
   }
   std::istream& in = path == "-" ? std::cin : file;
   int status = 0;
+  TreeCache cache;
   for (std::string line; std::getline(in, line);) {
     std::vector<std::string> args = {"simulate"};
     for (size_t start = 0, tab = 0; tab != std::string::npos; start = tab + 1) {
@@ -454,7 +473,7 @@ int checkBatch(const std::string& path) {
     for (std::string& arg : args) argv.push_back(arg.data());
     try {
       const std::string scene =
-          resolvedScene(parseOptions(static_cast<int>(argv.size()), argv.data()));
+          resolvedScene(parseOptions(static_cast<int>(argv.size()), argv.data()), &cache);
       std::cout << "ok\t" << scene << "\n";
     } catch (const std::exception& e) {
       std::string message = e.what();

@@ -23,6 +23,9 @@ import unittest
 import xml.etree.ElementTree as ET
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "scripts"))
+from sweeplib.cluster import LoopbackCluster, wait_for  # noqa: E402
+
 SWEEP = ROOT / "scripts/sweep"
 SMALL = ROOT / "config/sweeps/small.yaml"
 ARGS = None  # command line (simulate, out)
@@ -39,64 +42,6 @@ def sweep(*args, timeout=120):
                           text=True, timeout=timeout)
 
 
-def wait_for(condition, timeout, what):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-
-
-class Cluster:
-    """A dask-scheduler and two single-threaded dask-worker processes on 127.0.0.1."""
-
-    def __init__(self, folder):
-        self.folder = folder
-        self.procs = []
-        self.address = None
-        self.workers = []
-
-    def start(self):
-        info = self.folder / "scheduler.json"
-        info.unlink(missing_ok=True)
-        log = open(self.folder / "scheduler.log", "w")
-        self.procs.append(subprocess.Popen(
-            ["/usr/bin/dask-scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
-             "--scheduler-file", str(info)], stdout=log, stderr=log, start_new_session=True))
-        wait_for(info.exists, 60, "the scheduler file")
-        import json
-        wait_for(lambda: json.loads(info.read_text() or "{}").get("address"), 60,
-                 "the scheduler address")
-        self.address = json.loads(info.read_text())["address"]
-        for i in range(2):
-            wlog = open(self.folder / f"worker{i}.log", "w")
-            proc = subprocess.Popen(
-                ["/usr/bin/dask-worker", self.address, "--nthreads", "1", "--no-nanny",
-                 "--no-dashboard", "--host", "127.0.0.1", "--name", f"w{i}",
-                 "--local-directory", str(self.folder / f"w{i}")],
-                stdout=wlog, stderr=wlog, start_new_session=True)
-            self.procs.append(proc)
-            self.workers.append(proc)
-        wait_for(self._both_connected, 60, "two workers at the scheduler")
-        return self
-
-    def _both_connected(self):
-        logs = [(self.folder / f"worker{i}.log").read_text() for i in range(2)]
-        return all("Registered to" in text for text in logs)
-
-    def stop(self):
-        for proc in self.procs:
-            if proc.poll() is None:
-                os.killpg(proc.pid, signal.SIGTERM)
-        for proc in self.procs:
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait(timeout=10)
-
-
 class SweepTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -109,7 +54,12 @@ class SweepTest(unittest.TestCase):
         proc = sweep("run", SMALL, "--simulate", cls.simulate, "--out", cls.local,
                      "--workers", 2)
         assert proc.returncode == 0, proc.stderr
-        cls.cluster = Cluster(cls.out).start()
+        cls.cluster = LoopbackCluster(cls.out / "cluster_processes", workers=2)
+        try:
+            cls.cluster.start()
+        except BaseException:
+            cls.cluster.stop()
+            raise
 
     @classmethod
     def tearDownClass(cls):
@@ -153,7 +103,7 @@ class SweepTest(unittest.TestCase):
         log = open(self.out / "cluster_sweep.log", "w")
         client = subprocess.Popen(
             [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
-             "--out", str(out), "--scheduler", self.cluster.address],
+             "--out", str(out), "--scheduler", self.cluster.address, "--batch", "3"],
             stdout=log, stderr=log, start_new_session=True)
         try:
             # Kill worker 0 once a third of the runs are in.
