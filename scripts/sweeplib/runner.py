@@ -111,11 +111,15 @@ class Table:
         if result["outcomes"]:
             reader = csv.DictReader(io.StringIO(result["outcomes"]))
             self.kernels[run.index] = [{"run": run.index, **run.labels, **k} for k in reader]
-        for name, text in (result.get("files") or {}).items():
-            if text is not None:
-                folder = self.files_dir / run.key
-                folder.mkdir(parents=True, exist_ok=True)
-                (folder / f"{name}.csv").write_text(text)
+        # Runs that keep outputs get a folder with them, the summary and the outcomes.
+        files = {f"{name}.csv": text for name, text in (result.get("files") or {}).items()}
+        if files:
+            files.update({"summary.json": result["summary"], "outcomes.csv": result["outcomes"]})
+            folder = self.files_dir / run.key
+            folder.mkdir(parents=True, exist_ok=True)
+            for name, text in files.items():
+                if text is not None:
+                    (folder / name).write_text(text)
         return row
 
     def finish(self):
@@ -277,7 +281,8 @@ def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, pro
         threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
         stats["workers"] = threads
         payload = {key: {"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
-                         "sha": binary_sha, "timeout_s": sweep.timeout_s, "keep": sweep.keep}
+                         "sha": binary_sha, "timeout_s": sweep.timeout_s,
+                          "keep": by_key[key][0].keep}
                    for key in todo}
         topic = f"threshing-sweep-{uuid.uuid4().hex}"
         sub = Sub(topic, client=client)
@@ -306,7 +311,11 @@ def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, pro
                 progress.update(result["status"])
 
         deadline = None
+        buffered = getattr(sub, "buffer", None)  # Sub's deque: take what is there directly
         while pending:
+            if buffered:
+                accept(buffered.popleft())
+                continue
             try:
                 accept(sub.get(timeout=0.2))
                 continue

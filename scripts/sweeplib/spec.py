@@ -18,8 +18,10 @@ import yaml
 RADPS_PER_RPM = math.pi / 30.0
 UNITS = {None: 1.0, "rad/s": 1.0, "rpm": RADPS_PER_RPM}
 TOP_KEYS = {"name", "scene", "set_files", "set", "axes", "seeds", "outcomes", "derived",
-            "timeout", "keep", "report"}
-AXIS_KEYS = {"name", "key", "unit", "values", "range", "files"}
+            "timeout", "keep", "report", "groups"}
+GROUP_KEYS = {"name", "axes", "set", "keep"}
+AXIS_KEYS = {"name", "key", "unit", "values", "range", "files", "cases"}
+CASE_KEYS = {"scene", "set_files", "set"}
 DEFAULT_OUTCOMES = ["outcomes.peak_normal_force_N", "outcomes.peak_tangential_force_N",
                     "outcomes.detached", "outcomes.damaged", "outcomes.kernels"]
 KEEP_FILES = {"events", "forces"}  # extra simulate outputs a sweep may keep per run
@@ -72,19 +74,24 @@ class Axis:
                   f"keys among {sorted(AXIS_KEYS)} (got {spec!r})")
         self.name = str(spec["name"])
         where = f"{where} ({self.name})"
-        kinds = [k for k in ("values", "range", "files") if k in spec]
+        kinds = [k for k in ("values", "range", "files", "cases") if k in spec]
         if len(kinds) != 1:
-            _fail(where, f"needs exactly one of values, range, files (got {kinds or 'none'})")
+            _fail(where, f"needs exactly one of values, range, files, cases (got "
+                  f"{kinds or 'none'})")
         self.kind = kinds[0]
         self.unit = spec.get("unit")
         if self.unit not in UNITS:
             _fail(where + ".unit", f"expected one of {sorted(u for u in UNITS if u)} "
                   f"(got {self.unit!r})")
         self.key = spec.get("key")
-        if self.kind == "files":
+        if self.kind in ("files", "cases"):
             if self.key is not None or self.unit is not None:
-                _fail(where, "a files axis takes no key or unit (the files hold the keys)")
-            self.labels, self.files = self._files(where + ".files", spec["files"], base_dir)
+                _fail(where, f"a {self.kind} axis takes no key or unit (its entries hold the "
+                      "keys)")
+            if self.kind == "files":
+                self.labels, self.files = self._files(where + ".files", spec["files"], base_dir)
+            else:
+                self.labels, self.cases = self._cases(where + ".cases", spec["cases"], base_dir)
             return
         if not isinstance(self.key, str) or not self.key:
             _fail(where + ".key", f"expected a scene key path such as drum.speed or "
@@ -117,8 +124,32 @@ class Axis:
             files.append(full)
         return [str(label) for label, _ in items], files
 
+    @staticmethod
+    def _cases(where, spec, base_dir):
+        """A case: a scene of its own, with override files and overrides."""
+        if not isinstance(spec, dict) or not spec:
+            _fail(where, f"expected a mapping of labels to {{scene, set_files, set}} "
+                  f"(got {spec!r})")
+        cases = []
+        for label, case in spec.items():
+            here = f"{where}.{label}"
+            if not isinstance(case, dict) or set(case) - CASE_KEYS or "scene" not in case:
+                _fail(here, f"expected {{scene, set_files, set}} (got {case!r})")
+            arguments = [str(_existing(here + ".scene", base_dir, case["scene"]))]
+            for path in case.get("set_files", []) or []:
+                arguments += ["--set-file", str(_existing(here + ".set_files", base_dir, path))]
+            fixed = case.get("set", {}) or {}
+            if not isinstance(fixed, dict):
+                _fail(here + ".set", f"expected a mapping of key paths to values (got {fixed!r})")
+            for key, value in fixed.items():
+                arguments += ["--set", f"{key}={_scene_text(value)}"]
+            cases.append(arguments)
+        return [str(label) for label in spec], cases
+
     def arguments(self, i):
-        """simulate arguments of the axis' i-th value."""
+        """simulate arguments of the axis' i-th value (a cases axis: scene first)."""
+        if self.kind == "cases":
+            return list(self.cases[i])
         if self.kind == "files":
             return ["--set-file", str(self.files[i])]
         value = self.labels[i]
@@ -129,6 +160,13 @@ class Axis:
     def column(self):
         """Table column of the axis: its name, with the unit when it has one."""
         return f"{self.name}_{self.unit.replace('/', 'p')}" if self.unit else self.name
+
+
+def _existing(where, base_dir, path):
+    full = (base_dir / str(path)).resolve()
+    if not full.is_file():
+        _fail(where, f"no such file '{path}' (looked at {full})")
+    return full
 
 
 def _scene_text(value):
@@ -221,6 +259,7 @@ class Run:
         self.index = index          # position in the sweep's order (row order of the table)
         self.labels = labels        # column -> axis value (label for a files axis)
         self.arguments = arguments  # simulate arguments: scene, --set-file, --set
+        self.keep = []              # extra outputs kept (events, forces)
         self.scene = None           # resolved scene (one line of YAML), after validation
         self.key = None             # hash of the resolved scene, the binary and the outputs
 
@@ -244,30 +283,41 @@ class Sweep:
             _fail(where, f"unknown key(s) {sorted(unknown)} (known: {sorted(TOP_KEYS)})")
         base = self.path.parent
         self.name = str(spec.get("name", self.path.stem))
-        if "scene" not in spec:
-            _fail(where, "needs a base scene (scene: PATH)")
-        self.scene = self._file(f"{where}: scene", spec["scene"])
-        self.set_files = [self._file(f"{where}: set_files", p)
+        self.scene = (_existing(f"{where}: scene", base, spec["scene"]) if "scene" in spec
+                      else None)
+        self.set_files = [_existing(f"{where}: set_files", base, p)
                           for p in self._list(f"{where}: set_files", spec.get("set_files", []))]
-        fixed = spec.get("set", {}) or {}
-        if not isinstance(fixed, dict):
-            _fail(f"{where}: set", f"expected a mapping of key paths to values (got {fixed!r})")
-        self.fixed = [f"{k}={_scene_text(v)}" for k, v in fixed.items()]
-        axes = spec.get("axes", [])
-        if not isinstance(axes, list):
-            _fail(f"{where}: axes", f"expected a list of axes (got {axes!r})")
-        self.axes = [Axis(f"{where}: axes[{i}]", a, base) for i, a in enumerate(axes)]
+        self.fixed = self._fixed(f"{where}: set", spec.get("set"))
         self.seeds = self._seeds(f"{where}: seeds", spec.get("seeds"))
-        names = [a.column() for a in self.axes] + ([self.seeds[0]] if self.seeds else [])
-        if len(set(names)) != len(names):
-            _fail(f"{where}: axes", f"two axes share a column name ({names})")
+        shared = self._axes(f"{where}: axes", spec.get("axes", []), base)
+        groups = spec.get("groups")
+        if groups is None:
+            self.groups = [Group(None, shared, [], spec.get("keep", []))]
+        else:
+            if not isinstance(groups, list) or not groups:
+                _fail(f"{where}: groups", f"expected a non-empty list (got {groups!r})")
+            self.groups = []
+            for i, g in enumerate(groups):
+                here = f"{where}: groups[{i}]"
+                if not isinstance(g, dict) or set(g) - GROUP_KEYS or "name" not in g:
+                    _fail(here, f"expected {{name, axes, set, keep}} (got {g!r})")
+                self.groups.append(Group(str(g["name"]), shared + self._axes(
+                    here + ".axes", g.get("axes", []), base), self._fixed(here + ".set",
+                    g.get("set")), g.get("keep", spec.get("keep", []))))
+        for group in self.groups:
+            names = [a.column() for a in group.axes]
+            if len(set(names)) != len(names):
+                _fail(f"{where}: axes", f"two axes share a column name ({names})")
+            if self.scene is None and not any(a.kind == "cases" for a in group.axes):
+                _fail(where, "needs a base scene (scene: PATH) or a cases axis")
+            group.keep = self._keep(f"{where}: keep", group.keep, self.axis_columns())
         self.outcomes = self._outcomes(f"{where}: outcomes",
                                        spec.get("outcomes", DEFAULT_OUTCOMES))
         derived = spec.get("derived", {}) or {}
         if not isinstance(derived, dict):
             _fail(f"{where}: derived", f"expected a mapping of column: expression "
                   f"(got {derived!r})")
-        known = names + list(self.outcomes) + ["wall_s", "cpu_s"]
+        known = self.axis_columns() + list(self.outcomes) + ["wall_s", "cpu_s"]
         self.derived = {}
         for column, text in derived.items():
             self.derived[str(column)] = Expression(f"{where}: derived.{column}", text, known)
@@ -275,14 +325,20 @@ class Sweep:
         self.timeout_s = _number(f"{where}: timeout", spec.get("timeout", 600))
         if self.timeout_s <= 0:
             _fail(f"{where}: timeout", f"must be > 0 s (got {self.timeout_s!r})")
-        self.keep = self._keep(f"{where}: keep", spec.get("keep", []))
         self.report = spec.get("report", {}) or {}
 
-    def _file(self, where, path):
-        full = (self.path.parent / str(path)).resolve()
-        if not full.is_file():
-            _fail(where, f"no such file '{path}' (looked at {full})")
-        return full
+    @staticmethod
+    def _axes(where, axes, base):
+        if not isinstance(axes, list):
+            _fail(where, f"expected a list of axes (got {axes!r})")
+        return [Axis(f"{where}[{i}]", a, base) for i, a in enumerate(axes)]
+
+    @staticmethod
+    def _fixed(where, fixed):
+        fixed = fixed or {}
+        if not isinstance(fixed, dict):
+            _fail(where, f"expected a mapping of key paths to values (got {fixed!r})")
+        return [f"{k}={_scene_text(v)}" for k, v in fixed.items()]
 
     @staticmethod
     def _list(where, value):
@@ -325,36 +381,70 @@ class Sweep:
         return columns
 
     @staticmethod
-    def _keep(where, spec):
-        spec = Sweep._list(where, spec)
-        for item in spec:
+    def _keep(where, spec, names):
+        """Extra outputs kept per run: a list (every run) or a mapping of output to true or a
+        condition on the axis columns, e.g. {forces: "drum_speed_rpm == 800"}."""
+        if isinstance(spec, list):
+            spec = {item: True for item in spec}
+        if not isinstance(spec, dict):
+            _fail(where, f"expected a list or a mapping of outputs (got {spec!r})")
+        keep = {}
+        for item, when in spec.items():
             if item not in KEEP_FILES:
-                _fail(where, f"expected files among {sorted(KEEP_FILES)} (got {item!r})")
-        return sorted(set(spec))
+                _fail(where, f"expected outputs among {sorted(KEEP_FILES)} (got {item!r})")
+            keep[item] = when if isinstance(when, bool) else \
+                Expression(f"{where}.{item}", when, names)
+        return keep
 
     def axis_columns(self):
-        return [a.column() for a in self.axes] + ([self.seeds[0]] if self.seeds else [])
+        columns = ["group"] if self.groups[0].name is not None else []
+        for group in self.groups:
+            columns += [a.column() for a in group.axes if a.column() not in columns]
+        return columns + ([self.seeds[0]] if self.seeds else [])
 
     def runs(self):
-        """Every combination, in order (the last axis varies fastest, seeds fastest of all)."""
-        dims = [range(len(a.labels)) for a in self.axes]
-        seeds = self.seeds[2] if self.seeds else [None]
+        """Every combination, group by group, in order (the last axis varies fastest, seeds
+        fastest of all)."""
         runs = []
-        base = [str(self.scene)] + [a for f in self.set_files for a in ("--set-file", str(f))]
-        fixed = [a for s in self.fixed for a in ("--set", s)]
-        for choice in itertools.product(*dims):
-            for seed in seeds:
-                labels, arguments = {}, list(base)
-                for axis, i in zip(self.axes, choice):
-                    labels[axis.column()] = axis.labels[i]
-                    # Override files before any --set: simulate applies them first anyway.
-                    arguments += axis.arguments(i)
-                arguments += fixed
-                if seed is not None:
-                    labels["seed"] = seed
-                    arguments += ["--set", f"{self.seeds[1]}={seed}"]
-                runs.append(Run(len(runs), labels, arguments))
+        seeds = self.seeds[2] if self.seeds else [None]
+        for group in self.groups:
+            dims = [range(len(a.labels)) for a in group.axes]
+            cases = [a for a in group.axes if a.kind == "cases"]
+            for choice in itertools.product(*dims):
+                for seed in seeds:
+                    labels = {} if group.name is None else {"group": group.name}
+                    scene = [] if cases else [str(self.scene)]
+                    files, sets = [], []
+                    for axis, i in zip(group.axes, choice):
+                        labels[axis.column()] = axis.labels[i]
+                        args = axis.arguments(i)
+                        if axis.kind == "cases":
+                            scene = args[:1]
+                            args = args[1:]
+                        # Override files before any --set, as simulate applies them.
+                        for flag, value in zip(args[::2], args[1::2]):
+                            (files if flag == "--set-file" else sets).extend([flag, value])
+                    fixed = [a for f in self.fixed + group.fixed for a in ("--set", f)]
+                    if seed is not None:
+                        labels["seed"] = seed
+                        sets += ["--set", f"{self.seeds[1]}={seed}"]
+                    base = [a for f in self.set_files for a in ("--set-file", str(f))]
+                    run = Run(len(runs), labels, scene + base + files + fixed + sets)
+                    run.keep = sorted(k for k, when in group.keep.items()
+                                      if when is True or (when is not False and
+                                                          when.evaluate(labels) == 1.0))
+                    runs.append(run)
         return runs
+
+
+class Group:
+    """Axes and overrides of a part of the sweep (a sweep without groups has one)."""
+
+    def __init__(self, name, axes, fixed, keep):
+        self.name = name    # table column `group`, or None
+        self.axes = axes
+        self.fixed = fixed  # "key=value" overrides of this group, after the sweep's
+        self.keep = keep
 
 
 def file_sha256(path):
@@ -391,13 +481,13 @@ def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
     for i, answer in enumerate(answers):
         lines[i::jobs] = answer
     bad = []
-    outputs = ",".join(sweep.keep)
     for run, line in zip(runs, lines):
         verdict, _, rest = line.partition("\t")
         if verdict != "ok":
             bad.append((run, rest))
             continue
         run.scene = rest
+        outputs = ",".join(run.keep)
         run.key = hashlib.sha256(f"{binary_sha}\n{outputs}\n{rest}".encode()).hexdigest()[:32]
     if bad:
         run, message = bad[0]

@@ -85,6 +85,53 @@ class SweepTest(unittest.TestCase):
         kernels = rows(self.local / "kernels.csv")
         self.assertEqual(len(kernels), 18 * 4)
 
+    def test_report(self):
+        proc = sweep("report", self.local)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        report = (self.local / "report.md").read_text()
+        self.assertIn("18 runs: 18 ok", report)
+        images = [line.split("](")[1].rstrip(")") for line in report.splitlines()
+                  if line.startswith("![")]
+        self.assertEqual(len(images), 4)  # the four plots of small.yaml's report section
+        for name in images:
+            png = (self.local / name).read_bytes()
+            self.assertEqual(png[1:4], b"PNG", name)
+            self.assertGreater(len(png), 10000, name)
+        self.assertIn("| tooth | drum_speed_rpm | detachment_fraction | damage_fraction |",
+                      report)
+
+    def test_findings_sweep_is_compare_teeth(self):
+        """config/sweeps/findings.yaml resolves, run for run, to the scenes and outputs of
+        compare_teeth.py's sweep (its full one, not --quick)."""
+        import compare_teeth as ct
+        from sweeplib import spec
+        sweep_file = spec.Sweep(ROOT / "config/sweeps/findings.yaml")
+        runs = sweep_file.runs()
+        spec.validate(sweep_file, runs, self.simulate, "sha", jobs=2)
+        mine = {}
+        for r in runs:
+            labels = r.labels
+            modes = labels.get("modes", 0 if labels["group"] == "frozen" else None)
+            mine[(labels["group"], labels["case"], labels["tooth"], labels["drum_speed_rpm"],
+                  modes)] = (r.scene, r.keep)
+        out = self.out / "ct"
+        theirs = [ct.Run(out, "sweep", c, v, r, forces=r == ct.HISTORY_RPM)
+                  for c in ct.CASES for v in ct.VARIANTS for r in ct.RPM_FULL]
+        theirs += [ct.Run(out, "frozen", c, v, r, modes=0)
+                   for c in ct.FROZEN_CASES for v in ct.FLEXIBLE for r in ct.RPM_FULL]
+        theirs += [ct.Run(out, "convergence", "single_strike", v, ct.HISTORY_RPM, modes=m)
+                   for v in ct.FLEXIBLE for m in ct.CONVERGENCE_MODES]
+        self.assertEqual(len(mine), len(theirs))
+        commands = [t.command(self.simulate) for t in theirs]
+        text = "".join("\t".join(c[1:c.index("--summary")]) + "\n" for c in commands)
+        answer = subprocess.run([self.simulate, "--check-batch", "-"], input=text, text=True,
+                                capture_output=True, timeout=120).stdout.splitlines()
+        self.assertEqual(len(answer), len(theirs))
+        for t, line in zip(theirs, answer):
+            scene, keep = mine[(t.group, t.case, t.variant, t.rpm, t.modes)]
+            self.assertEqual(line, "ok\t" + scene, t.label())
+            self.assertEqual(keep, sorted(["events"] + (["forces"] if t.forces else [])))
+
     def test_rpm_and_range(self):
         """800 rpm reaches the scene as 800 (pi / 30) rad/s (compare_teeth.py's conversion):
         the same numbers, to the last bit, as simulate run by hand with that drum speed."""
