@@ -76,7 +76,8 @@ def line_plot(rows, plot, path, axes):
         ax.plot(xs, mean, marker=MARKERS[i % len(MARKERS)], color=color, markersize=4,
                 label=str(group) if lines else y)
         if any(h > l for l, h in zip(lo, hi)):
-            ax.fill_between(xs, lo, hi, color=color, alpha=0.15, linewidth=0)
+            ax.fill_between(xs, lo, hi, color=color, alpha=0.15 if len(groups) <= 4 else 0.06,
+                            linewidth=0)
         summary.append((group, min(lo), max(hi), sum(len(v) for v in by_x.values())))
     spread = [a for a in axes if a not in (x, lines)]
     ax.set_xlabel(x)
@@ -129,8 +130,9 @@ def pareto_plot(rows, plot, path, axes):
                    color=COLORS[i % len(COLORS)], marker=MARKERS[i % len(MARKERS)],
                    alpha=0.7, label=str(group) if color else None)
     ordered = sorted(front, key=lambda k: points[k][0])
-    ax.plot([points[k][0] for k in ordered], [points[k][1] for k in ordered], "k--", lw=1,
-            label="Pareto front")
+    ax.plot([points[k][0] for k in ordered], [points[k][1] for k in ordered], "k--", lw=1)
+    ax.scatter([points[k][0] for k in ordered], [points[k][1] for k in ordered], s=60,
+               facecolors="none", edgecolors="k", linewidths=1, label="Pareto front")
     ax.set_xlabel(f"{x} (more is better)")
     ax.set_ylabel(f"{y} (less is better)")
     ax.set_title(f"{y} against {x}: {len(names)} configurations, {len(front)} on the front",
@@ -196,7 +198,7 @@ def write_report(out, sweep_path=None, simulate=None, **findings_options):
              "Axes: " + "; ".join(f"{a.column()} ({len(a.labels)} values: "
                                   f"{', '.join(map(str, a.labels[:12]))}"
                                   f"{', ...' if len(a.labels) > 12 else ''})"
-                                  for a in sweep.axes)
+                                  for a in sweep.all_axes())
              + (f"; seeds {sweep.seeds[2][0]}-{sweep.seeds[2][-1]} ({sweep.seeds[1]})"
                 if sweep.seeds else "") + ".", ""]
     failed = [r for r in rows if r["status"] != "ok"]

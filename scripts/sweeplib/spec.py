@@ -396,6 +396,14 @@ class Sweep:
                 Expression(f"{where}.{item}", when, names)
         return keep
 
+    def all_axes(self):
+        """The axes of every group, one per column (the first group's where shared)."""
+        axes = {}
+        for group in self.groups:
+            for axis in group.axes:
+                axes.setdefault(axis.column(), axis)
+        return list(axes.values())
+
     def axis_columns(self):
         columns = ["group"] if self.groups[0].name is not None else []
         for group in self.groups:

@@ -70,6 +70,8 @@ def run_simulate(task):
     folder = tempfile.mkdtemp(prefix="sweep-run-")
     try:
         _execute(task, folder, result)
+    except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
+        result["status"], result["message"] = "error", f"{type(e).__name__}: {e}"
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     result["wall_s"] = time.perf_counter() - started
