@@ -5,6 +5,7 @@ outputs); each run's kept files (summary, outcomes, events, forces at 800 rpm) a
 OUT/files/KEY/. compare_teeth.py's own analysis, plots, report and findings page are applied to
 them, so the verdicts and figures are those of `compare_teeth.py --findings`.
 """
+import json
 import os
 import pathlib
 import shutil
@@ -63,8 +64,11 @@ def write(out, sweep, rows, simulate, findings=False, docs=None, readme=None):
         ct.write_findings(docs / "findings.md", a, plots, rpms, history_rpm)
         readme = pathlib.Path(readme or ROOT / "README.md")
         docs_rel = os.path.relpath(docs.resolve(), readme.resolve().parent)
-        workers = len({r["worker"] for r in rows})
-        wall_s = sum(float(r["wall_s"]) for r in rows) / max(workers, 1)
+        # The last `scripts/sweep run`'s workers and wall time (run_stats.json).
+        stats = json.loads((out / "run_stats.json").read_text()) \
+            if (out / "run_stats.json").is_file() else {}
+        workers = stats.get("workers") or len({r["worker"] for r in rows})
+        wall_s = stats.get("wall_s", sum(float(r["wall_s"]) for r in rows) / workers)
         ct.update_readme(readme, ct.readme_section(a, rpms, docs_rel, len(runs), workers,
                                                    wall_s))
     return out / "report.md"

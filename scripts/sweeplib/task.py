@@ -33,6 +33,16 @@ def _binary_sha(path):
     return _VERIFIED[stamp]
 
 
+def _worker_name():
+    """host:pid:Dask worker name (workers that are threads of one process share the pid)."""
+    name = f"{socket.gethostname()}:{os.getpid()}"
+    try:
+        from distributed import get_worker
+        return f"{name}:{get_worker().name}"
+    except (ImportError, ValueError):
+        return name
+
+
 def _read(path):
     try:
         with open(path) as f:
@@ -57,7 +67,7 @@ def run_simulate(task):
     started = time.perf_counter()
     result = {"key": task["key"], "status": "error", "message": "", "summary": None,
               "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0,
-              "worker": f"{socket.gethostname()}:{os.getpid()}"}
+              "worker": _worker_name()}
     try:
         sha = _binary_sha(task["simulate"])
     except OSError as e:
