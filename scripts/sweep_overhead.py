@@ -19,6 +19,7 @@ import csv
 import os
 import pathlib
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -101,6 +102,8 @@ def main():
                         "first plot of the sweep's report into docs/sweeps/")
     args = parser.parse_args()
     out = pathlib.Path(args.out)
+    # SIGTERM ends like Ctrl-C, so that the cluster started here is stopped.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     out.mkdir(parents=True, exist_ok=True)
     cores = os.cpu_count()
     text = [f"Measured by `scripts/sweep_overhead.py{' --cluster' if args.cluster else ''}"

@@ -5,6 +5,7 @@ python3-distributed and the simulate binary at the given path; it imports nothin
 repository. The run's CPU time is the child's own (user + system from wait4), so that the
 runner's overhead can be measured against it.
 """
+import atexit
 import hashlib
 import os
 import select
@@ -19,6 +20,8 @@ import time
 # Per worker process: verified binaries, (path, size, mtime) -> sha256 (no lock: two threads
 # hashing the same binary at once only repeat the work).
 _VERIFIED = {}
+# Per worker thread: its folder for the run files, (pid, thread id) -> path.
+_FOLDERS = {}
 
 
 def _binary_sha(path):
@@ -77,15 +80,28 @@ def run_simulate(task):
         result["message"] = (f"simulate at {task['simulate']} on this worker is not the "
                              f"client's binary (sha256 {sha[:12]} != {task['sha'][:12]})")
         return result
-    folder = tempfile.mkdtemp(prefix="sweep-run-")
     try:
-        _execute(task, folder, result)
+        _execute(task, _thread_folder(), result)
     except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
         result["status"], result["message"] = "error", f"{type(e).__name__}: {e}"
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
     result["wall_s"] = time.perf_counter() - started
     return result
+
+
+def _thread_folder():
+    """This thread's folder for its runs' files, made once (in memory where /dev/shm exists)
+    and removed at exit: a folder made and removed per run costs milliseconds on some file
+    systems, during which the worker would idle."""
+    key = (os.getpid(), threading.get_ident())
+    folder = _FOLDERS.get(key)
+    if folder is None or not os.path.isdir(folder):
+        base = "/dev/shm" if os.access("/dev/shm", os.W_OK) else None
+        folder = tempfile.mkdtemp(prefix="sweep-run-", dir=base)
+        atexit.register(shutil.rmtree, folder, True)
+        _FOLDERS[key] = folder
+    for name in os.listdir(folder):  # no output of the previous run may be taken for this one's
+        os.unlink(os.path.join(folder, name))
+    return folder
 
 
 def _wait_exit(proc, timeout_s):

@@ -307,6 +307,8 @@ def main():
     parser.add_argument("--out", default=str(ROOT / ".build/sweep_test"))
     parser.add_argument("--xml", help="JUnit XML result file")
     ARGS = parser.parse_args()
+    # SIGTERM ends like Ctrl-C, so that the cluster started here is stopped.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
     suite = unittest.defaultTestLoader.loadTestsFromTestCase(SweepTest)
     result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
     if ARGS.xml:
