@@ -311,16 +311,25 @@ def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, pro
                 progress.update(result["status"])
 
         deadline = None
-        buffered = getattr(sub, "buffer", None)  # Sub's deque: take what is there directly
+        # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
+        # (a Sub.get per result would cost a round trip through the event loop).
+        buffered = getattr(sub, "buffer", None)
+        checked = time.monotonic()
         while pending:
-            if buffered:
-                accept(buffered.popleft())
-                continue
-            try:
-                accept(sub.get(timeout=0.2))
-                continue
-            except TimeoutError:
-                pass
+            if buffered is not None:
+                if buffered:
+                    accept(buffered.popleft())
+                    continue
+                if time.monotonic() - checked < 0.2:
+                    time.sleep(0.005)
+                    continue
+                checked = time.monotonic()
+            else:
+                try:
+                    accept(sub.get(timeout=0.2))
+                    continue
+                except TimeoutError:
+                    pass
             if not departures.empty():
                 while not departures.empty():
                     departures.get()

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -402,13 +403,42 @@ YAML::Node sceneWithFiles(const Options& options, TreeCache* cache) {
   return root;
 }
 
-// Every mapping and list of the tree in flow style (one line when emitted).
-void setFlowStyle(YAML::Node node) {
-  if (!node.IsMap() && !node.IsSequence()) return;
-  node.SetStyle(YAML::EmitterStyle::Flow);
-  for (YAML::iterator it = node.begin(); it != node.end(); ++it) {
-    setFlowStyle(node.IsMap() ? it->second : *it);
+// The tree as one line of flow-style YAML. Plain scalars made of safe characters are written
+// as they are (yaml-cpp's emitter, which checks every scalar, would take most of a check's
+// time); any other scalar goes through the emitter.
+void writeFlow(const YAML::Node& node, std::string* out) {
+  if (node.IsMap() || node.IsSequence()) {
+    *out += node.IsMap() ? "{" : "[";
+    bool first = true;
+    for (const auto& item : node) {
+      if (!first) *out += ", ";
+      first = false;
+      if (node.IsMap()) {
+        writeFlow(item.first, out);
+        *out += ": ";
+        writeFlow(item.second, out);
+      } else {
+        writeFlow(item, out);
+      }
+    }
+    *out += node.IsMap() ? "}" : "]";
+    return;
   }
+  const std::string& text = node.IsScalar() ? node.Scalar() : std::string();
+  const bool plain = node.IsScalar() && node.Tag() != "!" && !text.empty() &&
+                     std::all_of(text.begin(), text.end(), [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' ||
+                              c == '+' || c == '-';
+                     });
+  if (plain) {
+    *out += text;
+    return;
+  }
+  YAML::Emitter emitter;
+  emitter << YAML::Flow << node;
+  std::string emitted = emitter.c_str();
+  std::replace(emitted.begin(), emitted.end(), '\n', ' ');
+  *out += emitted;
 }
 
 // A copy of the tree for validation in which every contact restitution that is a number in
@@ -443,11 +473,8 @@ std::string resolvedScene(const Options& options, TreeCache* cache = nullptr) {
   } catch (const SceneError& e) {
     throw SceneError(options.scene_path + ": " + e.what());
   }
-  setFlowStyle(root);
-  YAML::Emitter out;
-  out << root;
-  std::string text = out.c_str();
-  std::replace(text.begin(), text.end(), '\n', ' ');  // flow style: a line break is a space
+  std::string text;
+  writeFlow(root, &text);
   return text;
 }
 
