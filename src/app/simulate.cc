@@ -404,8 +404,8 @@ YAML::Node sceneWithFiles(const Options& options, TreeCache* cache) {
 }
 
 // The tree as one line of flow-style YAML. Plain scalars made of safe characters are written
-// as they are (yaml-cpp's emitter, which checks every scalar, would take most of a check's
-// time); any other scalar goes through the emitter.
+// as they are (yaml-cpp's emitter checks every scalar: a large part of a check's time); any
+// other scalar goes through the emitter.
 void writeFlow(const YAML::Node& node, std::string* out) {
   if (node.IsMap() || node.IsSequence()) {
     *out += node.IsMap() ? "{" : "[";
