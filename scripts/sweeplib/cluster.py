@@ -30,7 +30,11 @@ class LoopbackCluster:
 
     def _spawn(self, command, log_name):
         log = open(self.folder / log_name, "w")
-        proc = subprocess.Popen(command, stdout=log, stderr=log, start_new_session=True)
+        # Run files of a killed worker stay in this folder, not in /dev/shm.
+        tmp = self.folder / "tmp"
+        tmp.mkdir(exist_ok=True)
+        proc = subprocess.Popen(command, stdout=log, stderr=log, start_new_session=True,
+                                env={**os.environ, "TMPDIR": str(tmp)})
         log.close()
         self.procs.append(proc)
         return proc

@@ -89,13 +89,14 @@ def run_simulate(task):
 
 
 def _thread_folder():
-    """This thread's folder for its runs' files, made once (in memory where /dev/shm exists)
-    and removed at exit: a folder made and removed per run costs milliseconds on some file
-    systems, during which the worker would idle."""
+    """This thread's folder for its runs' files, made once (under $TMPDIR if set, else in
+    memory where /dev/shm exists) and removed at exit: a folder made and removed per run costs
+    milliseconds on some file systems, during which the worker would idle."""
     key = (os.getpid(), threading.get_ident())
     folder = _FOLDERS.get(key)
     if folder is None or not os.path.isdir(folder):
-        base = "/dev/shm" if os.access("/dev/shm", os.W_OK) else None
+        base = os.environ.get("TMPDIR") or \
+            ("/dev/shm" if os.access("/dev/shm", os.W_OK) else None)
         folder = tempfile.mkdtemp(prefix="sweep-run-", dir=base)
         atexit.register(shutil.rmtree, folder, True)
         _FOLDERS[key] = folder
