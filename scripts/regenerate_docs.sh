@@ -10,6 +10,8 @@
 #                    not a default part: about 50 minutes, both integrators side by side)
 #   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
 #   bench            scripts/bench.py                          (README + docs/bench*)
+#   sweeps           scripts/sweep_overhead.py --workers 2 1 --cluster --docs (README +
+#                    docs/sweeps*; not a default part: its ratio needs an otherwise idle machine)
 # Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
 # 15 minutes on 2 cores). Timings are medians on a possibly shared machine: compare them as
 # ratios within one run.
@@ -56,6 +58,7 @@ for part in "${parts[@]}"; do
       rm -rf "$tmp" ;;
     findings) $PY scripts/compare_teeth.py --findings ;;
     bench) $PY scripts/bench.py ;;
+    sweeps) $PY scripts/sweep_overhead.py --workers 2 1 --cluster --docs ;;
     *) echo "regenerate_docs: unknown part '$part'" >&2; exit 2 ;;
   esac
 done

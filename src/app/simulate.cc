@@ -3,7 +3,9 @@
 // Loads a scene (with --set overrides), runs it to its duration in chunks of simulation time,
 // and writes a JSON summary, a state trace, an event log, per-kernel outcomes and contact force
 // samples on request. Exit status: 0 on success, 1 when the integrator failed, 2 for a bad scene
-// or command line.
+// or command line. --check only loads and validates the scene (with its overrides) and prints it
+// resolved; --check-batch does that for every line of a file (scripts/sweep validates a whole
+// sweep in one process).
 //
 // Sampling: the state trace is written every kChunk_s (times --trace-every). Contacts are
 // sampled after every advanceTo(), at least every time the fastest body could cover the
@@ -15,11 +17,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -37,7 +41,7 @@ const char kUsage[] =
     "[--dt S] [--tolerance X] [--set-file FILE.yaml]... [--set key.path=value]... "
     "[--summary FILE.json] [--trace FILE.csv] [--trace-every N] [--events FILE.csv] "
     "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--modes] [--quiet] "
-    "[--print-schema]";
+    "[--print-schema] [--check] [--check-batch FILE]";
 
 // Simulation time between two trace samples / progress checks [s].
 constexpr double kChunk_s = 1e-4;
@@ -72,6 +76,8 @@ struct Options {
   int trace_every = 1;
   bool modes = false;
   bool quiet = false;
+  bool check = false;            // validate and print the resolved scene, do not run
+  std::string check_batch_path;  // lines of tab-separated arguments to validate, "-" = stdin
   bool help = false;
   bool print_schema = false;  // print the scene key table (types, units, ranges) and exit
 };
@@ -149,6 +155,10 @@ Options parseOptions(int argc, char** argv) {
       }
     } else if (arg == "--modes") {
       options.modes = flag();
+    } else if (arg == "--check") {
+      options.check = flag();
+    } else if (arg == "--check-batch") {
+      options.check_batch_path = value();
     } else if (arg == "--quiet") {
       options.quiet = flag();
     } else if (arg == "--print-schema") {
@@ -163,8 +173,10 @@ Options parseOptions(int argc, char** argv) {
       throw UsageError("more than one scene file ('" + options.scene_path + "', '" + arg + "')");
     }
   }
-  if (options.scene_path.empty() && !options.help && !options.print_schema)
+  if (options.scene_path.empty() && !options.help && !options.print_schema &&
+      options.check_batch_path.empty()) {
     throw UsageError("no scene file given");
+  }
 
   // Sugar options, after the --set ones.
   if (duration) options.overrides.push_back("duration=" + *duration);
@@ -388,6 +400,146 @@ int run(const Model& model, const DamageThresholds& damage, const Options& optio
   return failed ? 1 : 0;
 }
 
+// ---------------------------------------------------------------------------------------------
+// --check and --check-batch: validation without a run.
+
+// Override files first, so that --set wins over them.
+std::vector<std::string> collectOverrides(const Options& options) {
+  std::vector<std::string> overrides;
+  for (const std::string& path : options.set_files) {
+    const std::vector<std::string> from_file = overridesFromFile(path);
+    overrides.insert(overrides.end(), from_file.begin(), from_file.end());
+  }
+  overrides.insert(overrides.end(), options.overrides.begin(), options.overrides.end());
+  return overrides;
+}
+
+// --check-batch: the tree of each scene with each list of override files applied, parsed once
+// for all the lines that share them (key: scene path and file paths, tab-separated).
+using TreeCache = std::map<std::string, YAML::Node>;
+
+// The scene's tree with its override files applied (from the cache when given).
+YAML::Node sceneWithFiles(const Options& options, TreeCache* cache) {
+  std::string key = options.scene_path;
+  for (const std::string& path : options.set_files) key += "\t" + path;
+  if (cache != nullptr && cache->count(key) != 0) return YAML::Clone(cache->at(key));
+  YAML::Node root = loadSceneYaml(options.scene_path);
+  for (const std::string& path : options.set_files) {
+    for (const std::string& assignment : overridesFromFile(path)) applyOverride(&root, assignment);
+  }
+  if (cache != nullptr) (*cache)[key] = YAML::Clone(root);
+  return root;
+}
+
+// The tree as one line of flow-style YAML. Plain scalars made of safe characters are written
+// as they are (yaml-cpp's emitter checks every scalar: a large part of a check's time); any
+// other scalar goes through the emitter.
+void writeFlow(const YAML::Node& node, std::string* out) {
+  if (node.IsMap() || node.IsSequence()) {
+    *out += node.IsMap() ? "{" : "[";
+    bool first = true;
+    for (const auto& item : node) {
+      if (!first) *out += ", ";
+      first = false;
+      if (node.IsMap()) {
+        writeFlow(item.first, out);
+        *out += ": ";
+        writeFlow(item.second, out);
+      } else {
+        writeFlow(item, out);
+      }
+    }
+    *out += node.IsMap() ? "}" : "]";
+    return;
+  }
+  const std::string& text = node.IsScalar() ? node.Scalar() : std::string();
+  const bool plain = node.IsScalar() && node.Tag() != "!" && !text.empty() &&
+                     std::all_of(text.begin(), text.end(), [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' ||
+                              c == '+' || c == '-';
+                     });
+  if (plain) {
+    *out += text;
+    return;
+  }
+  YAML::Emitter emitter;
+  emitter << YAML::Flow << node;
+  std::string emitted = emitter.c_str();
+  std::replace(emitted.begin(), emitted.end(), '\n', ' ');
+  *out += emitted;
+}
+
+// A copy of the tree for validation in which every contact restitution that is a number in
+// [0, 1] reads 1. Compiling matches a Hunt-Crossley factor to each restitution (tens of ms, a
+// function of the restitution alone, whose only check is that range); with 1 it costs nothing,
+// and every other check runs on the real values. Others are kept for the loader to refuse.
+YAML::Node withoutRestitutionFit(const YAML::Node& root) {
+  YAML::Node copy = YAML::Clone(root);
+  // Looked up through const nodes: a non-const operator[] would add missing keys.
+  const YAML::Node contact = root.IsMap() ? root["contact"] : YAML::Node();
+  if (!contact.IsMap()) return copy;
+  for (const auto& pair : contact) {
+    const YAML::Node law = pair.second;
+    const YAML::Node e = law.IsMap() ? law["restitution"] : YAML::Node();
+    double value = 0;
+    if (e.IsScalar() && e.Tag() != "!" && YAML::convert<double>::decode(e, value) && value >= 0.0 &&
+        value <= 1.0) {
+      copy["contact"][pair.first.Scalar()]["restitution"] = 1.0;
+    }
+  }
+  return copy;
+}
+
+// Loads, overrides, validates and compiles the scene as a run would, and returns the resolved
+// scene (every override applied) as one line of flow-style YAML. Throws SceneError.
+std::string resolvedScene(const Options& options, TreeCache* cache = nullptr) {
+  YAML::Node root = sceneWithFiles(options, cache);
+  for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
+  try {
+    modelFromYaml(withoutRestitutionFit(root));
+    damageFromYaml(root);
+  } catch (const SceneError& e) {
+    throw SceneError(options.scene_path + ": " + e.what());
+  }
+  std::string text;
+  writeFlow(root, &text);
+  return text;
+}
+
+// Each line of the file: the arguments of one run (scene, --set, --set-file, ...) separated by
+// tabs. Prints one line per input line, "ok<TAB>resolved scene" or "error<TAB>message".
+// Returns 0 when every line is valid, else 2.
+int checkBatch(const std::string& path) {
+  std::ifstream file;
+  if (path != "-") {
+    file.open(path);
+    if (!file) throw OptionError("cannot open --check-batch file '" + path + "'");
+  }
+  std::istream& in = path == "-" ? std::cin : file;
+  int status = 0;
+  TreeCache cache;
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> args = {"simulate"};
+    for (size_t start = 0, tab = 0; tab != std::string::npos; start = tab + 1) {
+      tab = line.find('\t', start);
+      args.push_back(line.substr(start, tab == std::string::npos ? tab : tab - start));
+    }
+    std::vector<char*> argv;
+    for (std::string& arg : args) argv.push_back(arg.data());
+    try {
+      const std::string scene =
+          resolvedScene(parseOptions(static_cast<int>(argv.size()), argv.data()), &cache);
+      std::cout << "ok\t" << scene << "\n";
+    } catch (const std::exception& e) {
+      std::string message = e.what();
+      std::replace(message.begin(), message.end(), '\n', ' ');
+      std::cout << "error\t" << message << "\n";
+      status = 2;
+    }
+  }
+  return status;
+}
+
 }  // namespace
 }  // namespace threshing_sim
 
@@ -403,15 +555,13 @@ int main(int argc, char** argv) {
       std::cout << sceneSchemaTable();
       return 0;
     }
-    // Override files first, so that --set wins over them.
-    std::vector<std::string> overrides;
-    for (const std::string& path : options.set_files) {
-      const std::vector<std::string> from_file = overridesFromFile(path);
-      overrides.insert(overrides.end(), from_file.begin(), from_file.end());
+    if (!options.check_batch_path.empty()) return checkBatch(options.check_batch_path);
+    if (options.check) {
+      std::cout << resolvedScene(options) << "\n";
+      return 0;
     }
-    overrides.insert(overrides.end(), options.overrides.begin(), options.overrides.end());
     DamageThresholds damage;
-    const Model model = loadScene(options.scene_path, overrides, &damage);
+    const Model model = loadScene(options.scene_path, collectOverrides(options), &damage);
     if (options.modes) {
       printModes(model);
       return 0;

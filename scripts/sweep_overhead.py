@@ -1,0 +1,173 @@
+#!/usr/bin/python3
+"""Measures the sweep runner's overhead (docs/sweeps.md, "Overhead").
+
+Runs `scripts/sweep run SWEEP` from scratch (fresh output folder, nothing cached) as a child
+process and compares its wall time with the runs' own CPU time (user + system of each simulate
+process, from wait4, column cpu_s of runs.csv) divided by the workers:
+
+  ratio         = wall / (sum of the runs' CPU / workers)          target <= 1.10
+  overhead/run  = (wall * workers - sum of the runs' CPU) / runs   core time lost per run
+  runner CPU    = CPU of the whole command tree (wait4) - sum of the runs' CPU
+
+With --cluster it also starts a dask-scheduler and two dask-workers on 127.0.0.1, runs the same
+sweep against them and checks that the table equals the local one apart from wall/CPU times and
+worker names. The load average is printed before and after: the ratio only means something on
+a machine that is otherwise idle.
+"""
+import argparse
+import csv
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "scripts"))
+
+from sweeplib import cluster as cluster_module  # noqa: E402
+from sweeplib import runner  # noqa: E402
+
+
+def timed_sweep(args, out, extra):
+    """Runs the sweep command; returns (wall [s], CPU of the command tree [s], stderr)."""
+    shutil.rmtree(out, ignore_errors=True)
+    command = [sys.executable, str(ROOT / "scripts/sweep"), "run", args.sweep, "--out", str(out)]
+    if args.simulate:
+        command += ["--simulate", args.simulate]
+    started = time.perf_counter()
+    with open(out.parent / f"{out.name}.log", "w") as log:
+        proc = subprocess.Popen(command + extra, stdout=log, stderr=log)
+        _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - started
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    text = (out.parent / f"{out.name}.log").read_text()
+    if proc.returncode != 0:
+        raise SystemExit(f"sweep failed ({proc.returncode}):\n{text}")
+    # wait4's usage covers the command and every descendant it reaped: the simulate processes
+    # and, with worker processes, the workers.
+    return wall, usage.ru_utime + usage.ru_stime, text
+
+
+def table_stats(out):
+    with open(out / "runs.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    bad = [r for r in rows if r["status"] != "ok"]
+    return len(rows), sum(float(r["cpu_s"]) for r in rows), bad
+
+
+def report(label, workers, wall, tree_cpu, n, run_cpu):
+    """Lines of the measurement; returns them with the ratio."""
+    ideal = run_cpu / workers
+    lines = [f"{label}: {n} runs on {workers} workers",
+             f"  wall {wall:.2f} s; runs' own CPU {run_cpu:.2f} s ({1e3 * run_cpu / n:.1f} ms "
+             f"per run); CPU / workers {ideal:.2f} s",
+             f"  ratio wall / (CPU / workers) = {wall / ideal:.3f} (target <= 1.10)",
+             f"  overhead per run = {1e3 * (wall * workers - run_cpu) / n:.2f} ms of core time",
+             f"  runner CPU (command tree - runs) = {tree_cpu - run_cpu:.2f} s "
+             f"({1e3 * (tree_cpu - run_cpu) / n:.2f} ms per run, "
+             f"{100 * (tree_cpu - run_cpu) / run_cpu:.1f} % of the runs' CPU)"]
+    print("\n".join(lines), flush=True)
+    return lines, wall / ideal
+
+
+def load():
+    return " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def replace_section(path, name, body):
+    """Puts body between <!-- name --> and <!-- name-end --> in the file."""
+    text = path.read_text()
+    begin, end = f"<!-- {name} -->", f"<!-- {name}-end -->"
+    i, j = text.find(begin), text.find(end)
+    if i < 0 or j < i:
+        raise SystemExit(f"{path}: no {begin} ... {end} markers")
+    path.write_text(text[:i + len(begin)] + "\n" + body.rstrip("\n") + "\n" + text[j:])
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sweep", default=str(ROOT / "config/sweeps/single_strike_1000.yaml"))
+    parser.add_argument("--simulate", help="simulate binary (default: the built one)")
+    parser.add_argument("--workers", type=int, nargs="+", default=[os.cpu_count()],
+                        help="local cluster sizes to measure (default: the number of cores)")
+    parser.add_argument("--out", default=str(ROOT / "out/sweep_overhead"))
+    parser.add_argument("--cluster", action="store_true", help="also run the sweep on a "
+                        "scheduler with two workers on 127.0.0.1 and compare the tables")
+    parser.add_argument("--docs", action="store_true", help="write the results into "
+                        "docs/sweeps.md and the README (sections sweep-overhead), and the "
+                        "first plot of the sweep's report into docs/sweeps/")
+    args = parser.parse_args()
+    out = pathlib.Path(args.out)
+    # SIGTERM ends like Ctrl-C, so that the cluster started here is stopped.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
+    out.mkdir(parents=True, exist_ok=True)
+    cores = os.cpu_count()
+    text = [f"Measured by `scripts/sweep_overhead.py{' --cluster' if args.cluster else ''}"
+            f"{' --workers ' + ' '.join(map(str, args.workers)) if args.workers != [cores] else ''}"
+            f"` on {os.path.relpath(args.sweep, ROOT)} ({cores} cores):", ""]
+    summary = []
+    for workers in args.workers:
+        before = load()
+        local = out / f"local_{workers}"
+        wall, tree_cpu, _ = timed_sweep(args, local, ["--workers", str(workers)])
+        n, run_cpu, bad = table_stats(local)
+        lines, ratio = report(f"local cluster, {workers} worker(s)", workers, wall, tree_cpu,
+                              n, run_cpu)
+        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
+        if bad:
+            lines.append(f"  {len(bad)} runs not ok, e.g. run {bad[0]['run']}: "
+                         f"{bad[0]['status']} {bad[0]['message']}")
+        print(lines[-1])
+        text += lines
+        summary.append((workers, ratio, 1e3 * (wall * workers - run_cpu) / n,
+                        1e3 * (tree_cpu - run_cpu) / n, before))
+    first = out / f"local_{args.workers[0]}"
+    if args.cluster:
+        with cluster_module.LoopbackCluster(out / "cluster_processes", workers=2) as cluster:
+            remote = out / "cluster"
+            wall, _, _ = timed_sweep(args, remote, ["--scheduler", cluster.address])
+        n2, run_cpu2, _ = table_stats(remote)
+        diffs = runner.compare_tables(first / "runs.csv", remote / "runs.csv")
+        lines = [f"scheduler with two dask-worker processes on 127.0.0.1: {n2} runs, wall "
+                 f"{wall:.2f} s, ratio {wall / (run_cpu2 / 2):.3f}",
+                 "  table equal to the local one apart from wall_s, cpu_s, worker" if not diffs
+                 else f"  {len(diffs)} differences from the local table, e.g. {diffs[0]}"]
+        print("\n".join(lines))
+        text += lines
+        summary.append(("cluster", not diffs))
+    if args.docs:
+        subprocess.run([sys.executable, str(ROOT / "scripts/sweep"), "report", str(first)],
+                       check=True, timeout=600)
+        figures = ROOT / "docs/sweeps"
+        figures.mkdir(parents=True, exist_ok=True)
+        plot = sorted(first.glob("plot_0_*.png"))[0]
+        shutil.copy(plot, figures / "peak_normal_force.png")
+        replace_section(ROOT / "docs/sweeps.md", "sweep-overhead",
+                        "```\n" + "\n".join(text) + "\n```")
+        replace_section(ROOT / "README.md", "sweep-overhead-readme", readme_text(summary))
+    return 1 if args.cluster and not summary[-1][1] else 0
+
+
+def readme_text(summary):
+    parts = []
+    for entry in summary:
+        if entry[0] == "cluster":
+            parts.append("the same sweep on a scheduler with two workers gave "
+                         + ("a table equal to the local one apart from wall times"
+                            if entry[1] else "a different table"))
+            continue
+        workers, ratio, overhead_ms, runner_ms, before = entry
+        parts.append(f"on {workers} worker(s), wall / (runs' CPU / workers) = {ratio:.2f} and "
+                     f"{overhead_ms:.1f} ms of overhead per run (the runner's own CPU: "
+                     f"{runner_ms:.1f} ms per run; load average {before.split()[0]} before)")
+    return ("**Overhead** (`scripts/sweep_overhead.py`, the 1000 single-strike runs of "
+            "`config/sweeps/single_strike_1000.yaml`): " + "; ".join(parts) +
+            ". Details and conditions: [`docs/sweeps.md`](docs/sweeps.md#overhead).")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,401 @@
+"""Runs a sweep on Dask distributed: a local cluster by default, or an existing scheduler.
+
+Results are cached in OUT/sweep.sqlite by run key (hash of the resolved scene, the binary and
+the kept outputs): runs with status ok or failed (deterministic) are not run again, so an
+interrupted sweep resumes where it stopped. Crashes, timeouts and errors are recorded but run
+again by the next invocation. The table (OUT/runs.csv, one row per run, and the `runs` table
+of OUT/sweep.sqlite) is written as results arrive and rewritten in sweep order at the end.
+"""
+import csv
+import io
+import json
+import math
+import os
+import pathlib
+import sqlite3
+import sys
+import time
+
+from . import spec as spec_module
+from . import task as task_module
+
+META_COLUMNS = ["run", "status", "message"]
+TAIL_COLUMNS = ["wall_s", "cpu_s", "worker", "key"]
+# Columns that may differ between two runs of the same sweep (where and how fast it ran).
+VOLATILE_COLUMNS = {"wall_s", "cpu_s", "worker"}
+CACHED_STATUSES = {"ok", "failed"}
+
+
+class Cache:
+    """Run results by key, in SQLite (WAL, one commit per result)."""
+
+    def __init__(self, path):
+        self.db = sqlite3.connect(str(path), timeout=30)
+        self.db.execute("PRAGMA journal_mode=WAL")
+        self.db.execute("PRAGMA synchronous=NORMAL")
+        self.db.execute("CREATE TABLE IF NOT EXISTS cache (key TEXT PRIMARY KEY, result TEXT)")
+        self.db.commit()
+
+    def load(self, keys):
+        found = {}
+        keys = list(keys)
+        for i in range(0, len(keys), 500):
+            chunk = keys[i:i + 500]
+            marks = ",".join("?" * len(chunk))
+            for key, text in self.db.execute(
+                    f"SELECT key, result FROM cache WHERE key IN ({marks})", chunk):
+                found[key] = json.loads(text)
+        return found
+
+    def store(self, result):
+        if result["status"] in CACHED_STATUSES:
+            self.db.execute("INSERT OR REPLACE INTO cache VALUES (?, ?)",
+                            (result["key"], json.dumps(result)))
+            self.db.commit()
+
+
+def _lookup(summary, path):
+    value = summary
+    for part in path.split("."):
+        if isinstance(value, list) and part.isdigit() and int(part) < len(value):
+            value = value[int(part)]
+        elif isinstance(value, dict) and part in value:
+            value = value[part]
+        else:
+            return None
+    return value
+
+
+class Table:
+    """Turns results into rows and writes them: CSV (incrementally) and SQLite."""
+
+    def __init__(self, sweep, out, db):
+        self.sweep = sweep
+        self.columns = (["run"] + sweep.axis_columns() + META_COLUMNS[1:] +
+                        list(sweep.outcomes) + list(sweep.derived) + TAIL_COLUMNS)
+        self.csv_path = out / "runs.csv"
+        self.kernels_path = out / "kernels.csv"
+        self.files_dir = out / "files"
+        self.db = db
+        self.rows = {}        # run index -> row
+        self.kernels = {}     # run index -> list of per-kernel rows
+        self.file = open(self.csv_path, "w", newline="")
+        self.writer = csv.DictWriter(self.file, self.columns, extrasaction="ignore")
+        self.writer.writeheader()
+
+    def row(self, run, result):
+        row = {"run": run.index, **run.labels, "status": result["status"],
+               "message": result["message"], "wall_s": round(result["wall_s"], 6),
+               "cpu_s": round(result["cpu_s"], 6), "worker": result["worker"], "key": run.key}
+        summary = None
+        if result["summary"]:
+            try:
+                summary = json.loads(result["summary"])
+            except ValueError:
+                row["status"], row["message"] = "error", "unreadable summary"
+        if summary is not None and result["status"] == "failed":
+            row["message"] = summary.get("status", row["message"])
+        for column, path in self.sweep.outcomes.items():
+            value = _lookup(summary, path) if summary is not None else None
+            row[column] = "" if value is None else value
+        for column, expression in self.sweep.derived.items():
+            value = expression.evaluate(row)
+            row[column] = "" if math.isnan(value) else value
+        return row
+
+    def add(self, run, result):
+        row = self.row(run, result)
+        self.rows[run.index] = row
+        self.writer.writerow(row)
+        self.file.flush()
+        if result["outcomes"]:
+            reader = csv.DictReader(io.StringIO(result["outcomes"]))
+            self.kernels[run.index] = [{"run": run.index, **run.labels, **k} for k in reader]
+        # Runs that keep outputs get a folder with them, the summary and the outcomes.
+        files = {f"{name}.csv": text for name, text in (result.get("files") or {}).items()}
+        if files:
+            files.update({"summary.json": result["summary"], "outcomes.csv": result["outcomes"]})
+            folder = self.files_dir / run.key
+            folder.mkdir(parents=True, exist_ok=True)
+            for name, text in files.items():
+                if text is not None:
+                    (folder / name).write_text(text)
+        return row
+
+    def finish(self):
+        """Rewrites the CSV files and the SQLite tables in sweep order."""
+        self.file.close()
+        ordered = [self.rows[i] for i in sorted(self.rows)]
+        _write_csv(self.csv_path, self.columns, ordered)
+        kernels = [k for i in sorted(self.kernels) for k in self.kernels[i]]
+        kernel_columns = list(kernels[0]) if kernels else ["run"]
+        _write_csv(self.kernels_path, kernel_columns, kernels)
+        _write_sqlite(self.db, "runs", self.columns, ordered)
+        _write_sqlite(self.db, "kernels", kernel_columns, kernels)
+
+
+def _write_csv(path, columns, rows):
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, columns, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(tmp, path)
+
+
+def _write_sqlite(db, name, columns, rows):
+    quoted = ", ".join(f'"{c}"' for c in columns)
+    db.execute(f'DROP TABLE IF EXISTS "{name}"')
+    db.execute(f'CREATE TABLE "{name}" ({quoted})')
+    db.executemany(f'INSERT INTO "{name}" VALUES ({", ".join("?" * len(columns))})',
+                   [[_sql_value(r.get(c)) for c in columns] for r in rows])
+    db.commit()
+
+
+def _sql_value(value):
+    if value is None or isinstance(value, (int, float, str)):
+        return value
+    return json.dumps(value)
+
+
+# ------------------------------------------------------------------------------------------
+
+class Progress:
+    """done/total, failures, elapsed and ETA on stderr: one rewritten line on a terminal, a
+    line every 10 % otherwise."""
+
+    def __init__(self, total, done=0, stream=sys.stderr):
+        self.total, self.done, self.failed = total, done, 0
+        self.first = done
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.started = time.monotonic()
+        self.last = 0.0
+        self.decile = -1
+
+    def update(self, status):
+        self.done += 1
+        self.failed += status != "ok"
+        now = time.monotonic()
+        decile = 10 * self.done // max(self.total, 1)
+        if self.done == self.total or (self.tty and now - self.last > 0.25) or \
+                (not self.tty and decile != self.decile):
+            self.last, self.decile = now, decile
+            self.draw(now)
+
+    def draw(self, now):
+        elapsed = now - self.started
+        fresh = self.done - self.first
+        left = self.total - self.done
+        eta = f"{elapsed / fresh * left:.0f} s" if fresh else "?"
+        width = 30
+        filled = width * self.done // max(self.total, 1)
+        line = (f"[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} runs, "
+                f"{self.failed} failed, {elapsed:.0f} s, ETA {eta}")
+        self.stream.write(("\r" + line) if self.tty else line + "\n")
+        if self.tty and self.done == self.total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+# ------------------------------------------------------------------------------------------
+
+def _connect(scheduler, workers, processes):
+    """A Dask client: to an existing scheduler, or to a new local cluster of `workers`
+    single-threaded workers (processes, or threads of this process)."""
+    import logging
+
+    import cloudpickle
+    import dask
+    from distributed import Client, LocalCluster
+
+    # Workers need nothing from this repository: the task module travels by value.
+    cloudpickle.register_pickle_by_value(task_module)
+    if scheduler:
+        return Client(scheduler, timeout=30), None
+    # The local cluster shares the cores with the runs: no statistical profiler (a sample of
+    # every thread each 10 ms), no work stealing (the scheduler queues the batches), and
+    # slower health checks and memory monitor.
+    dask.config.set({"distributed.worker.profile.enabled": False,
+                     "distributed.scheduler.work-stealing": False,
+                     "distributed.admin.tick.interval": "500ms",
+                     "distributed.worker.memory.monitor-interval": "1s"})
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=None,
+              processes=False, batch=None, progress_stream=sys.stderr, log=print):
+    """Runs every run not in the cache; returns the table (rows in sweep order) and stats."""
+    out.mkdir(parents=True, exist_ok=True)
+    cache = Cache(out / "sweep.sqlite")
+    table = Table(sweep, out, cache.db)
+    cached = cache.load({r.key for r in runs})
+    by_key = {}
+    for run in runs:
+        by_key.setdefault(run.key, []).append(run)
+    for run in runs:
+        if run.key in cached:
+            table.add(run, cached[run.key])
+    todo = [key for key in by_key if key not in cached]
+    log(f"sweep {sweep.name}: {len(runs)} runs, {len(runs) - sum(len(by_key[k]) for k in todo)}"
+        f" from the cache, {sum(len(by_key[k]) for k in todo)} to run -> {out}")
+    progress = Progress(len(runs), len(runs) - sum(len(by_key[k]) for k in todo),
+                        progress_stream)
+    stats = {"runs": len(runs), "cached": len(runs) - sum(len(by_key[k]) for k in todo)}
+    started = time.monotonic()
+    if todo:
+        _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes,
+                  cache, table, progress, stats, batch)
+    stats["dispatch_s"] = time.monotonic() - started
+    table.finish()
+    rows = [table.rows[i] for i in sorted(table.rows)]
+    stats["failed"] = sum(r["status"] != "ok" for r in rows)
+    return rows, stats
+
+
+def batch_size(n_runs, workers):
+    """Runs per Dask task: up to 8, and at least 16 tasks per worker, so that the task overhead
+    (about 1 ms) is spread over several runs and the last tasks still balance the workers."""
+    return max(1, min(8, math.ceil(n_runs / (16 * max(workers, 1)))))
+
+
+def _error_result(key, message):
+    return {"key": key, "status": "error", "message": message, "summary": None,
+            "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": ""}
+
+
+def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes, cache,
+              table, progress, stats, batch=None):
+    """Sends the runs in batches (task.run_batch); results arrive one by one on a Pub/Sub
+    topic as each run ends. Runs whose batch finished without their result (a lost message)
+    are sent again one per task, returning their result."""
+    import queue
+    import uuid
+
+    from distributed import Sub, Variable
+
+    client, cluster = _connect(scheduler, workers or os.cpu_count() or 1, processes)
+    try:
+        threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
+        stats["workers"] = threads
+        payload = {key: {"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
+                         "sha": binary_sha, "timeout_s": sweep.timeout_s,
+                          "keep": by_key[key][0].keep}
+                   for key in todo}
+        topic = f"threshing-sweep-{uuid.uuid4().hex}"
+        sub = Sub(topic, client=client)
+        done_keys = Variable(topic + "-done", client=client)
+        done_keys.set([])
+        departures = queue.Queue()
+        client.subscribe_topic("all", lambda event: departures.put(event)
+                               if event[1].get("action") == "remove-worker" else None)
+        k = batch or batch_size(len(todo), threads)
+        stats["batch"] = k
+        batches = [todo[i:i + k] for i in range(0, len(todo), k)]
+        # One map call: every submit call would read the caller's source (Dask records it).
+        futures = client.map(task_module.run_batch,
+                             [[payload[key] for key in keys] for keys in batches],
+                             [topic] * len(batches),
+                             key=[f"{topic}-batch-{i}" for i in range(len(batches))], pure=False)
+        pending = set(todo)
+
+        def accept(result):
+            if result["key"] not in pending:
+                return  # a run redone after a worker died: the first result stands
+            pending.discard(result["key"])
+            cache.store(result)
+            for run in by_key[result["key"]]:
+                table.add(run, result)
+                progress.update(result["status"])
+
+        deadline = None
+        # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
+        # (a Sub.get per result would cost a round trip through the event loop).
+        buffered = getattr(sub, "buffer", None)
+        checked = time.monotonic()
+        while pending:
+            if buffered is not None:
+                if buffered:
+                    accept(buffered.popleft())
+                    continue
+                if time.monotonic() - checked < 0.2:
+                    time.sleep(0.005)
+                    continue
+                checked = time.monotonic()
+            else:
+                try:
+                    accept(sub.get(timeout=0.2))
+                    continue
+                except TimeoutError:
+                    pass
+            if not departures.empty():
+                while not departures.empty():
+                    departures.get()
+                done_keys.set([key for key in todo if key not in pending])
+            if all(f.done() for f in futures):
+                # Every batch ended. Results of the batches that finished are at most a moment
+                # behind; those of failed batches (e.g. KilledWorker) will not come.
+                expected = {key for f, keys in zip(futures, batches) if f.status == "finished"
+                            for key in keys} & pending
+                deadline = deadline or time.monotonic() + 10
+                if not expected or time.monotonic() > deadline:
+                    break
+        if pending:
+            _run_singly(client, [payload[key] for key in todo if key in pending], accept)
+        client.unsubscribe_topic("all")
+        del sub
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _run_singly(client, payloads, accept):
+    """One task per run, results returned by the tasks (the fallback path)."""
+    from distributed import as_completed
+
+    futures = client.map(task_module.run_simulate, payloads,
+                         key=[f"threshing-run-{p['key']}" for p in payloads], pure=False)
+    key_of = {f.key: p["key"] for f, p in zip(futures, payloads)}
+    for future in as_completed(futures):
+        if future.status == "finished":
+            accept(future.result())
+        else:
+            error = future.exception()
+            accept(_error_result(key_of[future.key], f"{type(error).__name__}: {error}"))
+        future.release()
+
+
+def compare_tables(a_path, b_path):
+    """Differences between two runs.csv files apart from the volatile columns (wall and CPU
+    time, worker): a list of messages, empty when equal."""
+    def load(path):
+        with open(path, newline="") as f:
+            return list(csv.DictReader(f))
+    a, b = load(a_path), load(b_path)
+    if not a or not b:
+        return [f"empty table: {a_path if not a else b_path}"]
+    if list(a[0]) != list(b[0]):
+        return [f"columns differ: {list(a[0])} != {list(b[0])}"]
+    if len(a) != len(b):
+        return [f"{len(a)} rows != {len(b)} rows"]
+    diffs = []
+    for ra, rb in zip(a, b):
+        for column in ra:
+            if column not in VOLATILE_COLUMNS and ra[column] != rb[column]:
+                diffs.append(f"run {ra['run']}: {column} {ra[column]!r} != {rb[column]!r}")
+    return diffs
+
+
+def binary_sha(simulate):
+    return spec_module.file_sha256(simulate)
+
+
+def resolve_simulate(path, root):
+    candidate = pathlib.Path(path) if path else root / ".build/ws/devel/lib/threshing_sim/simulate"
+    if not (candidate.is_file() and os.access(candidate, os.X_OK)):
+        raise SystemExit(f"simulate not found at {candidate}; build it (scripts/setup.sh) or "
+                         "pass --simulate PATH")
+    return candidate.resolve()

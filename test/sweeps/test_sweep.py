@@ -1,0 +1,320 @@
+#!/usr/bin/python3
+"""Sweep runner tests on a real Dask cluster on this machine (scripts/sweep, docs/sweeps.md).
+
+Starts a dask-scheduler and two dask-worker processes (no nanny) on 127.0.0.1 and runs the
+small sweep (config/sweeps/small.yaml) against them; checks that its table equals the one of
+a local-cluster run apart from wall/CPU times and worker names, that killing one worker in the
+middle of the sweep loses no result, that a sweep interrupted in the middle resumes from the
+cache, and that failures (crash, timeout) are recorded without stopping the sweep, and that a
+bad axis is refused before anything runs. Every wait has a timeout; every process started here
+is killed at the end. Writes a JUnit XML file (--xml) for scripts/test.sh's count.
+"""
+import argparse
+import csv
+import math
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import unittest
+import xml.etree.ElementTree as ET
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "scripts"))
+from sweeplib.cluster import LoopbackCluster, wait_for  # noqa: E402
+
+SWEEP = ROOT / "scripts/sweep"
+SMALL = ROOT / "config/sweeps/small.yaml"
+ARGS = None  # command line (simulate, out)
+
+
+def rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def sweep(*args, timeout=120):
+    """Runs scripts/sweep; returns the completed process (output captured)."""
+    return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout)
+
+
+class SweepTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.out = pathlib.Path(ARGS.out)
+        shutil.rmtree(cls.out, ignore_errors=True)
+        cls.out.mkdir(parents=True)
+        cls.simulate = ARGS.simulate
+        # The reference: the small sweep on a local cluster of two workers.
+        cls.local = cls.out / "local"
+        proc = sweep("run", SMALL, "--simulate", cls.simulate, "--out", cls.local,
+                     "--workers", 2)
+        assert proc.returncode == 0, proc.stderr
+        cls.cluster = LoopbackCluster(cls.out / "cluster_processes", workers=2)
+        try:
+            cls.cluster.start()
+        except BaseException:
+            cls.cluster.stop()
+            raise
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.cluster.stop()
+
+    def test_local_table(self):
+        table = rows(self.local / "runs.csv")
+        self.assertEqual(len(table), 18)
+        self.assertEqual([int(r["run"]) for r in table], list(range(18)))
+        self.assertTrue(all(r["status"] == "ok" for r in table), table)
+        # Axis columns, in sweep order: tooth slowest, seed fastest.
+        self.assertEqual(table[0]["tooth"], "rigid")
+        self.assertEqual(table[-1]["tooth"], "polyurethane")
+        self.assertEqual([r["drum_speed_rpm"] for r in table[:6]],
+                         ["800", "800", "1000", "1000", "1200", "1200"])
+        self.assertEqual([r["seed"] for r in table[:2]], ["1", "2"])
+        for r in table:
+            self.assertGreater(float(r["cpu_s"]), 0)
+            self.assertAlmostEqual(float(r["damage_fraction"]),
+                                   float(r["damaged"]) / float(r["kernels"]))
+        # Seeds give different streams, so different numbers.
+        self.assertNotEqual(table[0]["peak_normal_force_N"], table[1]["peak_normal_force_N"])
+        kernels = rows(self.local / "kernels.csv")
+        self.assertEqual(len(kernels), 18 * 4)
+
+    def test_report(self):
+        proc = sweep("report", self.local)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        report = (self.local / "report.md").read_text()
+        self.assertIn("18 runs: 18 ok", report)
+        images = [line.split("](")[1].rstrip(")") for line in report.splitlines()
+                  if line.startswith("![")]
+        self.assertEqual(len(images), 4)  # the four plots of small.yaml's report section
+        for name in images:
+            png = (self.local / name).read_bytes()
+            self.assertEqual(png[1:4], b"PNG", name)
+            self.assertGreater(len(png), 10000, name)
+        self.assertIn("| tooth | drum_speed_rpm | detachment_fraction | damage_fraction |",
+                      report)
+
+    def test_findings_sweep_is_compare_teeth(self):
+        """config/sweeps/findings.yaml resolves, run for run, to the scenes and outputs of
+        compare_teeth.py's sweep (its full one, not --quick)."""
+        import compare_teeth as ct
+        from sweeplib import spec
+        sweep_file = spec.Sweep(ROOT / "config/sweeps/findings.yaml")
+        runs = sweep_file.runs()
+        spec.validate(sweep_file, runs, self.simulate, "sha", jobs=2)
+        mine = {}
+        for r in runs:
+            labels = r.labels
+            modes = labels.get("modes", 0 if labels["group"] == "frozen" else None)
+            mine[(labels["group"], labels["case"], labels["tooth"], labels["drum_speed_rpm"],
+                  modes)] = (r.scene, r.keep)
+        out = self.out / "ct"
+        theirs = [ct.Run(out, "sweep", c, v, r, forces=r == ct.HISTORY_RPM)
+                  for c in ct.CASES for v in ct.VARIANTS for r in ct.RPM_FULL]
+        theirs += [ct.Run(out, "frozen", c, v, r, modes=0)
+                   for c in ct.FROZEN_CASES for v in ct.FLEXIBLE for r in ct.RPM_FULL]
+        theirs += [ct.Run(out, "convergence", "single_strike", v, ct.HISTORY_RPM, modes=m)
+                   for v in ct.FLEXIBLE for m in ct.CONVERGENCE_MODES]
+        self.assertEqual(len(mine), len(theirs))
+        commands = [t.command(self.simulate) for t in theirs]
+        text = "".join("\t".join(c[1:c.index("--summary")]) + "\n" for c in commands)
+        answer = subprocess.run([self.simulate, "--check-batch", "-"], input=text, text=True,
+                                capture_output=True, timeout=120).stdout.splitlines()
+        self.assertEqual(len(answer), len(theirs))
+        for t, line in zip(theirs, answer):
+            scene, keep = mine[(t.group, t.case, t.variant, t.rpm, t.modes)]
+            self.assertEqual(line, "ok\t" + scene, t.label())
+            self.assertEqual(keep, sorted(["events"] + (["forces"] if t.forces else [])))
+
+    def test_rpm_and_range(self):
+        """800 rpm reaches the scene as 800 (pi / 30) rad/s (compare_teeth.py's conversion):
+        the same numbers, to the last bit, as simulate run by hand with that drum speed."""
+        summary = self.out / "hand.json"
+        subprocess.run([self.simulate, str(ROOT / "config/scenes/stream.yaml"), "--set-file",
+                        str(ROOT / "config/scenes/teeth/rigid.yaml"), "--set",
+                        "stream.count=4", "--set", "duration=0.004", "--set",
+                        f"drum.speed={800 * (math.pi / 30)!r}", "--set", "stream.seed=1",
+                        "--summary", str(summary), "--quiet"], check=True, timeout=60)
+        import json
+        hand = json.loads(summary.read_text())["outcomes"]["peak_normal_force_N"]
+        self.assertEqual(rows(self.local / "runs.csv")[0]["peak_normal_force_N"], repr(hand))
+
+    def test_cluster_equals_local_despite_killed_worker(self):
+        out = self.out / "cluster"
+        log = open(self.out / "cluster_sweep.log", "w")
+        client = subprocess.Popen(
+            [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
+             "--out", str(out), "--scheduler", self.cluster.address, "--batch", "3"],
+            stdout=log, stderr=log, start_new_session=True)
+        try:
+            # Kill worker 0 once a third of the runs are in.
+            wait_for(lambda: (out / "runs.csv").exists() and len(rows(out / "runs.csv")) >= 6,
+                     90, "six results")
+            victim = self.cluster.workers[0]
+            os.killpg(victim.pid, signal.SIGKILL)
+            victim.wait(timeout=10)
+            self.assertEqual(client.wait(timeout=120), 0,
+                             (self.out / "cluster_sweep.log").read_text())
+        finally:
+            if client.poll() is None:
+                os.killpg(client.pid, signal.SIGKILL)
+                client.wait(timeout=10)
+        proc = sweep("compare", self.local / "runs.csv", out / "runs.csv")
+        self.assertEqual(proc.returncode, 0, proc.stdout)
+        table = rows(out / "runs.csv")
+        self.assertTrue(all(r["status"] == "ok" for r in table))
+        # Both workers ran some of the runs, and the survivor finished the sweep.
+        hosts = {r["worker"] for r in table}
+        self.assertEqual(len(hosts), 2, hosts)
+        self.assertIn(f":{victim.pid}", " ".join(hosts))
+
+    def test_interrupted_sweep_resumes_from_cache(self):
+        out = self.out / "resume"
+        log = open(self.out / "resume_sweep.log", "w")
+        client = subprocess.Popen(
+            [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
+             "--out", str(out), "--scheduler", self.cluster.address],
+            stdout=log, stderr=log, start_new_session=True)
+        try:
+            wait_for(lambda: (out / "runs.csv").exists() and len(rows(out / "runs.csv")) >= 4,
+                     90, "four results")
+        finally:
+            os.killpg(client.pid, signal.SIGKILL)
+            client.wait(timeout=10)
+        done = len(rows(out / "runs.csv"))
+        self.assertLess(done, 18, "the sweep ended before it was interrupted")
+        proc = sweep("run", SMALL, "--simulate", self.simulate, "--out", out, "--scheduler",
+                     self.cluster.address)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        cached = int(proc.stderr.split(" runs (")[1].split(" from the cache")[0])
+        self.assertGreaterEqual(cached, done)
+        self.assertLess(cached, 18)
+        self.assertEqual(sweep("compare", self.local / "runs.csv", out / "runs.csv").returncode,
+                         0)
+        # A third invocation runs nothing.
+        proc = sweep("run", SMALL, "--simulate", self.simulate, "--out", out, "--workers", 1)
+        self.assertIn("18 runs (18 from the cache)", proc.stderr)
+
+    def test_failures_are_recorded(self):
+        """A crashing run (simulate killed by SIGSEGV) and a run past its timeout (one that
+        hangs) are recorded with their messages; the others complete. A wrapper around the
+        real binary crashes or hangs on chosen scenes."""
+        wrapper = self.out / "crashy_simulate"
+        wrapper.write_text(
+            "#!/bin/sh\n"
+            "for a in \"$@\"; do case \"$a\" in *.yaml)\n"
+            "  grep -q 'restitution: 0.3[},]' \"$a\" && kill -SEGV $$\n"
+            "  grep -q 'duration: 0.003[},]' \"$a\" && exec sleep 60;;\n"
+            "esac; done\n"
+            f"exec {self.simulate} \"$@\"\n")
+        wrapper.chmod(0o755)
+        spec = self.out / "failures.yaml"
+        spec.write_text(
+            f"scene: {ROOT / 'config/scenes/single_strike.yaml'}\n"
+            "axes:\n"
+            "  - {name: e, key: contact.tooth_kernel.restitution, values: [0.48, 0.3]}\n"
+            "  - {name: duration, key: duration, values: [0.002, 0.003]}\n"
+            "timeout: 1.5\n")
+        out = self.out / "failures"
+        proc = sweep("run", spec, "--simulate", wrapper, "--out", out, "--workers", 2)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        table = {(r["e"], r["duration"]): r for r in rows(out / "runs.csv")}
+        self.assertEqual(table[("0.48", "0.002")]["status"], "ok")
+        self.assertEqual(table[("0.3", "0.002")]["status"], "crash")
+        self.assertIn("SIGSEGV", table[("0.3", "0.002")]["message"])
+        self.assertEqual(table[("0.48", "0.003")]["status"], "timeout")
+        self.assertIn("no result after 1.5 s", table[("0.48", "0.003")]["message"])
+        self.assertIn("4 runs (0 from the cache), 3 not ok", proc.stderr)
+
+    def test_bad_axis_refused_before_running(self):
+        spec = self.out / "bad.yaml"
+        spec.write_text(
+            f"scene: {ROOT / 'config/scenes/single_strike.yaml'}\n"
+            "axes:\n"
+            "  - {name: length, key: teeth.*.length, values: [0.06, -0.01]}\n")
+        out = self.out / "bad"
+        proc = sweep("run", spec, "--simulate", self.simulate, "--out", out)
+        self.assertEqual(proc.returncode, 2)
+        self.assertIn("teeth.0.length: must be > 0 (got -0.01)", proc.stderr)
+        self.assertIn("length=-0.01", proc.stderr)
+        self.assertFalse(out.exists(), "a run started before the validation")
+        spec.write_text(
+            f"scene: {ROOT / 'config/scenes/single_strike.yaml'}\n"
+            "axes:\n  - {name: speed, key: drum.sped, unit: rpm, values: [800]}\n")
+        proc = sweep("check", spec, "--simulate", self.simulate)
+        self.assertEqual(proc.returncode, 2)
+        self.assertIn("drum.sped", proc.stderr)
+
+
+# ------------------------------------------------------------------------------------------
+# JUnit XML for catkin's result count.
+
+class JUnitResult(unittest.TextTestResult):
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.cases = []
+        self.started = {}
+
+    def startTest(self, test):
+        self.started[test.id()] = time.monotonic()
+        super().startTest(test)
+
+    def _record(self, test, kind=None, text=""):
+        elapsed = time.monotonic() - self.started.get(test.id(), time.monotonic())
+        self.cases.append((test.id(), kind, text, elapsed))
+
+    def addSuccess(self, test):
+        super().addSuccess(test)
+        self._record(test)
+
+    def addFailure(self, test, err):
+        super().addFailure(test, err)
+        self._record(test, "failure", self._exc_info_to_string(err, test))
+
+    def addError(self, test, err):
+        super().addError(test, err)
+        self._record(test, "error", self._exc_info_to_string(err, test))
+
+
+def write_junit(path, result):
+    suite = ET.Element("testsuite", name="test_sweep", tests=str(len(result.cases)),
+                       failures=str(len(result.failures)), errors=str(len(result.errors)))
+    for name, kind, text, elapsed in result.cases:
+        classname, _, method = name.rpartition(".")
+        case = ET.SubElement(suite, "testcase", classname=classname, name=method,
+                             time=f"{elapsed:.3f}")
+        if kind:
+            ET.SubElement(case, kind, message=text.splitlines()[-1] if text else "").text = text
+    if not result.cases:  # setUpClass failed: one failing case says so
+        case = ET.SubElement(suite, "testcase", classname="SweepTest", name="setUpClass")
+        ET.SubElement(case, "error", message="set-up failed").text = \
+            "\n".join(t for _, t in result.errors)
+    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
+    ET.ElementTree(suite).write(path, encoding="utf-8", xml_declaration=True)
+
+
+def main():
+    global ARGS
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--simulate", default=str(
+        ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
+    parser.add_argument("--out", default=str(ROOT / ".build/sweep_test"))
+    parser.add_argument("--xml", help="JUnit XML result file")
+    ARGS = parser.parse_args()
+    # SIGTERM ends like Ctrl-C, so that the cluster started here is stopped.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
+    suite = unittest.defaultTestLoader.loadTestsFromTestCase(SweepTest)
+    result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
+    if ARGS.xml:
+        write_junit(ARGS.xml, result)
+    return 0 if result.wasSuccessful() else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
