@@ -64,6 +64,13 @@ struct Island {
   size_t merged_warnings = 0;                             // warnings already copied
 };
 
+// Per tooth, what its deflection bound needs at one drum speed (rebuilt when the speed changes).
+struct ToothBound {
+  double omega_radps = std::numeric_limits<double>::quiet_NaN();  // built at [rad/s]
+  MatX S;             // Lambda + Omega^2 (K_G - I) [1/s^2]
+  double worst = -1;  // largest phi^T S^-1 phi over the stations [m^2 s^2/kg]; < 0 = none
+};
+
 // The scheduler's whole state (lives in Workspace::async).
 struct AsyncState {
   bool ready = false;                // set up for the current model and reset
@@ -73,13 +80,14 @@ struct AsyncState {
   PairTable stored_memory;           // pair memory (global keys) of pairs outside islands
   std::vector<int> heap;             // calendar: kernels by wake time (binary min-heap)
   // Uniform grid of lazy kernels' bound circles: open-addressing table cell -> first kernel.
-  double cell_m = 0;                   // cell size [m]
-  double r_cap_m = 0;                  // largest bound radius a lazy kernel is given [m]
-  double max_horizon_s = 1.0;          // longest horizon of a prediction [s]
-  std::vector<std::int64_t> cell_key;  // table keys (kEmptyCell = empty)
-  std::vector<int> cell_head;          // first kernel of the cell, -1 = none
-  size_t cells_used = 0;               // keys in the table
-  std::vector<ToothPropagator> prop;   // free teeth at constant drum speed
+  double cell_m = 0;                            // cell size [m]
+  double r_cap_m = 0;                           // largest bound radius a lazy kernel is given [m]
+  double max_horizon_s = 1.0;                   // longest horizon of a prediction [s]
+  std::vector<std::int64_t> cell_key;           // table keys (kEmptyCell = empty)
+  std::vector<int> cell_head;                   // first kernel of the cell, -1 = none
+  size_t cells_used = 0;                        // keys in the table
+  std::vector<ToothPropagator> prop;            // free teeth at constant drum speed
+  mutable std::vector<ToothBound> tooth_bound;  // per tooth: its deflection bound's data
   // Per-window scratch (grow-only).
   std::vector<int> uf_parent;                    // union-find over entity slots of this window
   std::vector<int> entities;                     // entity ids: tooth k -> k, kernel i -> T + i
@@ -110,7 +118,7 @@ double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i
 // Free tooth k over h_s at the data's (constant) drum speed: exact (as->prop[k] must be built).
 void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s);
 // Bound on |w| at the stations of tooth k while it moves freely at the data's drum speed [m].
-double toothDeflectionBound(const Model& m, const Data& d, int k);
+double toothDeflectionBound(const Model& m, const Data& d, const AsyncState& as, int k);
 
 // --- calendar.cc: the wake-time heap and the grid of bound circles ------------------------
 void heapPush(AsyncState* as, int i);

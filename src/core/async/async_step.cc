@@ -279,6 +279,7 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   as->cells_used = 0;
   as->entity_slot.assign(T + K, -1);
   as->prop.resize(T);
+  as->tooth_bound.assign(T, ToothBound());
   for (ToothPropagator& p : as->prop) p.n_modes = -1;
   as->counters = SchedulerStats();
   // Every kernel listed first with an ungrown circle, so that each prediction sees all its

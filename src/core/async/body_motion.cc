@@ -226,29 +226,36 @@ void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s
   ++as->counters.tooth_advances;
 }
 
-double toothDeflectionBound(const Model& m, const Data& d, int k) {
+double toothDeflectionBound(const Model& m, const Data& d, const AsyncState& as, int k) {
   const ToothModel& tm = m.teeth[k];
   const int n = tm.n_modes;
   if (n == 0) return 0.0;
   // S = Lambda + Omega^2 (K_G - I); the modal energy E = 1/2 qd^T qd + 1/2 q^T S q does not
   // grow while the tooth is free at constant speed, and |phi^T q| <= sqrt(2 E phi^T S^-1 phi).
-  using SmallMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 16, 16>;
-  const double w2 = d.omega_radps * d.omega_radps;
-  SmallMat S = w2 * tm.K_G;
-  S.diagonal().array() += tm.omega0_sq.array() - w2;
-  const Eigen::LLT<SmallMat> llt(S);
-  if (llt.info() != Eigen::Success) return 0.1 * tm.length_m;
+  // S and the largest phi^T S^-1 phi over the stations are kept per drum speed.
+  ToothBound& b = as.tooth_bound[k];
+  if (b.omega_radps != d.omega_radps) {
+    const double w2 = d.omega_radps * d.omega_radps;
+    b.S = w2 * tm.K_G;
+    b.S.diagonal().array() += tm.omega0_sq.array() - w2;
+    const Eigen::LLT<MatX> llt(b.S);
+    b.worst = -1.0;  // not positive definite: no bound from energy
+    if (llt.info() == Eigen::Success) {
+      b.worst = 0.0;
+      for (int s = 0; s < tm.n_stations; ++s) {
+        const VecX phi = tm.phi_s.row(s).transpose();
+        b.worst = std::max(b.worst, phi.dot(llt.solve(phi)));
+      }
+    }
+    b.omega_radps = d.omega_radps;
+  }
+  if (b.worst < 0.0) return 0.1 * tm.length_m;
   const auto q = d.z.segment(tm.dof_offset, n);
   const auto qd = d.u.segment(tm.dof_offset, n);
-  SmallVec Sq(n);
-  Sq.noalias() = S * q;
-  const double energy = 0.5 * qd.squaredNorm() + 0.5 * q.dot(Sq);
-  double worst = 0.0;
-  for (int s = 0; s < tm.n_stations; ++s) {
-    const SmallVec phi = tm.phi_s.row(s).transpose();
-    worst = std::max(worst, phi.dot(llt.solve(phi)));
-  }
-  return std::sqrt(2.0 * std::max(energy, 0.0) * worst);
+  double qSq = 0.0;  // q^T S q without a temporary
+  for (int j = 0; j < n; ++j) qSq += q[j] * b.S.col(j).dot(q);
+  const double energy = 0.5 * qd.squaredNorm() + 0.5 * qSq;
+  return std::sqrt(2.0 * std::max(energy, 0.0) * b.worst);
 }
 
 }  // namespace internal

@@ -41,7 +41,7 @@ double islandReach(const Model& m, const Data& d, int i, double window_s) {
 // radius, margin [m].
 double toothPad(const Model& m, const Data& d, const AsyncState& as, int k) {
   const ToothModel& tm = m.teeth[k];
-  double deflection = toothDeflectionBound(m, d, k);
+  double deflection = toothDeflectionBound(m, d, as, k);
   if (as.tooth_island[k] >= 0)
     deflection = 2.0 * deflection + m.deflection_validity_fraction * tm.length_m;
   return deflection + 0.5 * tm.diameter_m + m.broadphase_margin_m;
