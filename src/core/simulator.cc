@@ -278,6 +278,24 @@ void checkToothDeflection(const Model& m, Data* d) {
 
 namespace {
 
+// Statistics back to zero, keeping the per-kernel vectors' storage (resetBodies sizes them),
+// so that a reset allocates nothing once a run has warmed up (an island re-formed in the
+// island scheme is such a reset).
+void clearStats(RunStats* s) {
+  std::vector<double> peak = std::move(s->kernel_peak_normal_force_N);
+  std::vector<long> impacts = std::move(s->kernel_impacts);
+  std::vector<double> detach = std::move(s->kernel_detach_time_s);
+  std::vector<KernelToothPeaks> tooth = std::move(s->kernel_tooth_peaks);
+  std::vector<std::string> warnings = std::move(s->warnings);
+  warnings.clear();
+  *s = RunStats();
+  s->kernel_peak_normal_force_N = std::move(peak);
+  s->kernel_impacts = std::move(impacts);
+  s->kernel_detach_time_s = std::move(detach);
+  s->kernel_tooth_peaks = std::move(tooth);
+  s->warnings = std::move(warnings);
+}
+
 // Kernels, teeth and pedicels back to the scene's initial state (time and drum untouched).
 void resetBodies(const Model& m, Data* d) {
   d->z.setZero(m.n_dof);
@@ -323,7 +341,7 @@ void resetData(const Model& model, Data* data) {
   data->events.clear();
   // Events are appended while stepping: room for many before the vector must grow.
   data->events.reserve(4096);
-  data->stats = RunStats();
+  clearStats(&data->stats);
   data->ws->iteration_omega = -1;
   data->ws->ed_h = 0;
   // The free-tooth propagators are rebuilt for this model on first use.
