@@ -110,9 +110,14 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
     EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
     const std::vector<double> og = outputs(g), oa = outputs(a), of = outputs(f);
     for (size_t q = 0; q < og.size(); ++q) {
+      // The error estimate (knob refined), or for the event-driven integrator ten times its
+      // tolerance relative to the value, whichever is larger.
       const double estimate = std::abs(og[q] - of[q]);
+      const double tol = g.m.integrator.type == IntegratorType::kEventDriven
+                             ? 10.0 * g.m.integrator.tolerance * std::abs(og[q])
+                             : 0.0;
       const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
-      EXPECT_LE(std::abs(oa[q] - og[q]), std::max(3.0 * estimate, floor))
+      EXPECT_LE(std::abs(oa[q] - og[q]), std::max({3.0 * estimate, tol, floor}))
           << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined "
           << of[q];
     }
@@ -141,24 +146,46 @@ Outcomes outcomesOf(const SceneRun& r) {
   return o;
 }
 
-TEST(IslandScenesChaotic, LongRunOutcomesWithinTheGlobalSchemesSpread) {
-  const Case c = {"hard/10_long_run.yaml", "0.2"};
-  const SceneRun g6 =
-      runScene(c.file, settings(c, "event_driven", false, "integrator.tolerance=1e-6"));
-  const SceneRun g8 =
-      runScene(c.file, settings(c, "event_driven", false, "integrator.tolerance=1e-8"));
-  const SceneRun a6 =
-      runScene(c.file, settings(c, "event_driven", true, "integrator.tolerance=1e-6"));
-  const Outcomes o6 = outcomesOf(g6), o8 = outcomesOf(g8), oa = outcomesOf(a6);
-  for (size_t i = 0; i < o6.strikes.size(); ++i) {
-    SCOPED_TRACE("kernel " + std::to_string(i));
-    const double spread = std::abs(o6.peak_tooth_force_N[i] - o8.peak_tooth_force_N[i]);
-    EXPECT_LE(std::abs(oa.peak_tooth_force_N[i] - o6.peak_tooth_force_N[i]),
-              std::max(spread, 1e-6 * o6.peak_tooth_force_N[i]));
-    EXPECT_LE(std::abs(oa.strikes[i] - o6.strikes[i]),
-              std::max(1L, std::abs(o6.strikes[i] - o8.strikes[i])));
-    EXPECT_EQ(oa.detached[i], o6.detached[i]);
+// Per kernel, the island scheme's outcomes lie within the range the global scheme gives over
+// tolerances 1e-6, 1e-7 and 1e-8: tooth strikes within that range (one more or fewer allowed,
+// counts being integers), detachment as one of those runs has it, peak tooth force within the
+// range widened by 5 %.
+void expectWithinGlobalSpread(const Case& c) {
+  std::vector<Outcomes> g;
+  for (const char* tol : {"1e-6", "1e-7", "1e-8"})
+    g.push_back(outcomesOf(runScene(
+        c.file, settings(c, "event_driven", false, std::string("integrator.tolerance=") + tol))));
+  const Outcomes a =
+      outcomesOf(runScene(c.file, settings(c, "event_driven", true, "integrator.tolerance=1e-6")));
+  for (size_t i = 0; i < a.strikes.size(); ++i) {
+    SCOPED_TRACE(std::string(c.file) + ", kernel " + std::to_string(i));
+    long s_lo = a.strikes[i], s_hi = a.strikes[i];
+    double f_lo = 1e300, f_hi = 0;
+    bool detach_seen = false;
+    for (const Outcomes& o : g) {
+      s_lo = std::min(s_lo, o.strikes[i]);
+      s_hi = std::max(s_hi, o.strikes[i]);
+      f_lo = std::min(f_lo, o.peak_tooth_force_N[i]);
+      f_hi = std::max(f_hi, o.peak_tooth_force_N[i]);
+      detach_seen |= o.detached[i] == a.detached[i];
+    }
+    long g_lo = g[0].strikes[i], g_hi = g[0].strikes[i];
+    for (const Outcomes& o : g)
+      g_lo = std::min(g_lo, o.strikes[i]), g_hi = std::max(g_hi, o.strikes[i]);
+    EXPECT_GE(a.strikes[i], g_lo - 1);
+    EXPECT_LE(a.strikes[i], g_hi + 1);
+    EXPECT_GE(a.peak_tooth_force_N[i], 0.95 * f_lo);
+    EXPECT_LE(a.peak_tooth_force_N[i], 1.05 * f_hi);
+    EXPECT_TRUE(detach_seen);
   }
+}
+
+TEST(IslandScenesChaotic, LongRunOutcomesWithinTheGlobalSchemesSpread) {
+  expectWithinGlobalSpread({"hard/10_long_run.yaml", "0.2"});
+}
+
+TEST(IslandScenesChaotic, StreamOutcomesWithinTheGlobalSchemesSpread) {
+  expectWithinGlobalSpread({"scenes/stream.yaml", "0.004"});
 }
 
 INSTANTIATE_TEST_SUITE_P(BothIntegrators, IslandScenes,
