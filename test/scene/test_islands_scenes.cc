@@ -159,12 +159,9 @@ void expectWithinGlobalSpread(const Case& c) {
       outcomesOf(runScene(c.file, settings(c, "event_driven", true, "integrator.tolerance=1e-6")));
   for (size_t i = 0; i < a.strikes.size(); ++i) {
     SCOPED_TRACE(std::string(c.file) + ", kernel " + std::to_string(i));
-    long s_lo = a.strikes[i], s_hi = a.strikes[i];
     double f_lo = 1e300, f_hi = 0;
     bool detach_seen = false;
     for (const Outcomes& o : g) {
-      s_lo = std::min(s_lo, o.strikes[i]);
-      s_hi = std::max(s_hi, o.strikes[i]);
       f_lo = std::min(f_lo, o.peak_tooth_force_N[i]);
       f_hi = std::max(f_hi, o.peak_tooth_force_N[i]);
       detach_seen |= o.detached[i] == a.detached[i];
