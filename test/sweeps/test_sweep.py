@@ -147,24 +147,32 @@ class SweepTest(unittest.TestCase):
 
     def test_cluster_equals_local_despite_killed_worker(self):
         out = self.out / "cluster"
-        log = open(self.out / "cluster_sweep.log", "w")
-        client = subprocess.Popen(
-            [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
-             "--out", str(out), "--scheduler", self.cluster.address, "--batch", "3"],
-            stdout=log, stderr=log, start_new_session=True)
+        with open(self.out / "cluster_sweep.log", "w") as log:
+            client = subprocess.Popen(
+                [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
+                 "--out", str(out), "--scheduler", self.cluster.address, "--batch", "3"],
+                stdout=log, stderr=log, start_new_session=True)
+        victim, survivor = self.cluster.workers[0], self.cluster.workers[1]
         try:
-            # Kill worker 0 once a third of the runs are in.
+            # Kill worker 0 once a third of the runs are in. Both workers stop first, so that
+            # the kill falls in the middle of the sweep even if the client lags behind them.
             wait_for(lambda: (out / "runs.csv").exists() and len(rows(out / "runs.csv")) >= 6,
                      90, "six results")
-            victim = self.cluster.workers[0]
+            for w in (victim, survivor):
+                os.kill(w.pid, signal.SIGSTOP)
+            at_kill = len(rows(out / "runs.csv"))
             os.killpg(victim.pid, signal.SIGKILL)
             victim.wait(timeout=10)
+            os.kill(survivor.pid, signal.SIGCONT)
             self.assertEqual(client.wait(timeout=120), 0,
                              (self.out / "cluster_sweep.log").read_text())
         finally:
+            if survivor.poll() is None:
+                os.kill(survivor.pid, signal.SIGCONT)
             if client.poll() is None:
                 os.killpg(client.pid, signal.SIGKILL)
                 client.wait(timeout=10)
+        self.assertLess(at_kill, 18, "the sweep ended before the worker was killed")
         proc = sweep("compare", self.local / "runs.csv", out / "runs.csv")
         self.assertEqual(proc.returncode, 0, proc.stdout)
         table = rows(out / "runs.csv")
@@ -176,19 +184,31 @@ class SweepTest(unittest.TestCase):
 
     def test_interrupted_sweep_resumes_from_cache(self):
         out = self.out / "resume"
-        log = open(self.out / "resume_sweep.log", "w")
-        client = subprocess.Popen(
-            [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
-             "--out", str(out), "--scheduler", self.cluster.address],
-            stdout=log, stderr=log, start_new_session=True)
+        log_path = self.out / "resume_sweep.log"
+        with open(log_path, "w") as log:
+            client = subprocess.Popen(
+                [sys.executable, str(SWEEP), "run", str(SMALL), "--simulate", self.simulate,
+                 "--out", str(out), "--scheduler", self.cluster.address, "--batch", "1"],
+                stdout=log, stderr=log, start_new_session=True)
+        workers = [w for w in self.cluster.workers if w.poll() is None]
         try:
             wait_for(lambda: (out / "runs.csv").exists() and len(rows(out / "runs.csv")) >= 4,
                      90, "four results")
-        finally:
+            # The workers stop at once, so that the sweep cannot end before the client is
+            # killed (on a busy machine the client could otherwise fall behind them).
+            for w in workers:
+                os.kill(w.pid, signal.SIGSTOP)
             os.killpg(client.pid, signal.SIGKILL)
             client.wait(timeout=10)
+        finally:
+            if client.poll() is None:
+                os.killpg(client.pid, signal.SIGKILL)
+                client.wait(timeout=10)
+            for w in workers:
+                os.kill(w.pid, signal.SIGCONT)
         done = len(rows(out / "runs.csv"))
-        self.assertLess(done, 18, "the sweep ended before it was interrupted")
+        self.assertLess(done, 18, "the sweep ended before it was interrupted:\n" +
+                        log_path.read_text())
         proc = sweep("run", SMALL, "--simulate", self.simulate, "--out", out, "--scheduler",
                      self.cluster.address)
         self.assertEqual(proc.returncode, 0, proc.stderr)
