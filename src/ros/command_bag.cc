@@ -8,7 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <set>
 #include <stdexcept>
+#include <vector>
 
 #include "threshing_sim/ContactStateArray.h"
 #include "threshing_sim/DrumSpeedCommand.h"
@@ -65,15 +68,76 @@ boost::shared_ptr<M> instantiate(const std::string& path, const rosbag::MessageI
 // reading it, so a corrupt size field would otherwise allocate gigabytes.
 constexpr std::uint64_t kMaxChunkBytes = 256ull << 20;
 
-std::uint32_t readU32(std::istream& in) {
-  unsigned char b[4] = {0, 0, 0, 0};
-  in.read(reinterpret_cast<char*>(b), 4);
+std::uint32_t u32(const unsigned char* b) {
   return b[0] | (b[1] << 8) | (b[2] << 16) | (static_cast<std::uint32_t>(b[3]) << 24);
 }
 
-// The top-level record structure of a bag (format 2.0) before rosbag reads it: every header
-// and data length within the file, and every chunk's declared size within kMaxChunkBytes (and
-// equal to its data for an uncompressed chunk). Bounded: each record advances by >= 8 bytes.
+constexpr std::uint64_t kAbsent = ~std::uint64_t{0};
+
+// The fields of a record header that matter here.
+struct RecordHeader {
+  int op = -1;                        // record type (0x03 bag header, 0x04 index data,
+                                      // 0x05 chunk, 0x06 chunk info)
+  std::uint64_t size = 0;             // chunk: uncompressed size [bytes]
+  std::string compression;            // chunk: none, bz2, lz4
+  std::uint64_t index_pos = kAbsent;  // bag header: offset of the first index record [bytes]
+  std::uint64_t chunk_pos = kAbsent;  // chunk info: offset of its chunk [bytes]
+};
+
+std::uint64_t u64(const char* b) {
+  std::uint64_t v = 0;
+  for (int i = 7; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(b[i]);
+  return v;
+}
+
+// Parses "4-byte length, name=value" fields; false if a length runs past the header.
+bool parseHeader(const std::string& header, RecordHeader* out) {
+  for (size_t f = 0; f < header.size();) {
+    if (header.size() - f < 4) return false;
+    const std::uint32_t len = u32(reinterpret_cast<const unsigned char*>(&header[f]));
+    if (len > header.size() - f - 4) return false;
+    const std::string field = header.substr(f + 4, len);
+    const size_t eq = field.find('=');
+    if (eq == std::string::npos) return false;
+    const std::string name = field.substr(0, eq), value = field.substr(eq + 1);
+    if (name == "op" && value.size() == 1) out->op = static_cast<unsigned char>(value[0]);
+    if (name == "size" && value.size() == 4)
+      out->size = u32(reinterpret_cast<const unsigned char*>(value.data()));
+    if (name == "compression") out->compression = value;
+    if (name == "index_pos" && value.size() == 8) out->index_pos = u64(value.data());
+    if (name == "chunk_pos" && value.size() == 8) out->chunk_pos = u64(value.data());
+    f += 4 + len;
+  }
+  return true;
+}
+
+// The records inside an uncompressed chunk: every length and header field within the chunk
+// (rosbag and ros::Header::parse read them without bounds checks).
+void checkChunkRecords(const std::string& chunk,
+                       const std::function<void(const std::string&)>& refuse,
+                       std::set<std::uint64_t>* starts) {
+  starts->clear();
+  for (size_t pos = 0; pos < chunk.size();) {
+    starts->insert(pos);
+    if (chunk.size() - pos < 4) refuse("chunk record header length cut off");
+    const std::uint64_t header_len = u32(reinterpret_cast<const unsigned char*>(&chunk[pos]));
+    if (header_len + 8 > chunk.size() - pos) refuse("chunk record header beyond its chunk");
+    RecordHeader h;
+    if (!parseHeader(chunk.substr(pos + 4, header_len), &h))
+      refuse("chunk record header field beyond its header");
+    const std::uint64_t data_len =
+        u32(reinterpret_cast<const unsigned char*>(&chunk[pos + 4 + header_len]));
+    if (data_len > chunk.size() - pos - 8 - header_len)
+      refuse("chunk record data beyond its chunk");
+    pos += 8 + header_len + data_len;
+  }
+}
+
+// The record structure of a bag (format 2.0) before rosbag reads it: every header and data
+// length within the file, every header field within its header, every chunk uncompressed with
+// its declared size equal to its data (at most kMaxChunkBytes) and its records within it.
+// rosbag allocates and copies by these numbers unchecked (out of memory, heap overflows on a
+// corrupt bag, found by fuzz_command_bag). Bounded: each record advances by >= 8 bytes.
 void checkBagLengths(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return;  // rosbag reports it
@@ -82,48 +146,65 @@ void checkBagLengths(const std::string& path) {
   in.seekg(0);
   std::string magic(13, '\0');
   in.read(&magic[0], 13);
-  if (!in || magic != "#ROSBAG V2.0\n") return;  // rosbag reports it
+  // rosbag reads on after a damaged first line; only format 2.0 is read here.
+  if (!in || magic != "#ROSBAG V2.0\n")
+    throw std::invalid_argument(where(path) +
+                                "not a ROS bag of format 2.0 (its first line is not "
+                                "'#ROSBAG V2.0')");
   std::uint64_t pos = 13;
-  const auto refuse = [&](const std::string& what) {
+  const std::function<void(const std::string&)> refuse = [&](const std::string& what) {
     throw std::invalid_argument(where(path) + "corrupt record at byte " + std::to_string(pos) +
                                 ": " + what);
   };
-  while (pos + 4 <= file_size) {
-    const std::uint64_t header_len = readU32(in);
+  unsigned char len4[4];
+  std::set<std::uint64_t> record_starts, chunk_starts;
+  std::vector<std::uint64_t> chunk_positions;
+  std::uint64_t index_pos = kAbsent;
+  while (pos < file_size) {
+    if (file_size - pos < 8) refuse("record cut off");
+    in.read(reinterpret_cast<char*>(len4), 4);
+    const std::uint64_t header_len = u32(len4);
     if (pos + 8 + header_len > file_size) refuse("header length beyond the end of the file");
     std::string header(header_len, '\0');
     in.read(&header[0], static_cast<std::streamsize>(header_len));
-    const std::uint64_t data_len = readU32(in);
+    in.read(reinterpret_cast<char*>(len4), 4);
+    const std::uint64_t data_len = u32(len4);
     if (pos + 8 + header_len + data_len > file_size)
       refuse("data length beyond the end of the file");
-    // Fields: 4-byte length, then "name=value".
-    int op = -1;
-    std::uint64_t size = 0;
-    std::string compression;
-    for (size_t f = 0; f + 4 <= header.size();) {
-      const std::uint32_t len =
-          static_cast<unsigned char>(header[f]) | (static_cast<unsigned char>(header[f + 1]) << 8) |
-          (static_cast<unsigned char>(header[f + 2]) << 16) |
-          (static_cast<std::uint32_t>(static_cast<unsigned char>(header[f + 3])) << 24);
-      if (len > header.size() - f - 4) refuse("header field length beyond its header");
-      const std::string field = header.substr(f + 4, len);
-      const size_t eq = field.find('=');
-      const std::string name = field.substr(0, eq),
-                        value = eq == std::string::npos ? "" : field.substr(eq + 1);
-      if (name == "op" && value.size() == 1) op = static_cast<unsigned char>(value[0]);
-      if (name == "size" && value.size() == 4)
-        size = static_cast<unsigned char>(value[0]) | (static_cast<unsigned char>(value[1]) << 8) |
-               (static_cast<unsigned char>(value[2]) << 16) |
-               (static_cast<std::uint64_t>(static_cast<unsigned char>(value[3])) << 24);
-      if (name == "compression") compression = value;
-      f += 4 + len;
+    RecordHeader h;
+    if (!parseHeader(header, &h)) refuse("header field beyond its header");
+    record_starts.insert(pos);
+    if (h.op == 0x03) index_pos = h.index_pos;
+    if (h.op == 0x06) chunk_positions.push_back(h.chunk_pos);
+    if (h.op == 0x05) {
+      if (h.compression != "none")
+        refuse("compressed chunk (" + h.compression +
+               ") not read; decompress the bag first (rosbag decompress)");
+      if (h.size != data_len || h.size > kMaxChunkBytes)
+        refuse("chunk declares " + std::to_string(h.size) + " bytes for " +
+               std::to_string(data_len) + " bytes of data");
+      std::string chunk(data_len, '\0');
+      in.read(&chunk[0], static_cast<std::streamsize>(data_len));
+      checkChunkRecords(chunk, refuse, &chunk_starts);
+    } else if (h.op == 0x04) {
+      // Index data: entries of (time 8 bytes, offset 4 bytes) into the chunk before it.
+      if (data_len > (64u << 20)) refuse("index record too large");
+      std::string index(data_len, '\0');
+      in.read(&index[0], static_cast<std::streamsize>(data_len));
+      for (size_t e = 0; e + 12 <= index.size(); e += 12)
+        if (chunk_starts.count(u32(reinterpret_cast<const unsigned char*>(&index[e + 8]))) == 0)
+          refuse("index entry points between the records of its chunk");
     }
-    if (op == 0x05 && (size > kMaxChunkBytes || (compression == "none" && size != data_len)))
-      refuse("chunk declares " + std::to_string(size) + " bytes for " + std::to_string(data_len) +
-             " bytes of " + compression + " data");
     pos += 8 + header_len + data_len;
     in.seekg(static_cast<std::streamoff>(pos));
   }
+  // rosbag seeks to these offsets and reads a record there: each must start one.
+  pos = 13;
+  if (index_pos != kAbsent && index_pos != 0 && record_starts.count(index_pos) == 0)
+    refuse("the bag header's index_pos " + std::to_string(index_pos) + " starts no record");
+  for (const std::uint64_t c : chunk_positions)
+    if (record_starts.count(c) == 0)
+      refuse("a chunk info's chunk_pos " + std::to_string(c) + " starts no record");
 }
 
 }  // namespace

@@ -167,6 +167,27 @@ TEST(CommandBag, CorruptChunkSizeIsRefusedBeforeRosbagAllocatesIt) {
       << message;
 }
 
+// Found by fuzz_command_bag: a message record inside a chunk whose header field length runs past
+// its buffer made ros::Header::parse copy past the heap block (ASan heap-buffer-overflow).
+TEST(CommandBag, CorruptRecordInsideAChunkIsRefused) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/overflow_chunk_record.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(message.find("~command_bag (" + path + "): corrupt record"), std::string::npos)
+      << message;
+}
+
+// Found by fuzz_command_bag: rosbag reads a bag whose first line is damaged ("#ROSBA  V2.0"),
+// then takes a run of padding spaces for a 0.5-2.3 GB header length and allocates it.
+TEST(CommandBag, DamagedFirstLineIsRefused) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/oom_damaged_first_line.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(message.find("~command_bag (" + path + "): not a ROS bag of format 2.0"),
+            std::string::npos)
+      << message;
+}
+
 TEST(CommandBag, MissingAndNonBagFilesAreRefused) {
   EXPECT_NE(refusal("/nonexistent/x.bag").find("~command_bag (/nonexistent/x.bag)"),
             std::string::npos);
