@@ -10,6 +10,7 @@
 #                    not a default part: about 50 minutes, both integrators side by side)
 #   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
 #   bench            scripts/bench.py                          (README + docs/bench*)
+#   islands          scripts/bench.py --part islands           (README + docs/bench_islands.md)
 #   sweeps           scripts/sweep_overhead.py --workers 2 1 --cluster --docs (README +
 #                    docs/sweeps*; not a default part: its ratio needs an otherwise idle machine)
 # Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
@@ -58,6 +59,7 @@ for part in "${parts[@]}"; do
       rm -rf "$tmp" ;;
     findings) $PY scripts/compare_teeth.py --findings ;;
     bench) $PY scripts/bench.py ;;
+    islands) $PY scripts/bench.py --part islands ;;
     sweeps) $PY scripts/sweep_overhead.py --workers 2 1 --cluster --docs ;;
     *) echo "regenerate_docs: unknown part '$part'" >&2; exit 2 ;;
   esac
