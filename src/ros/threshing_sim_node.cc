@@ -68,6 +68,7 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   status_on_tty_ = isatty(STDOUT_FILENO) != 0;
 
   advertise(nh, pnh);
+  startLiveView(nh, pnh);
   static_tf_.sendTransform(staticTransforms(*model_, stampOf(0)));
   startReconfigure(pnh);
   ROS_INFO(
@@ -192,10 +193,12 @@ void ThreshingSimNode::onDrumSpeedCommand(const std_msgs::Float64& msg) {
   const double speed_radps = msg.data;
   if (!std::isfinite(speed_radps) || std::abs(speed_radps) > params_.max_drum_speed_radps) {
     const long n = ++rejected_commands_;
-    ROS_WARN_THROTTLE(1.0,
-                      "drum_speed_cmd rejected: %g rad/s is not finite or exceeds "
-                      "~max_drum_speed = %g rad/s (%ld rejected so far)",
-                      speed_radps, params_.max_drum_speed_radps, n);
+    // Throttled on the wall clock: simulated time crawls in slow motion.
+    if (wallThrottle(&last_reject_warn_s_, 1.0))
+      ROS_WARN(
+          "drum_speed_cmd rejected: %g rad/s is not finite or exceeds ~max_drum_speed = %g "
+          "rad/s (%ld rejected so far)",
+          speed_radps, params_.max_drum_speed_radps, n);
     return;
   }
   std::lock_guard<std::mutex> lock(staged_mutex_);
@@ -239,10 +242,11 @@ bool ThreshingSimNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::R
   staged_.reset = true;
   staged_dirty_ = true;
   staged_cv_.notify_all();
-  res.success = served_cv_.wait_for(lock, seconds(kServiceTimeout_s), [&] {
-    return resets_done_ >= ticket || stop_;
-  }) && !stop_;
-  res.message = "bodies reset at t = " + std::to_string(step_ * dt_s_) + " s";
+  res.success = served_cv_.wait_for(lock, seconds(kServiceTimeout_s),
+                                    [&] { return resets_done_ >= ticket || stop_; }) &&
+                !stop_ && !reset_refused_;
+  res.message = reset_refused_ ? "reset refused: the bodies would overlap (see the log)"
+                               : "bodies reset at t = " + std::to_string(step_ * dt_s_) + " s";
   return true;
 }
 
@@ -257,6 +261,8 @@ void ThreshingSimNode::onReconfigure(const ThreshingSimConfig& config, std::uint
 
 void ThreshingSimNode::physicsLoop() {
   waitForSubscribers();
+  waitForViewer();
+  loop_anchor_rad_ = data_.theta_rad;
   start_wall_s_ = clock_.nowSeconds();
   pending_reset_ = true;  // markers start with DELETEALL: clears a previous run's
   takeSnapshot(kAllStreams);
@@ -268,7 +274,12 @@ void ThreshingSimNode::physicsLoop() {
     }
     // Run the steps due, then sleep until more are (woken early by stop).
     const int n = pacer_.nextBatch();
-    for (int i = 0; i < n && !paused_ && !stop_ && !finished_; ++i) advanceOneStep(0);
+    const double rtf = pacer_.realTimeFactor();
+    for (int i = 0; i < n && !paused_ && !stop_ && !finished_; ++i) {
+      advanceOneStep(0);
+      adjustPace();  // a new pace starts a new batch
+      if (pacer_.realTimeFactor() != rtf) break;
+    }
     publishCounters();
     if (n == 0) {
       std::unique_lock<std::mutex> lock(staged_mutex_);
@@ -282,8 +293,9 @@ void ThreshingSimNode::physicsLoop() {
 
 void ThreshingSimNode::waitForSubscribers() {
   if (!params_.wait_for_subscribers) return;
-  const ros::Publisher* outputs[] = {&contact_pub_, &impact_pub_, &kernel_pub_,
-                                     &beam_pub_,    &marker_pub_, &applied_pub_};
+  const ros::Publisher* outputs[] = {&contact_pub_,    &impact_pub_,        &kernel_pub_,
+                                     &beam_pub_,       &marker_pub_,        &applied_pub_,
+                                     &drum_state_pub_, &kernel_forces_pub_, &strike_pub_};
   ROS_INFO("~wait_for_subscribers: holding t = 0 until every output topic has a subscriber");
   auto allHeard = [&] {
     return std::all_of(std::begin(outputs), std::end(outputs),
@@ -294,8 +306,9 @@ void ThreshingSimNode::waitForSubscribers() {
 
 void ThreshingSimNode::servePaused() {
   std::unique_lock<std::mutex> lock(staged_mutex_);
-  staged_cv_.wait(lock,
-                  [&] { return stop_ || !paused_ || staged_.step_periods > 0 || staged_.reset; });
+  staged_cv_.wait_for(lock, seconds(0.1), [&] {
+    return stop_ || !paused_ || staged_.step_periods > 0 || staged_.reset;
+  });
   const long steps = std::exchange(staged_.step_periods, 0) * stepsPerPublishPeriod();
   const long ticket = steps_requested_;
   lock.unlock();
@@ -303,6 +316,8 @@ void ThreshingSimNode::servePaused() {
   for (long i = 1; i <= steps && !stop_ && !finished_; ++i)
     advanceOneStep(i == steps ? kAllStreams : 0u);
   if (steps == 0) applyStaged();
+  // While paused, markers (static geometry included) go out now and then for a new viewer.
+  if (steps == 0 && paused_ && !stop_ && pausedRepublishDue()) takeSnapshot(kMarkerStream);
   publishCounters();
   lock.lock();
   steps_done_ = ticket;
@@ -314,7 +329,7 @@ void ThreshingSimNode::servePaused() {
 void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   applyStaged();
   const long k = step_ + 1;
-  const StepStatus status = advanceTo(*model_, &data_, k * dt_s_);
+  const StepStatus status = advanceSampled(k);
   step_ = k;
   if (status == StepStatus::kFailed) {
     failed_ = true;
@@ -333,10 +348,9 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   // The last step of a bounded run and a periodic reset publish everything.
   const bool last = end_step_ > 0 && k >= end_step_;
   unsigned streams = dueStreams() | forced_streams | (last ? kAllStreams : 0u);
-  if (reset_steps_ > 0 && k % reset_steps_ == 0) {
-    resetBodies();
+  if (reset_steps_ > 0 && k % reset_steps_ == 0 && resetIfClear(true, "periodic reset"))
     streams = kAllStreams;
-  }
+  if (loopDue() && resetIfClear(false, "demo loop re-seed")) streams = kAllStreams;
   if (streams != 0) takeSnapshot(streams);
   if (last) finished_ = true;
 }
@@ -360,9 +374,10 @@ void ThreshingSimNode::applyStaged() {
   if (staged.drum_target_radps) applyDrumTarget(*staged.drum_target_radps);
   if (staged.config) applyConfig(*staged.config);
   if (staged.reset) {
-    resetBodies();
-    takeSnapshot(kAllStreams);
+    const bool done = resetIfClear(true, "~reset");
+    if (done) takeSnapshot(kAllStreams);
     std::lock_guard<std::mutex> lock(staged_mutex_);
+    reset_refused_ = !done;
     resets_done_ = reset_ticket;
     served_cv_.notify_all();
   }
@@ -375,6 +390,8 @@ void ThreshingSimNode::applyDrumTarget(double speed_radps) {
 
 void ThreshingSimNode::applyConfig(const ThreshingSimConfig& config) {
   setRates(config.contact_state_rate, config.state_rate, config.marker_rate);
+  slow_rtf_ = config.real_time_factor;  // adjustPace hands it to the pacer
+  free_flight_rtf_ = config.free_flight_factor;
   // Contact values live in the constant model: swap in a recompiled copy when they change.
   const double values[3][2] = {
       {config.tooth_kernel_restitution, config.tooth_kernel_friction},
@@ -420,7 +437,7 @@ unsigned ThreshingSimNode::dueStreams() {
   unsigned due = 0;
   const long k = step_;
   // Factor 0: a schedule in simulated time, identical from run to run.
-  if (params_.real_time_factor == 0) {
+  if (pacer_.realTimeFactor() == 0) {
     for (int i = 0; i < 3; ++i)
       if (k % period_steps_[i] == 0) due |= 1u << i;
     return due;
@@ -473,6 +490,7 @@ void ThreshingSimNode::takeSnapshot(unsigned streams) {
   s.commands = std::exchange(pending_commands_, {});
   s.peaks = peaks_;
   s.streams = streams;
+  fillLiveView(&s);
   s.reset = std::exchange(pending_reset_, false);
   // Back-pressure: at factor 0 the simulation waits for the publisher rather than drop.
   std::unique_lock<std::mutex> lock(queue_mutex_);
@@ -558,6 +576,7 @@ void ThreshingSimNode::publishSnapshot(const Snapshot& s, bool with_static_marke
       last_tf_ = s.stamp;
     }
   }
+  publishLiveView(s);
   if ((s.streams & kMarkerStream) || s.reset)
     marker_pub_.publish(marker_builder_.build(s, scratch_, with_static_markers));
 }
@@ -576,7 +595,7 @@ void ThreshingSimNode::printStatus(bool final_line) {
   std::snprintf(line, sizeof(line),
                 "t = %.6f s | real-time factor %.3g (target %g) | impacts %ld | peak force "
                 "%.1f N%s",
-                step_ * dt_s_, measured_rtf_.load(), params_.real_time_factor, impacts_.load(),
+                step_ * dt_s_, measured_rtf_.load(), target_rtf_.load(), impacts_.load(),
                 peak_force_N_.load(),
                 finished_ ? " | finished"
                 : paused_ ? " | paused"
@@ -591,7 +610,7 @@ void ThreshingSimNode::printStatus(bool final_line) {
 
 void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const double rtf = measured_rtf_;
-  const double target = params_.real_time_factor;
+  const double target = target_rtf_;
   if (failed_)
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR, "integrator failed: call ~reset");
   else if (recoveries_ > 0)
@@ -627,7 +646,7 @@ ros::Time ThreshingSimNode::stampOf(long step) const {
 
 long ThreshingSimNode::stepsPerPublishPeriod() const {
   // One contact_state period of simulated time (at factor f > 0 a wall period is f times that).
-  const double rtf = params_.real_time_factor;
+  const double rtf = slow_rtf_;
   const double period_s = (rtf > 0 ? rtf : 1.0) / rates_hz_[0];
   return std::max(1L, std::lround(period_s / dt_s_));
 }
