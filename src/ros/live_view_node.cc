@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "threshing_sim/core/overlap.h"
@@ -58,8 +59,16 @@ void ThreshingSimNode::startLiveView(ros::NodeHandle& nh, ros::NodeHandle& pnh) 
   std_msgs::Float64MultiArray box;
   box.data = {view.min_m.x(), view.min_m.y(), view.max_m.x(), view.max_m.y()};
   view_box_pub_.publish(box);
+  // The scene and the node settings that shape the physics outputs: compare_bags refuses to
+  // call two runs identical when either differs.
   std_msgs::String scene;
-  scene.data = scene_text_;
+  char settings[200];
+  std::snprintf(settings, sizeof(settings),
+                "\n# threshing_sim_node: physics_dt %.9g s, loop_revolutions %d, reset_period "
+                "%.9g s, strike_sample_dt %.9g s\n",
+                dt_s_, params_.loop_revolutions, params_.reset_period_s,
+                params_.strike_sample_dt_s);
+  scene.data = scene_text_ + settings;
   scene_pub_.publish(scene);
   skip_srv_ = pnh.advertiseService("skip_to_contact", &ThreshingSimNode::onSkipToContact, this);
 }
@@ -110,7 +119,7 @@ void ThreshingSimNode::waitForViewer() {
                kViewerTimeout_s);
       return;
     }
-    if (pausedRepublishDue()) takeSnapshot(kAllStreams);
+    if (pausedRepublishDue()) takeSnapshot(kMarkerStream);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   // A newly connected rviz: the initial state once more, static geometry included.

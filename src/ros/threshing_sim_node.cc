@@ -76,7 +76,7 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
       "real-time factor %g, %s clock%s",
       model_->teeth.size(), model_->kernels.size(), model_->obstacles.size(), dt_s_,
       params_.real_time_factor, params_.sim_clock ? "sim" : "wall",
-      schedule_.empty() ? "" : ", re-simulating the commands of ~command_bag");
+      params_.command_bag.empty() ? "" : ", re-simulating the commands of ~command_bag");
 
   output_thread_ = std::thread(&ThreshingSimNode::outputLoop, this);
   physics_thread_ = std::thread(&ThreshingSimNode::physicsLoop, this);
@@ -571,9 +571,10 @@ void ThreshingSimNode::publishSnapshot(const Snapshot& s, bool with_static_marke
     kernel_pub_.publish(kernelStatesMsg(s));
     beam_pub_.publish(beamShapeMsg(s, scratch_, params_.beam_points));
     // tf2 listeners drop (and complain about) repeated stamps.
-    if (s.stamp > last_tf_) {
+    if (!tf_published_ || s.stamp > last_tf_) {
       tf_.sendTransform(movingTransforms(s, scratch_));
       last_tf_ = s.stamp;
+      tf_published_ = true;
     }
   }
   publishLiveView(s);
