@@ -260,6 +260,7 @@ void ThreshingSimNode::publishLiveView(const Snapshot& s) {
   }
   if (s.streams & kStateStream) drum_state_pub_.publish(drumStateMsg(s));
   if (s.streams & kContactStream) kernel_forces_pub_.publish(kernelContactForcesMsg(s));
+  marker_builder_.noteStrikes(s.strikes);
   for (const StrikeRecord& r : s.strikes) {
     const ros::Time stamp =
         params_.sim_clock ? ros::Time().fromNSec(std::llround(r.t_s.back() * 1e9)) : s.stamp;

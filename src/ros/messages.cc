@@ -475,16 +475,12 @@ visualization_msgs::MarkerArray MarkerBuilder::staticGeometry(const Snapshot& s)
        {c.min_m, Vec2(c.max_m.x(), c.min_m.y()), c.max_m, Vec2(c.min_m.x(), c.max_m.y()), c.min_m})
     frame.points.push_back(point(p));
   frame.scale.x = 0.004 * extent_.size().y();
-  frame.color = rgba(0.7f, 0.7f, 0.7f);
+  frame.color = rgba(0.55f, 0.55f, 0.55f);  // darker than the drum rim
   out.markers.push_back(frame);
   return out;
 }
 
-void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) {
-  for (const StrikeRecord& r : s.strikes) {
-    last_strike_ = r;
-    have_strike_ = true;
-  }
+void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
   char peak[64] = "(none yet)";
   if (have_strike_) std::snprintf(peak, sizeof(peak), "%.1f N", last_strike_.peakNormalForce());
   char line[400];

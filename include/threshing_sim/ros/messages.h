@@ -76,11 +76,17 @@ class MarkerBuilder {
     extent_ = extent;
     damage_ = damage;
   }
+  // Every finished strike goes through here (whichever stream its snapshot was due on).
+  void noteStrikes(const std::vector<StrikeRecord>& strikes) {
+    if (strikes.empty()) return;
+    last_strike_ = strikes.back();
+    have_strike_ = true;
+  }
   // The drum, the obstacles (and the chart's frame): the static geometry alone.
   visualization_msgs::MarkerArray staticGeometry(const Snapshot& s) const;
 
  private:
-  void addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out);
+  void addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
   void addStrikeChart(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
 
   SceneExtent extent_;               // the scene's box in world [m]

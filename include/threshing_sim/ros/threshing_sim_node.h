@@ -207,7 +207,7 @@ class ThreshingSimNode {
   Data scratch_;          // pose for the tooth shape functions
   ros::Time last_clock_;  // last /clock published
   bool clock_published_ = false;
-  ros::Time last_tf_;  // last moving-transform stamp (tf2 drops repeats)
+  ros::Time last_tf_;          // last moving-transform stamp (tf2 drops repeats)
   bool tf_published_ = false;  // the t = 0 transforms go out too
   bool status_on_tty_ = false;
 
