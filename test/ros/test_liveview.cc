@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <functional>
+#include <future>
 #include <mutex>
 #include <regex>
 #include <sstream>
@@ -200,6 +201,42 @@ TEST(LiveView, FactorReconfiguredAndSkipToContact) {
       << "no strike within 6 s of wall time after ~skip_to_contact";
   std::printf("skip_to_contact: next strike after %.2f s of wall time\n",
               (ros::WallTime::now() - start).toSec());
+}
+
+// The live plotter (scripts/live_plot, Debian's matplotlib, headless with --save) plots a field
+// of drum_state, a per-kernel force and the strike histories while the node runs; a skip to the
+// next contact during the plot brings a strike into it.
+TEST(LiveView, LivePlotPlotsFieldsAndStrikes) {
+  const std::string png = std::string(TEST_TMP_DIR) + "/live_plot.png";
+  std::remove(png.c_str());
+  const std::string cmd = std::string(THRESHING_SIM_SOURCE_DIR) +
+                          "/scripts/live_plot /drum_state/speed "
+                          "'/kernel_contact_forces/kernels[0]/tooth_normal_impulse' --strikes "
+                          "--duration 5 --save " +
+                          png + " 2>&1";
+  auto plot = std::async(std::launch::async, [&] {
+    std::string out;
+    FILE* p = popen(cmd.c_str(), "r");
+    char buf[1024];
+    while (p && fgets(buf, sizeof(buf), p)) out += buf;
+    const int status = p ? pclose(p) : -1;
+    return std::make_pair(status, out);
+  });
+  ros::WallDuration(2.0).sleep();  // subscribed
+  std_srvs::Trigger skip;
+  ASSERT_TRUE(ros::service::call("/threshing_sim_node/skip_to_contact", skip));
+  const auto [status, out] = plot.get();
+  std::printf("%s", out.c_str());
+  EXPECT_EQ(status, 0);
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(out, m,
+                                std::regex("/drum_state/speed': (\\d+).*tooth_normal_impulse': "
+                                           "(\\d+)\\}, (\\d+) strike histories")))
+      << out;
+  EXPECT_GT(std::stoi(m[1]), 10);
+  EXPECT_GT(std::stoi(m[2]), 10);
+  EXPECT_GE(std::stoi(m[3]), 1);
+  EXPECT_TRUE(std::ifstream(png).good()) << png;
 }
 
 }  // namespace
