@@ -125,6 +125,29 @@ TEST(Recipe, RecordReplayResimulateVerbatim) {
   EXPECT_EQ(counts["/drum_speed_cmd_applied"], 1);
 }
 
+// compare_bags passes when both bags lack a topic, and fails when the runs differ in their scene
+// record: a re-simulation of the recipe's bag without its loop (loop_revolutions 0).
+TEST(Recipe, CompareBagsChecksTheSceneRecord) {
+  const std::string compare = std::string(THRESHING_SIM_SOURCE_DIR) + "/scripts/compare_bags";
+  std::string out;
+  EXPECT_EQ(
+      run(compare + " /tmp/run.bag /tmp/resim.bag --topics /no_such_topic /strike_history", &out),
+      0)
+      << out;
+  EXPECT_NE(out.find("/no_such_topic: in neither bag"), std::string::npos) << out;
+  out.clear();
+  ASSERT_EQ(run("roslaunch threshing_sim resimulate.launch bag:=/tmp/run.bag "
+                "out:=/tmp/resim_noloop.bag",
+                &out),
+            0)
+      << out;
+  out.clear();
+  EXPECT_EQ(run(compare + " /tmp/run.bag /tmp/resim_noloop.bag", &out), 1) << out;
+  EXPECT_NE(out.find("/scene_yaml: the bags hold different scenes or node settings"),
+            std::string::npos)
+      << out;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {

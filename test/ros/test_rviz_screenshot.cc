@@ -1,9 +1,11 @@
 // rostests rviz*.test: demo.launch with rviz under Xvfb and the view scene_rviz frames on the
-// scene. Private parameters choose what is checked:
-//  - mode "contact" (rviz.test, view:=contact): the paused demo runs into its first contact and
+// scene. Each .test runs one of the two tests (--gtest_filter):
+//  - ScreenshotShowsTheContact (rviz.test, view:=contact): the paused demo runs into its first
+//  contact and
 //    is paused there; the screenshot must show the kernel, the tooth and the contact force arrow
 //    in their marker colours;
-//  - mode "scene" (rviz_default/stream/knead.test, the whole-scene view): with run_to_strike the
+//  - ScreenshotShowsTheScene (rviz_default/stream/knead.test, the whole-scene view): with
+//  run_to_strike the
 //    demo runs until the first strike_history and is paused, else it stays paused at t = 0; the
 //    screenshot must show the whole drum rim inside the render area and at least 90 % of the
 //    kernels (connected blobs in a kernel colour), and after a strike the strike chart's curve.
@@ -211,7 +213,6 @@ void pause(bool on) {
 // centre at the render area's centre, its scale fitted into a 1050 x 760 px render area.
 TEST(Rviz, ScreenshotShowsTheScene) {
   ros::NodeHandle nh, pnh("~");
-  if (pnh.param<std::string>("mode", "contact") != "scene") GTEST_SKIP() << "mode contact";
   const std::string display = pnh.param<std::string>("display", ":97");
   const std::string png =
       std::string(SCREENSHOT_DIR) + "/" + pnh.param<std::string>("png", "x.png");
@@ -319,7 +320,6 @@ TEST(Rviz, ScreenshotShowsTheScene) {
 
 TEST(Rviz, ScreenshotShowsTheContact) {
   ros::NodeHandle nh, pnh("~");
-  if (pnh.param<std::string>("mode", "contact") != "contact") GTEST_SKIP() << "mode scene";
   const std::string display = pnh.param<std::string>("display", ":97");
   const std::string png = std::string(SCREENSHOT_DIR) + "/rviz_screenshot.png";
 
