@@ -179,6 +179,10 @@ bool ThreshingSimNode::resetIfClear(bool full, const char* why) {
   }
   std::string what;
   if (bodiesOverlap(*model_, c, &what)) {
+    {
+      std::lock_guard<std::mutex> lock(staged_mutex_);
+      last_overlap_ = what;
+    }
     if (wallThrottle(&last_overlap_warn_s_, kWarnPeriod_s))
       ROS_WARN("%s at t = %.6f s skipped: the reset would place bodies overlapping (%s)", why,
                data_.t_s, what.c_str());

@@ -160,6 +160,8 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh) {
   if (p.loop_revolutions < 0 || p.loop_revolutions > 1000000)
     fail("loop_revolutions", "must be in [0, 1e6] (got " + str(p.loop_revolutions) + ")");
   readNumber(pnh, "strike_sample_dt", 0.0, 1e-3, &p.strike_sample_dt_s);
+  if (p.strike_sample_dt_s > 0 && p.strike_sample_dt_s < 1e-8)
+    fail("strike_sample_dt", "must be 0 or >= 1e-8 s (got " + str(p.strike_sample_dt_s) + ")");
   readNumber(pnh, "free_flight_factor", 0.0, 1e3, &p.free_flight_factor);
   read(pnh, "wait_for_viewer", &p.wait_for_viewer);
   return p;

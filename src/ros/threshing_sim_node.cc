@@ -245,7 +245,7 @@ bool ThreshingSimNode::onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::R
   res.success = served_cv_.wait_for(lock, seconds(kServiceTimeout_s),
                                     [&] { return resets_done_ >= ticket || stop_; }) &&
                 !stop_ && !reset_refused_;
-  res.message = reset_refused_ ? "reset refused: the bodies would overlap (see the log)"
+  res.message = reset_refused_ ? "reset refused: " + last_overlap_
                                : "bodies reset at t = " + std::to_string(step_ * dt_s_) + " s";
   return true;
 }

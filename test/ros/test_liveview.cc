@@ -203,6 +203,31 @@ TEST(LiveView, FactorReconfiguredAndSkipToContact) {
               (ros::WallTime::now() - start).toSec());
 }
 
+// A reset that would put a body into another is refused: right after a strike (at factor 0.01)
+// the tooth still sits on the kernel's initial place, and ~reset says so instead of placing the
+// kernel inside the tooth.
+TEST(LiveView, ResetIntoTheToothIsRefused) {
+  size_t strikes0 = 0;
+  {
+    std::lock_guard<std::mutex> lock(g_seen.mutex);
+    strikes0 = g_seen.strikes.size();
+  }
+  std_srvs::Trigger skip;
+  ASSERT_TRUE(ros::service::call("/threshing_sim_node/skip_to_contact", skip));
+  ASSERT_TRUE(waitFor([&] { return g_seen.strikes.size() > strikes0; }, 10)) << "no strike";
+  std_srvs::SetBool pause;
+  pause.request.data = true;
+  ASSERT_TRUE(ros::service::call("/threshing_sim_node/pause", pause));
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(ros::service::call("/threshing_sim_node/reset", reset));
+  std::printf("~reset right after a strike: success %d, \"%s\"\n", reset.response.success,
+              reset.response.message.c_str());
+  EXPECT_FALSE(reset.response.success);
+  EXPECT_NE(reset.response.message.find("overlap"), std::string::npos);
+  pause.request.data = false;
+  ASSERT_TRUE(ros::service::call("/threshing_sim_node/pause", pause));
+}
+
 // The live plotter (scripts/live_plot, Debian's matplotlib, headless with --save) plots a field
 // of drum_state, a per-kernel force and the strike histories while the node runs; a skip to the
 // next contact during the plot brings a strike into it.

@@ -200,6 +200,7 @@ class ThreshingSimNode {
   ros::ServiceServer skip_srv_;
   bool static_published_ = false;  // output thread: static_markers sent
   bool reset_refused_ = false;     // the last ~reset would have overlapped (staged_mutex_)
+  std::string last_overlap_;       // the pair a refused reset would overlap (staged_mutex_)
 
   // --- output thread state ---
   ContactStateBuilder contact_builder_;
