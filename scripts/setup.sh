@@ -15,6 +15,8 @@ PACKAGES=(
   xvfb xauth imagemagick python3-numpy python3-matplotlib python3-yaml
   python3-std-srvs python3-geometry-msgs python3-visualization-msgs python3-tf2-msgs
   python3-distributed
+  python3-rospy python3-rostopic python3-rosgraph python3-roslib python3-std-msgs
+  python3-rosgraph-msgs
 )
 
 # Install only when something is missing (dpkg-query is fast; apt needs root and network).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "threshing_sim/core/simulator.h"
 
@@ -118,6 +119,25 @@ visualization_msgs::Marker forceArrow(const Snapshot& s, const std::string& ns, 
   m.scale.y = 2.5e-3;  // head diameter [m]
   m.scale.z = 3e-3;    // head length [m]
   m.color = color;
+  return m;
+}
+
+// Kernels by state: on an intact pedicel green, free (no pedicel, or it broke) gold, damaged
+// (peak normal force at or above the plastic threshold) pink.
+std_msgs::ColorRGBA kernelColor(const KernelModel& kernel, bool attached, double peak_force_N,
+                                const DamageThresholds& damage) {
+  if (peak_force_N >= damage.plastic_force_N) return rgba(1.f, 0.35f, 0.6f);
+  if (kernel.pedicel.present && attached) return rgba(0.35f, 0.85f, 0.35f);
+  return rgba(1.f, 0.78f, 0.1f);
+}
+
+visualization_msgs::Marker text(const Snapshot& s, const std::string& ns, int id, const Vec2& p_m,
+                                double height_m, const std::string& content) {
+  visualization_msgs::Marker m = marker(s, ns, id, visualization_msgs::Marker::TEXT_VIEW_FACING);
+  m.pose.position = point(p_m, 0.03);
+  m.scale.z = height_m;
+  m.color = rgba(0.95f, 0.95f, 0.95f);
+  m.text = content;
   return m;
 }
 
@@ -249,7 +269,7 @@ KernelStateArray kernelStatesMsg(const Snapshot& s) {
     k.velocity.x = s.u[o];
     k.velocity.y = s.u[o + 1];
     k.velocity.theta = s.u[o + 2];
-    k.attached = s.kernel_attached[i] != 0;
+    k.attached = model.kernels[i].pedicel.present && s.kernel_attached[i] != 0;
     k.peak_normal_force = s.kernel_peak_force_N[i];
     k.impacts = s.kernel_impacts[i];
     msg.kernels.push_back(k);
@@ -287,6 +307,7 @@ std::vector<geometry_msgs::TransformStamped> movingTransforms(const Snapshot& s,
   const Model& model = *s.model;
   std::vector<geometry_msgs::TransformStamped> out;
   out.push_back(transform(s.stamp, kWorldFrame, kDrumFrame, Vec2::Zero(), s.theta_rad));
+  out.push_back(transform(s.stamp, kWorldFrame, "strike", s.strike_focus_W, 0.0));
   // Tip frames: at the deflected tip, x along the deformed centreline's tangent.
   for (size_t k = 0; k < model.teeth.size(); ++k) {
     const int ik = static_cast<int>(k);
@@ -320,7 +341,12 @@ visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Da
     out.markers.push_back(clear);
     live_force_arrows_.clear();
   }
-  if (with_static || s.reset) addStaticGeometry(s, &out);
+  if (with_static || s.reset) {
+    const visualization_msgs::MarkerArray geometry = staticGeometry(s);
+    out.markers.insert(out.markers.end(), geometry.markers.begin(), geometry.markers.end());
+  }
+  addOverlay(s, &out);
+  addStrikeChart(s, &out);
 
   // Teeth: line strips along the deformed centreline, as thick as the tooth.
   for (size_t k = 0; k < model.teeth.size(); ++k) {
@@ -346,7 +372,7 @@ visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Da
     m.scale.x = 2 * kernel.semi_axis_a_m;
     m.scale.y = 2 * kernel.semi_axis_b_m;
     m.scale.z = 2 * kernel.semi_axis_b_m;
-    m.color = rgba(1.f, 0.78f, 0.1f);
+    m.color = kernelColor(kernel, s.kernel_attached[i] != 0, s.kernel_peak_force_N[i], damage_);
     out.markers.push_back(m);
   }
 
@@ -378,6 +404,131 @@ visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Da
     out.markers.push_back(m);
   }
   return out;
+}
+
+DrumState drumStateMsg(const Snapshot& s) {
+  DrumState msg;
+  msg.header.stamp = s.stamp;
+  msg.header.frame_id = kWorldFrame;
+  msg.angle = s.theta_rad;
+  msg.speed = s.omega_radps;
+  msg.target_speed = s.omega_target_radps;
+  msg.acceleration = s.alpha_radps2;
+  msg.loops = s.loops;
+  return msg;
+}
+
+KernelContactForces kernelContactForcesMsg(const Snapshot& s) {
+  KernelContactForces msg;
+  msg.header.stamp = s.stamp;
+  msg.header.frame_id = kWorldFrame;
+  for (size_t i = 0; i < s.kernel_forces.size(); ++i) {
+    const KernelForces& f = s.kernel_forces[i];
+    KernelForce k;
+    k.index = static_cast<int>(i);
+    k.tooth_normal_force = f.normal_force_N[kByTooth];
+    k.tooth_tangential_force = f.tangential_force_N[kByTooth];
+    k.tooth_normal_impulse = f.normal_impulse_Ns[kByTooth];
+    k.tooth_tangential_impulse = f.tangential_impulse_Ns[kByTooth];
+    k.obstacle_normal_force = f.normal_force_N[kByObstacle];
+    k.obstacle_tangential_force = f.tangential_force_N[kByObstacle];
+    k.obstacle_normal_impulse = f.normal_impulse_Ns[kByObstacle];
+    k.obstacle_tangential_impulse = f.tangential_impulse_Ns[kByObstacle];
+    k.kernel_normal_force = f.normal_force_N[kByKernel];
+    k.kernel_tangential_force = f.tangential_force_N[kByKernel];
+    k.kernel_normal_impulse = f.normal_impulse_Ns[kByKernel];
+    k.kernel_tangential_impulse = f.tangential_impulse_Ns[kByKernel];
+    msg.kernels.push_back(k);
+  }
+  return msg;
+}
+
+StrikeHistory strikeHistoryMsg(const StrikeRecord& r, const ros::Time& stamp) {
+  StrikeHistory msg;
+  msg.header.stamp = stamp;
+  msg.header.frame_id = kWorldFrame;
+  msg.tooth = r.tooth;
+  msg.kernel = r.kernel;
+  msg.start_time = r.t_s.empty() ? 0.0 : r.t_s.front();
+  msg.end_time = r.t_s.empty() ? 0.0 : r.t_s.back();
+  msg.sample_interval = r.sample_interval_s;
+  msg.peak_normal_force = r.peakNormalForce();
+  msg.peak_time = r.peakTime();
+  msg.normal_impulse = r.normal_impulse_Ns;
+  msg.tangential_impulse = r.tangential_impulse_Ns;
+  msg.truncated = r.truncated;
+  msg.time = r.t_s;
+  msg.normal_force = r.normal_force_N;
+  msg.tangential_force = r.tangential_force_N;
+  msg.gap = r.gap_m;
+  return msg;
+}
+
+visualization_msgs::MarkerArray MarkerBuilder::staticGeometry(const Snapshot& s) const {
+  visualization_msgs::MarkerArray out;
+  addStaticGeometry(s, &out);
+  // The chart's frame: a box with a zero line.
+  const SceneExtent c = chartBox(extent_);
+  visualization_msgs::Marker frame =
+      marker(s, "strike_chart_frame", 0, visualization_msgs::Marker::LINE_STRIP);
+  for (const Vec2& p :
+       {c.min_m, Vec2(c.max_m.x(), c.min_m.y()), c.max_m, Vec2(c.min_m.x(), c.max_m.y()), c.min_m})
+    frame.points.push_back(point(p));
+  frame.scale.x = 0.004 * extent_.size().y();
+  frame.color = rgba(0.55f, 0.55f, 0.55f);  // darker than the drum rim
+  out.markers.push_back(frame);
+  return out;
+}
+
+void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
+  char peak[64] = "(none yet)";
+  if (have_strike_) std::snprintf(peak, sizeof(peak), "%.1f N", last_strike_.peakNormalForce());
+  char line[400];
+  std::snprintf(line, sizeof(line),
+                "t = %.6f s   drum %.2f rad/s = %.0f rpm (target %.2f)\n"
+                "real-time factor %.3g (target %.3g)   last strike peak %s",
+                s.t_s, s.omega_radps, s.omega_radps * 30 / M_PI, s.omega_target_radps,
+                s.measured_rtf, s.target_rtf, peak);
+  const double h_m = extent_.size().y();
+  out->markers.push_back(text(s, "overlay", 0,
+                              Vec2(extent_.center().x(), extent_.max_m.y() + 0.02 * h_m),
+                              0.03 * h_m, line));
+}
+
+void MarkerBuilder::addStrikeChart(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
+  if (!have_strike_ || last_strike_.t_s.size() < 2) return;
+  const StrikeRecord& r = last_strike_;
+  const SceneExtent c = chartBox(extent_);
+  const double t0 = r.t_s.front(), span_s = std::max(r.t_s.back() - t0, 1e-12);
+  double f_max = 1e-9;
+  for (size_t j = 0; j < r.t_s.size(); ++j)
+    f_max = std::max({f_max, r.normal_force_N[j], std::abs(r.tangential_force_N[j])});
+  // y = 0 at the box's lower quarter, so that a negative tangential force shows.
+  const double y0 = c.min_m.y() + 0.25 * c.size().y(), y_span = 0.7 * c.size().y();
+  auto curve = [&](int id, const std::vector<double>& f, const std_msgs::ColorRGBA& color) {
+    visualization_msgs::Marker m =
+        marker(s, "strike_chart", id, visualization_msgs::Marker::LINE_STRIP);
+    const size_t stride = std::max<size_t>(1, r.t_s.size() / 1000);
+    for (size_t j = 0; j < r.t_s.size(); j += stride)
+      m.points.push_back(point(
+          Vec2(c.min_m.x() + c.size().x() * (r.t_s[j] - t0) / span_s, y0 + y_span * f[j] / f_max),
+          0.01));
+    m.scale.x = 0.004 * extent_.size().y();
+    m.color = color;
+    return m;
+  };
+  out->markers.push_back(curve(0, r.normal_force_N, rgba(1.f, 0.45f, 0.f)));
+  out->markers.push_back(curve(1, r.tangential_force_N, rgba(0.f, 0.85f, 0.85f)));
+  char label[300];
+  std::snprintf(label, sizeof(label),
+                "last strike: tooth %d, kernel %d, t = %.6f s\n"
+                "normal (orange) peak %.1f N, tangential (cyan)\n"
+                "%.1f us, %zu samples of %.2g us",
+                r.tooth, r.kernel, t0, r.peakNormalForce(), span_s * 1e6, r.t_s.size(),
+                r.sample_interval_s * 1e6);
+  const double h_m = extent_.size().y();
+  out->markers.push_back(text(s, "strike_chart", 2, Vec2(c.center().x(), c.max_m.y() + 0.06 * h_m),
+                              0.025 * h_m, label));
 }
 
 }  // namespace threshing_sim

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <iterator>
 #include <set>
 #include <sstream>
@@ -39,7 +41,14 @@ const std::set<std::string> kNodeKeys = {"scene",
                                          "kernel_kernel_friction",
                                          "kernel_obstacle_restitution",
                                          "kernel_obstacle_friction",
-                                         "diagnostic_period"};
+                                         "diagnostic_period",
+                                         "scene_base_dir",
+                                         "command_schedule",
+                                         "loop_revolutions",
+                                         "strike_sample_dt",
+                                         "free_flight_factor",
+                                         "wait_for_viewer",
+                                         "view"};
 
 // Event-driven scenes advance by this much simulated time per advanceTo call [s].
 constexpr double kEventDrivenStep_s = 1e-5;
@@ -142,6 +151,19 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh) {
   read(pnh, "beam_points", &p.beam_points);
   if (p.beam_points < 2 || p.beam_points > 1000)
     fail("beam_points", "must be in [2, 1000] (got " + str(p.beam_points) + ")");
+  read(pnh, "scene_base_dir", &p.scene_base_dir);
+  if (!p.scene.empty()) p.scene = resolvePath("scene", p.scene, p.scene_base_dir);
+  read(pnh, "command_schedule", &p.command_schedule);
+  if (!p.command_schedule.empty())
+    p.command_schedule = resolvePath("command_schedule", p.command_schedule, p.scene_base_dir);
+  read(pnh, "loop_revolutions", &p.loop_revolutions);
+  if (p.loop_revolutions < 0 || p.loop_revolutions > 1000000)
+    fail("loop_revolutions", "must be in [0, 1e6] (got " + str(p.loop_revolutions) + ")");
+  readNumber(pnh, "strike_sample_dt", 0.0, 1e-3, &p.strike_sample_dt_s);
+  if (p.strike_sample_dt_s > 0 && p.strike_sample_dt_s < 1e-8)
+    fail("strike_sample_dt", "must be 0 or >= 1e-8 s (got " + str(p.strike_sample_dt_s) + ")");
+  readNumber(pnh, "free_flight_factor", 0.0, 1e3, &p.free_flight_factor);
+  read(pnh, "wait_for_viewer", &p.wait_for_viewer);
   return p;
 }
 
@@ -169,6 +191,43 @@ Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params) 
         params.scene.empty() ? "~ (scene keys)" : "~scene (" + params.scene + ")";
     throw std::invalid_argument(source + ": " + e.what());
   }
+}
+
+std::string resolvePath(const std::string& name, const std::string& path,
+                        const std::string& base_dir) {
+  namespace fs = std::filesystem;
+  if (path.empty() || fs::path(path).is_absolute()) return path;
+  std::error_code ec;
+  const fs::path base = base_dir.empty() ? fs::current_path(ec) : fs::path(base_dir);
+  const fs::path resolved = base / path;
+  if (!fs::exists(resolved, ec))
+    fail(name, "'" + path + "' not found: a relative path is resolved against " + base.string() +
+                   (base_dir.empty() ? " (the node's working directory)"
+                                     : " (~scene_base_dir, the launch's working directory)") +
+                   "; give an absolute path or $(find threshing_sim)/config/...");
+  return resolved.lexically_normal().string();
+}
+
+std::string sceneTextFromParams(const ros::NodeHandle& pnh, const NodeParams& params,
+                                DamageThresholds* damage) {
+  if (!params.scene.empty()) {
+    std::ifstream in(params.scene);
+    std::stringstream text;
+    text << in.rdbuf();
+    *damage = damageFromYaml(loadSceneYaml(params.scene));
+    return text.str();
+  }
+  XmlRpc::XmlRpcValue all;
+  ros::param::get(pnh.getNamespace(), all);
+  XmlRpc::XmlRpcValue scene_keys;
+  if (all.getType() == XmlRpc::XmlRpcValue::TypeStruct)
+    for (auto& entry : all)
+      if (kNodeKeys.count(entry.first) == 0) scene_keys[entry.first] = entry.second;
+  const YAML::Node root = toYaml(scene_keys, "");
+  *damage = damageFromYaml(root);
+  YAML::Emitter out;
+  out << root;
+  return out.c_str();
 }
 
 double resolvePhysicsStep(const NodeParams& params, const Model& model) {

@@ -75,6 +75,7 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   status_on_tty_ = isatty(STDOUT_FILENO) != 0;
 
   advertise(nh, pnh);
+  startLiveView(nh, pnh);
   static_tf_.sendTransform(staticTransforms(*model_, stampOf(0)));
   startReconfigure(pnh);
   ROS_INFO(
@@ -82,7 +83,7 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
       "real-time factor %g, %s clock%s",
       model_->teeth.size(), model_->kernels.size(), model_->obstacles.size(), dt_s_,
       params_.real_time_factor, params_.sim_clock ? "sim" : "wall",
-      schedule_.empty() ? "" : ", re-simulating the commands of ~command_bag");
+      params_.command_bag.empty() ? "" : ", re-simulating the commands of ~command_bag");
 
   output_thread_ = std::thread(&ThreshingSimNode::outputLoop, this);
   physics_thread_ = std::thread(&ThreshingSimNode::physicsLoop, this);
@@ -173,10 +174,12 @@ void ThreshingSimNode::onDrumSpeedCommand(const std_msgs::Float64& msg) {
   const double speed_radps = msg.data;
   if (!std::isfinite(speed_radps) || std::abs(speed_radps) > params_.max_drum_speed_radps) {
     const long n = ++rejected_commands_;
-    ROS_WARN_THROTTLE(1.0,
-                      "drum_speed_cmd rejected: %g rad/s is not finite or exceeds "
-                      "~max_drum_speed = %g rad/s (%ld rejected so far)",
-                      speed_radps, params_.max_drum_speed_radps, n);
+    // Throttled on the wall clock: simulated time crawls in slow motion.
+    if (wallThrottle(&last_reject_warn_s_, 1.0))
+      ROS_WARN(
+          "drum_speed_cmd rejected: %g rad/s is not finite or exceeds ~max_drum_speed = %g "
+          "rad/s (%ld rejected so far)",
+          speed_radps, params_.max_drum_speed_radps, n);
     return;
   }
   std::lock_guard<std::mutex> lock(staged_mutex_);
@@ -253,6 +256,8 @@ void ThreshingSimNode::onReconfigure(ThreshingSimConfig& config, std::uint32_t) 
 
 void ThreshingSimNode::physicsLoop() {
   waitForSubscribers();
+  waitForViewer();
+  loop_anchor_rad_ = data_.theta_rad;
   start_wall_s_ = clock_.nowSeconds();
   pending_reset_ = true;  // markers start with DELETEALL: clears a previous run's
   takeSnapshot(kAllStreams);
@@ -264,7 +269,12 @@ void ThreshingSimNode::physicsLoop() {
     }
     // Run the steps due, then sleep until more are (woken early by stop).
     const int n = pacer_.nextBatch();
-    for (int i = 0; i < n && !paused_ && !stop_ && !finished_; ++i) advanceOneStep(0);
+    const double rtf = pacer_.realTimeFactor();
+    for (int i = 0; i < n && !paused_ && !stop_ && !finished_; ++i) {
+      advanceOneStep(0);
+      adjustPace();  // a new pace starts a new batch
+      if (pacer_.realTimeFactor() != rtf) break;
+    }
     publishCounters();
     if (n == 0) {
       std::unique_lock<std::mutex> lock(staged_mutex_);
@@ -278,8 +288,9 @@ void ThreshingSimNode::physicsLoop() {
 
 void ThreshingSimNode::waitForSubscribers() {
   if (!params_.wait_for_subscribers) return;
-  const ros::Publisher* outputs[] = {&contact_pub_, &impact_pub_, &kernel_pub_,
-                                     &beam_pub_,    &marker_pub_, &applied_pub_};
+  const ros::Publisher* outputs[] = {&contact_pub_,    &impact_pub_,        &kernel_pub_,
+                                     &beam_pub_,       &marker_pub_,        &applied_pub_,
+                                     &drum_state_pub_, &kernel_forces_pub_, &strike_pub_};
   ROS_INFO("~wait_for_subscribers: holding t = 0 until every output topic has a subscriber");
   auto allHeard = [&] {
     return std::all_of(std::begin(outputs), std::end(outputs),
@@ -290,8 +301,9 @@ void ThreshingSimNode::waitForSubscribers() {
 
 void ThreshingSimNode::servePaused() {
   std::unique_lock<std::mutex> lock(staged_mutex_);
-  staged_cv_.wait(lock,
-                  [&] { return stop_ || !paused_ || staged_.step_periods > 0 || staged_.reset; });
+  staged_cv_.wait_for(lock, seconds(0.1), [&] {
+    return stop_ || !paused_ || staged_.step_periods > 0 || staged_.reset;
+  });
   const long steps = std::exchange(staged_.step_periods, 0) * stepsPerPublishPeriod();
   const long ticket = steps_requested_;
   lock.unlock();
@@ -299,6 +311,8 @@ void ThreshingSimNode::servePaused() {
   for (long i = 1; i <= steps && !stop_ && !finished_; ++i)
     advanceOneStep(i == steps ? kAllStreams : 0u);
   if (steps == 0) applyStaged();
+  // While paused, markers (static geometry included) go out now and then for a new viewer.
+  if (steps == 0 && paused_ && !stop_ && pausedRepublishDue()) takeSnapshot(kMarkerStream);
   publishCounters();
   lock.lock();
   steps_done_ = ticket;
@@ -311,7 +325,7 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   applyStaged();
   const long k = step_ + 1;
   advance_started_s_ = clock_.nowSeconds();
-  const StepStatus status = advanceTo(*model_, &data_, k * dt_s_);
+  const StepStatus status = advanceSampled(k);
   advance_started_s_ = -1;
   step_ = k;
   if (status == StepStatus::kFailed) {
@@ -335,6 +349,7 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   const bool last = end_step_ > 0 && k >= end_step_;
   unsigned streams = dueStreams() | forced_streams | (last ? kAllStreams : 0u);
   if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_wanted_) requestReset(0);
+  if (loopDue() && resetIfClear(false, "demo loop re-seed")) streams = kAllStreams;
   if (streams != 0) takeSnapshot(streams);
   tryPendingReset();
   if (last) finished_ = true;
@@ -381,6 +396,8 @@ void ThreshingSimNode::tryPendingReset() {
   const std::string at = " at t = " + std::to_string(step_ * dt_s_) + " s";
   if (!overlap.found) {
     resetBodies();
+    strikes_.clear();
+    kernel_impulses_.clear();
     takeSnapshot(kAllStreams);
     finishReset(true, "bodies reset" + at);
     return;
@@ -415,6 +432,8 @@ void ThreshingSimNode::applyDrumTarget(double speed_radps) {
 
 void ThreshingSimNode::applyConfig(const ThreshingSimConfig& config) {
   setRates(config.contact_state_rate, config.state_rate, config.marker_rate);
+  slow_rtf_ = config.real_time_factor;  // adjustPace hands it to the pacer
+  free_flight_rtf_ = config.free_flight_factor;
   // Contact values live in the constant model: swap in a recompiled copy when they change.
   const double values[3][2] = {
       {config.tooth_kernel_restitution, config.tooth_kernel_friction},
@@ -474,7 +493,7 @@ unsigned ThreshingSimNode::dueStreams() {
   unsigned due = 0;
   const long k = step_;
   // Factor 0: a schedule in simulated time, identical from run to run.
-  if (params_.real_time_factor == 0) {
+  if (pacer_.realTimeFactor() == 0) {
     for (int i = 0; i < 3; ++i)
       if (k % period_steps_[i] == 0) due |= 1u << i;
     return due;
@@ -510,6 +529,8 @@ void ThreshingSimNode::trackPeaks() {
 }
 
 void ThreshingSimNode::takeSnapshot(unsigned streams) {
+  // The island scheme leaves lone kernels on their own clocks between snapshots.
+  if (syncBodies(*model_, &data_) == StepStatus::kFailed) failed_ = true;
   Snapshot s;
   s.model = model_;
   s.step = step_;
@@ -527,6 +548,7 @@ void ThreshingSimNode::takeSnapshot(unsigned streams) {
   s.commands = std::exchange(pending_commands_, {});
   s.peaks = peaks_;
   s.streams = streams;
+  fillLiveView(&s);
   s.reset = std::exchange(pending_reset_, false);
   // Back-pressure: at factor 0 the simulation waits for the publisher rather than drop.
   std::unique_lock<std::mutex> lock(queue_mutex_);
@@ -607,11 +629,13 @@ void ThreshingSimNode::publishSnapshot(const Snapshot& s, bool with_static_marke
     kernel_pub_.publish(kernelStatesMsg(s));
     beam_pub_.publish(beamShapeMsg(s, scratch_, params_.beam_points));
     // tf2 listeners drop (and complain about) repeated stamps.
-    if (s.stamp > last_tf_) {
+    if (!tf_published_ || s.stamp > last_tf_) {
       tf_.sendTransform(movingTransforms(s, scratch_));
       last_tf_ = s.stamp;
+      tf_published_ = true;
     }
   }
+  publishLiveView(s);
   if ((s.streams & kMarkerStream) || s.reset)
     marker_pub_.publish(marker_builder_.build(s, scratch_, with_static_markers));
 }
@@ -630,7 +654,7 @@ void ThreshingSimNode::printStatus(bool final_line) {
   std::snprintf(line, sizeof(line),
                 "t = %.6f s | real-time factor %.3g (target %g) | impacts %ld | peak force "
                 "%.1f N%s",
-                step_ * dt_s_, measured_rtf_.load(), params_.real_time_factor, impacts_.load(),
+                step_ * dt_s_, measured_rtf_.load(), target_rtf_.load(), impacts_.load(),
                 peak_force_N_.load(),
                 finished_ ? " | finished"
                 : paused_ ? " | paused"
@@ -645,7 +669,7 @@ void ThreshingSimNode::printStatus(bool final_line) {
 
 void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   const double rtf = measured_rtf_;
-  const double target = params_.real_time_factor;
+  const double target = target_rtf_;
   const double started_s = advance_started_s_;
   const double busy_s = started_s >= 0 ? clock_.nowSeconds() - started_s : 0.0;
   std::string failure;
@@ -702,7 +726,7 @@ ros::Time ThreshingSimNode::stampOf(long step) const {
 
 long ThreshingSimNode::stepsPerPublishPeriod() const {
   // One contact_state period of simulated time (at factor f > 0 a wall period is f times that).
-  const double rtf = params_.real_time_factor;
+  const double rtf = slow_rtf_;
   const double period_s = (rtf > 0 ? rtf : 1.0) / rates_hz_[0];
   return std::max(1L, std::lround(period_s / dt_s_));
 }

@@ -1,21 +1,34 @@
-// rostest (rviz.test): demo.launch with rviz under Xvfb and the committed config. Once rviz
-// listens, the paused demo runs into its first contact and is paused there; a screenshot of the
-// display must then show the kernel, the tooth and the contact force arrow in their marker
-// colours (not a blank or default scene).
+// rostests rviz*.test: demo.launch with rviz under Xvfb and the view scene_rviz frames on the
+// scene. Each .test runs one of the two tests (--gtest_filter):
+//  - ScreenshotShowsTheContact (rviz.test, view:=contact): the paused demo runs into its first
+//  contact and
+//    is paused there; the screenshot must show the kernel, the tooth and the contact force arrow
+//    in their marker colours;
+//  - ScreenshotShowsTheScene (rviz_default/stream/knead.test, the whole-scene view): with
+//  run_to_strike the
+//    demo runs until the first strike_history and is paused, else it stays paused at t = 0; the
+//    screenshot must show the whole drum rim inside the render area and at least 90 % of the
+//    kernels (connected blobs in a kernel colour), and after a strike the strike chart's curve.
 #include <gtest/gtest.h>
 #include <ros/master.h>
 #include <ros/ros.h>
+#include <std_msgs/Float64MultiArray.h>
 #include <std_srvs/SetBool.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <string>
 #include <vector>
+
+#include "threshing_sim/KernelStateArray.h"
+#include "threshing_sim/StrikeHistory.h"
 
 namespace {
 
@@ -61,10 +74,254 @@ long count(const Image& img, Match match) {
   return n;
 }
 
+// Screenshot of the whole display into png, read back as an Image.
+Image screenshot(const std::string& display, const std::string& png) {
+  const std::string ppm = png + ".ppm";
+  std::filesystem::create_directories(std::filesystem::path(png).parent_path());
+  if (std::system(("import -display " + display + " -window root " + png).c_str()) != 0 ||
+      std::system(("convert " + png + " " + ppm).c_str()) != 0)
+    return Image();
+  const Image img = readPpm(ppm);
+  std::remove(ppm.c_str());
+  return img;
+}
+
+struct Box {
+  int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+  void add(int x, int y) {
+    x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x), y1 = std::max(y1, y);
+  }
+  bool empty() const { return x1 < x0; }
+};
+
+template <typename Match>
+Box boxOf(const Image& img, const Box& within, Match match) {
+  Box b;
+  for (int y = std::max(0, within.y0); y <= std::min(img.height - 1, within.y1); ++y)
+    for (int x = std::max(0, within.x0); x <= std::min(img.width - 1, within.x1); ++x) {
+      const unsigned char* p = &img.rgb[3 * (y * img.width + x)];
+      if (match(p[0], p[1], p[2])) b.add(x, y);
+    }
+  return b;
+}
+
+// Connected blobs (8-neighbourhood) of matching pixels inside `within`: (size, box) each.
+template <typename Match>
+std::vector<std::pair<int, Box>> blobList(const Image& img, const Box& within, Match match) {
+  std::vector<char> seen(img.width * img.height, 0);
+  std::vector<std::pair<int, Box>> out;
+  for (int y = within.y0; y <= within.y1; ++y)
+    for (int x = within.x0; x <= within.x1; ++x) {
+      const int i = y * img.width + x;
+      const unsigned char* p = &img.rgb[3 * i];
+      if (seen[i] || !match(p[0], p[1], p[2])) continue;
+      std::pair<int, Box> blob(0, Box());
+      std::vector<int> stack = {i};
+      seen[i] = 1;
+      while (!stack.empty()) {
+        const int j = stack.back();
+        stack.pop_back();
+        const int jx = j % img.width, jy = j / img.width;
+        ++blob.first;
+        blob.second.add(jx, jy);
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int kx = jx + dx, ky = jy + dy;
+            if (kx < within.x0 || kx > within.x1 || ky < within.y0 || ky > within.y1) continue;
+            const int k = ky * img.width + kx;
+            const unsigned char* q = &img.rgb[3 * k];
+            if (!seen[k] && match(q[0], q[1], q[2])) {
+              seen[k] = 1;
+              stack.push_back(k);
+            }
+          }
+      }
+      out.push_back(blob);
+    }
+  return out;
+}
+
+// Number of blobs of at least min_px pixels.
+template <typename Match>
+int blobs(const Image& img, const Box& within, int min_px, Match match) {
+  int n = 0;
+  for (const auto& b : blobList(img, within, match)) n += b.first >= min_px ? 1 : 0;
+  return n;
+}
+
+bool near(int v, int target, int tol) { return std::abs(v - target) <= tol; }
+
+// The longest run of indices whose fraction of dark pixels is at least 0.6.
+template <typename DarkAt>
+std::pair<int, int> darkRun(int n, int m, DarkAt dark) {
+  int best0 = 0, best1 = -1, start = -1;
+  for (int i = 0; i <= n; ++i) {
+    int d = 0;
+    for (int j = 0; i < n && j < m; ++j) d += dark(i, j) ? 1 : 0;
+    const bool in = i < n && d >= 0.6 * m;
+    if (in && start < 0) start = i;
+    if (!in && start >= 0) {
+      if (i - 1 - start > best1 - best0) best0 = start, best1 = i - 1;
+      start = -1;
+    }
+  }
+  return {best0, best1};
+}
+
+// rviz's render area: the columns, then the rows, that are mostly dark (rviz's background and
+// grid against the light panels around it).
+Box renderArea(const Image& img) {
+  auto dark = [&](int x, int y) {
+    const unsigned char* p = &img.rgb[3 * (y * img.width + x)];
+    return std::max({p[0], p[1], p[2]}) < 160;  // grid lines reach 140
+  };
+  const auto cols = darkRun(img.width, img.height, [&](int x, int y) { return dark(x, y); });
+  const int w = cols.second - cols.first + 1;
+  const auto rows = darkRun(img.height, w, [&](int y, int j) { return dark(cols.first + j, y); });
+  Box b;
+  b.add(cols.first, rows.first);
+  b.add(cols.second, rows.second);
+  return b;
+}
+
+// Kernel colours (messages.cc): gold (free), green (on its pedicel), pink (damaged).
+bool kernelColour(int r, int g, int b) {
+  const bool gold = r > 230 && g > 180 && g < 215 && b < 50;
+  const bool green = near(r, 89, 20) && near(g, 217, 20) && near(b, 89, 20);
+  const bool pink = r > 230 && near(g, 89, 20) && near(b, 153, 20);
+  return gold || green || pink;
+}
+
+void waitForRviz() {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(60);
+  while (!subscribes("/rviz", "/markers") && ros::WallTime::now() < end)
+    ros::WallDuration(0.2).sleep();
+  ASSERT_TRUE(subscribes("/rviz", "/markers")) << "rviz did not come up";
+  ros::WallDuration(3.0).sleep();
+}
+
+void pause(bool on) {
+  std_srvs::SetBool srv;
+  srv.request.data = on;
+  ASSERT_TRUE(ros::service::waitForService("/threshing_sim_node/pause", ros::Duration(10)));
+  ASSERT_TRUE(ros::service::call("/threshing_sim_node/pause", srv));
+}
+
+// The whole-scene view: every point of the drum rim drawn inside the render area, >= 90 % of
+// the kernels seen where kernel_states puts them, and (after a strike) the strike chart's curve.
+// World -> pixel as scene_rviz sets up the camera: the top-down view centred on the view box's
+// centre at the render area's centre, its scale fitted into a 1050 x 760 px render area.
+TEST(Rviz, ScreenshotShowsTheScene) {
+  ros::NodeHandle nh, pnh("~");
+  const std::string display = pnh.param<std::string>("display", ":97");
+  const std::string png =
+      std::string(SCREENSHOT_DIR) + "/" + pnh.param<std::string>("png", "x.png");
+  const bool run_to_strike = pnh.param("run_to_strike", false);
+
+  std::mutex mutex;
+  threshing_sim::KernelStateArray kernels;
+  std::vector<double> box;
+  std::vector<geometry_msgs::Point> rim_W;
+  std::atomic<bool> struck{false};
+  ros::Subscriber ks = nh.subscribe<threshing_sim::KernelStateArray>(
+      "/kernel_states", 10,
+      boost::function<void(const threshing_sim::KernelStateArray::ConstPtr&)>(
+          [&](const threshing_sim::KernelStateArray::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(mutex);
+            kernels = *m;
+          }));
+  ros::Subscriber vb = nh.subscribe<std_msgs::Float64MultiArray>(
+      "/view_box", 1,
+      boost::function<void(const std_msgs::Float64MultiArray::ConstPtr&)>(
+          [&](const std_msgs::Float64MultiArray::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(mutex);
+            box = m->data;
+          }));
+  ros::Subscriber sm = nh.subscribe<visualization_msgs::MarkerArray>(
+      "/static_markers", 1,
+      boost::function<void(const visualization_msgs::MarkerArray::ConstPtr&)>(
+          [&](const visualization_msgs::MarkerArray::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(mutex);
+            for (const auto& marker : m->markers)
+              if (marker.ns == "drum") rim_W = marker.points;
+          }));
+  ros::Subscriber ss = nh.subscribe<threshing_sim::StrikeHistory>(
+      "/strike_history", 10,
+      boost::function<void(const threshing_sim::StrikeHistory::ConstPtr&)>(
+          [&](const threshing_sim::StrikeHistory::ConstPtr&) { struck = true; }));
+  waitForRviz();
+  if (run_to_strike) {
+    pause(false);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(40);
+    while (!struck && ros::WallTime::now() < end) ros::WallDuration(1e-3).sleep();
+    pause(true);
+    ASSERT_TRUE(struck) << "no strike_history";
+  }
+  ros::WallDuration(1.5).sleep();  // rviz draws the last markers
+
+  const Image img = screenshot(display, png);
+  ASSERT_GT(img.width * img.height, 0);
+  std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_EQ(box.size(), 4u) << "no view_box";
+  ASSERT_FALSE(rim_W.empty()) << "no drum in static_markers";
+  ASSERT_FALSE(kernels.kernels.empty()) << "no kernel_states";
+  const Box render = renderArea(img);
+  ASSERT_FALSE(render.empty());
+  const double w_m = box[2] - box[0], h_m = box[3] - box[1];
+  const double scale = 0.95 * std::min(1050 / w_m, 760 / h_m);  // as scene_rviz [px/m]
+  const double cx_px = 0.5 * (render.x0 + render.x1), cy_px = 0.5 * (render.y0 + render.y1);
+  auto pixel = [&](double x_m, double y_m) {
+    return std::make_pair(
+        static_cast<int>(std::lround(cx_px + (x_m - 0.5 * (box[0] + box[2])) * scale)),
+        static_cast<int>(std::lround(cy_px - (y_m - 0.5 * (box[1] + box[3])) * scale)));
+  };
+  // Whether a pixel within r px of (x, y), inside the render area, passes match.
+  auto seenNear = [&](std::pair<int, int> p, int r, auto match) {
+    for (int y = std::max(render.y0, p.second - r); y <= std::min(render.y1, p.second + r); ++y)
+      for (int x = std::max(render.x0, p.first - r); x <= std::min(render.x1, p.first + r); ++x) {
+        const unsigned char* q = &img.rgb[3 * (y * img.width + x)];
+        if (match(q[0], q[1], q[2])) return true;
+      }
+    return false;
+  };
+  int rim_points = 0, rim_inside = 0, rim_drawn = 0;
+  for (size_t j = 0; j < rim_W.size(); j += 10) {
+    const auto p = pixel(rim_W[j].x, rim_W[j].y);
+    ++rim_points;
+    const bool inside = p.first > render.x0 + 2 && p.first < render.x1 - 2 &&
+                        p.second > render.y0 + 2 && p.second < render.y1 - 2;
+    rim_inside += inside ? 1 : 0;
+    // Drawn: the rim's grey (lit: 110..200) or a tooth's blue over it.
+    rim_drawn += inside && seenNear(p, 3, [](int r, int g, int b) {
+                   const bool grey = r >= 105 && r <= 200 && near(g, r, 10) && near(b, r, 10);
+                   const bool blue = b > 200 && r < 120;
+                   return grey || blue;
+                 });
+  }
+  int kernels_seen = 0;
+  for (const auto& k : kernels.kernels)
+    kernels_seen += seenNear(pixel(k.pose.x, k.pose.y), 4, kernelColour) ? 1 : 0;
+  const int n = static_cast<int>(kernels.kernels.size());
+  const long chart = count(img, [](int r, int g, int b) {
+    return r > 230 && near(g, 115, 25) && b < 30;  // the normal force curve, orange
+  });
+  std::printf(
+      "screenshot %s: render area %dx%d px, %.0f px/m; drum rim: %d of %d points inside the view, "
+      "%d drawn; %d of %d kernels seen; strike chart %ld px\n",
+      png.c_str(), render.x1 - render.x0, render.y1 - render.y0, scale, rim_inside, rim_points,
+      rim_drawn, kernels_seen, n, chart);
+  EXPECT_EQ(rim_inside, rim_points) << "the drum is not wholly in view";
+  EXPECT_GE(rim_drawn, 0.95 * rim_points) << "the drum rim is not drawn where expected";
+  EXPECT_GE(kernels_seen, std::ceil(0.9 * n));
+  if (run_to_strike) {
+    EXPECT_GT(chart, 100) << "no strike chart";
+  }
+}
+
 TEST(Rviz, ScreenshotShowsTheContact) {
   ros::NodeHandle nh, pnh("~");
   const std::string display = pnh.param<std::string>("display", ":97");
-  const std::string png = SCREENSHOT_PATH;
+  const std::string png = std::string(SCREENSHOT_DIR) + "/rviz_screenshot.png";
 
   // rviz up and listening, then a few frames to settle.
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(60);

@@ -15,9 +15,14 @@
 #include "threshing_sim/BeamShapeArray.h"
 #include "threshing_sim/ContactStateArray.h"
 #include "threshing_sim/DrumSpeedCommand.h"
+#include "threshing_sim/DrumState.h"
 #include "threshing_sim/ImpactEvent.h"
+#include "threshing_sim/KernelContactForces.h"
 #include "threshing_sim/KernelStateArray.h"
+#include "threshing_sim/StrikeHistory.h"
+#include "threshing_sim/ros/live_view.h"
 #include "threshing_sim/ros/snapshot.h"
+#include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
 
@@ -46,6 +51,9 @@ class ContactStateBuilder {
 ImpactEvent impactEventMsg(const ContactEvent& e, const ros::Time& stamp);
 DrumSpeedCommand drumSpeedCommandMsg(const AppliedCommand& c);
 KernelStateArray kernelStatesMsg(const Snapshot& s);
+DrumState drumStateMsg(const Snapshot& s);
+KernelContactForces kernelContactForcesMsg(const Snapshot& s);
+StrikeHistory strikeHistoryMsg(const StrikeRecord& r, const ros::Time& stamp);
 // scratch must hold the snapshot's pose (loadPose).
 BeamShapeArray beamShapeMsg(const Snapshot& s, const Data& scratch, int points);
 
@@ -63,8 +71,28 @@ class MarkerBuilder {
   explicit MarkerBuilder(double force_arrow_scale_mpN, int beam_points)
       : scale_mpN_(force_arrow_scale_mpN), beam_points_(beam_points) {}
   visualization_msgs::MarkerArray build(const Snapshot& s, const Data& scratch, bool with_static);
+  // Where the text overlay and the strike chart go, and the kernels' damage colours.
+  void setView(const SceneExtent& extent, const DamageThresholds& damage) {
+    extent_ = extent;
+    damage_ = damage;
+  }
+  // Every finished strike goes through here (whichever stream its snapshot was due on).
+  void noteStrikes(const std::vector<StrikeRecord>& strikes) {
+    if (strikes.empty()) return;
+    last_strike_ = strikes.back();
+    have_strike_ = true;
+  }
+  // The drum, the obstacles (and the chart's frame): the static geometry alone.
+  visualization_msgs::MarkerArray staticGeometry(const Snapshot& s) const;
 
  private:
+  void addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
+  void addStrikeChart(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
+
+  SceneExtent extent_;               // the scene's box in world [m]
+  DamageThresholds damage_;          // kernel colours: damaged at or above plastic_force [N]
+  StrikeRecord last_strike_;         // the chart shows this one
+  bool have_strike_ = false;         // a strike has finished since start
   double scale_mpN_;                 // force arrow length per newton [m/N]
   int beam_points_;                  // centreline samples per tooth [-]
   std::set<int> live_force_arrows_;  // ids of the contact_forces arrows now shown

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
 
@@ -32,7 +33,20 @@ struct NodeParams {
   bool wait_for_subscribers = false;     // hold t = 0 until every output is heard
   double force_arrow_scale_mpN = 5e-4;   // force arrow length per newton [m/N]
   int beam_points = 20;                  // centreline samples per tooth [-]
+  // --- live view ---
+  std::string scene_base_dir;        // relative ~scene/~command_schedule resolve here
+  std::string command_schedule;      // timed drum speed commands (YAML), "" = none
+  int loop_revolutions = 0;          // re-seed kernels every n drum revolutions, 0 = never
+  double strike_sample_dt_s = 2e-7;  // strike history sampling, 0 = per physics step [s]
+  double free_flight_factor = 0;     // factor away from contacts, 0 = real_time_factor [-]
+  bool wait_for_viewer = false;      // hold t = 0 (publishing markers) until rviz listens
 };
+
+// A relative path resolved against ~scene_base_dir (the launch's working directory), else
+// the node's working directory; throws std::invalid_argument naming ~name, the path and what
+// it was resolved against when the file does not exist.
+std::string resolvePath(const std::string& name, const std::string& path,
+                        const std::string& base_dir);
 
 // Reads and validates the node's parameters from the private handle pnh. physics_dt_s is left
 // 0 when not set (the scene decides, see resolvePhysicsStep).
@@ -42,6 +56,10 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh);
 // (every private parameter that is not a node parameter). Validated and compiled by the scene
 // loader; throws std::invalid_argument naming the offending key.
 Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params);
+
+// The scene as given (the file's text, or the scene keys as YAML) and its damage thresholds.
+std::string sceneTextFromParams(const ros::NodeHandle& pnh, const NodeParams& params,
+                                DamageThresholds* damage);
 
 // The physics step: ~physics_dt if set, else the scene's time step (time stepping) or 1e-5 s
 // (event-driven). Checks that it is a whole number of nanoseconds and that a time-stepping

@@ -12,6 +12,7 @@
 
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/ros/live_view.h"
 
 namespace threshing_sim {
 
@@ -48,6 +49,13 @@ struct Snapshot {
   ros::Time stamp;                     // stamp of every message built from this snapshot
   double theta_rad = 0;                // drum angle [rad]
   double omega_radps = 0;              // drum speed [rad/s]
+  double omega_target_radps = 0;       // commanded drum speed [rad/s]
+  double alpha_radps2 = 0;             // drum acceleration [rad/s^2]
+  long loops = 0;                      // demo-loop kernel re-seeds so far [-]
+  double target_rtf = 0;               // real-time factor the pacer aims at now [-]
+  double measured_rtf = 0;             // measured real-time factor [-]
+  Vec2 strike_focus_W = Vec2::Zero();  // tf frame `strike`: the tooth-kernel contact point, else
+                                       // the kernel a tooth reaches first, world [m]
   VecX z;                              // generalised positions (see core/data.h)
   VecX u;                              // generalised velocities
   std::vector<std::uint8_t> kernel_attached;
@@ -57,6 +65,8 @@ struct Snapshot {
   std::vector<ContactEvent> impacts;        // impacts completed since the previous snapshot
   std::vector<AppliedCommand> commands;     // commands applied since the previous snapshot
   std::vector<PeakContact> peaks;           // latest episode of every pair that touched
+  std::vector<KernelForces> kernel_forces;  // per kernel: forces now, impulse sums
+  std::vector<StrikeRecord> strikes;        // strikes finished since the previous snapshot
   unsigned streams = 0;                     // Stream bits due
   bool reset = false;                       // bodies were reset: markers start with DELETEALL
 };

@@ -20,6 +20,7 @@
 #include <dynamic_reconfigure/server.h>
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
+#include <std_msgs/String.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/static_transform_broadcaster.h>
@@ -39,6 +40,8 @@
 #include "threshing_sim/ThreshingSimConfig.h"
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/core/simulator.h"
+#include "threshing_sim/ros/live_view.h"
 #include "threshing_sim/ros/messages.h"
 #include "threshing_sim/ros/node_params.h"
 #include "threshing_sim/ros/pacer.h"
@@ -107,6 +110,21 @@ class ThreshingSimNode {
   void printStatus(bool final_line);
   void diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat);
 
+  // --- live view (live_view_node.cc): what a user watches, plots and steers ---
+  void startLiveView(ros::NodeHandle& nh, ros::NodeHandle& pnh);
+  void loadCommandSchedule();
+  bool onSkipToContact(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
+  void waitForViewer();
+  bool pausedRepublishDue();
+  StepStatus advanceSampled(long k);  // advanceTo boundary k, sub-sampling strikes
+  bool loopDue();                     // the drum passed the loop phase (~loop_revolutions)
+  bool resetIfClear(bool full, const char* why);  // reset / re-seed unless bodies would overlap
+  void reseedKernels();
+  void adjustPace();  // free flight fast, contacts slow, skip to the next contact
+  bool wallThrottle(double* last_s, double period_s) const;
+  void fillLiveView(Snapshot* s);
+  void publishLiveView(const Snapshot& s);
+
   ros::Time stampOf(long step) const;  // sim clock: step * physics_dt; wall clock: now
   long stepsPerPublishPeriod() const;  // the ~step service's advance
 
@@ -170,13 +188,43 @@ class ThreshingSimNode {
   std::atomic<double> deflection_warning_s_{
       -1};  // first time beyond the valid range; < 0 never [s]
 
+  // --- live view state (physics thread unless noted) ---
+  StrikeRecorder strikes_{0.0};
+  KernelImpulses kernel_impulses_;
+  std::vector<StrikeRecord> pending_strikes_;
+  int strike_substeps_ = 1;            // advanceTo calls per physics step near a strike [-]
+  double loop_anchor_rad_ = 0;         // drum angle the loop phase counts from [rad]
+  long loop_index_ = 0;                // revolutions-of-the-loop passed [-]
+  long loops_ = 0;                     // kernel re-seeds done [-]
+  Data overlap_scratch_;               // candidate state of a reset, for the overlap check
+  double slow_rtf_ = 1;                // ~real_time_factor as reconfigured [-]
+  double free_flight_rtf_ = 0;         // factor away from contacts, 0 = same as slow_rtf_ [-]
+  std::atomic<bool> skipping_{false};  // ~skip_to_contact running
+  double skip_from_s_ = 0;             // simulation time the skip started at [s]
+  double last_near_s_ = -1e9;          // last time a strike was near [s]
+  bool skip_saw_free_ = false;         // the skip has passed free flight
+  std::atomic<double> target_rtf_{1};  // factor the pacer aims at now [-]
+  double last_paused_publish_s_ = 0;   // steady time of the last paused republish [s]
+  double last_overlap_warn_s_ = -1e9;  // steady time of the last overlap warning [s]
+  mutable double last_reject_warn_s_ = -1e9;  // spinner thread: rejected-command warning [s]
+  DamageThresholds damage_;                   // kernel colours
+  std::string scene_text_;                    // the scene as given (file text or parameter YAML)
+  std::string scene_source_;                  // where it came from
+  ros::Publisher drum_state_pub_, kernel_forces_pub_, strike_pub_, scene_pub_, static_marker_pub_;
+  ros::Publisher view_box_pub_;
+  ros::ServiceServer skip_srv_;
+  bool static_published_ = false;  // output thread: static_markers sent
+  bool reset_refused_ = false;     // the last ~reset would have overlapped (staged_mutex_)
+  std::string last_overlap_;       // the pair a refused reset would overlap (staged_mutex_)
+
   // --- output thread state ---
   ContactStateBuilder contact_builder_;
   MarkerBuilder marker_builder_;
   Data scratch_;          // pose for the tooth shape functions
   ros::Time last_clock_;  // last /clock published
   bool clock_published_ = false;
-  ros::Time last_tf_;  // last moving-transform stamp (tf2 drops repeats)
+  ros::Time last_tf_;          // last moving-transform stamp (tf2 drops repeats)
+  bool tf_published_ = false;  // the t = 0 transforms go out too
   bool status_on_tty_ = false;
 
   // --- ROS interfaces ---
