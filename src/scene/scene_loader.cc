@@ -13,6 +13,7 @@
 #include <random>
 #include <utility>
 
+#include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/geometry.h"
 
 namespace threshing_sim {
@@ -47,6 +48,7 @@ const KeySpec kSchema[] = {
     {"teeth.*.damping_ratio", KeyKind::kValue},
     {"teeth.*.poisson_ratio", KeyKind::kValue},
     {"teeth.*.stations", KeyKind::kValue},
+    {"teeth.*.static_correction", KeyKind::kValue},
     {"kernels", KeyKind::kList},
     {"kernels.*.position", KeyKind::kValue},
     {"kernels.*.angle", KeyKind::kValue},
@@ -122,8 +124,8 @@ const KeySpec kSchema[] = {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// Most bending modes the beam model evaluates accurately (kMaxModes in src/core/beam.cc).
-constexpr int kMaxModes = 12;
+// Most bending modes the beam model evaluates accurately (src/core/beam.h).
+constexpr int kMaxModes = kMaxToothModes;
 
 // Keys allowed on each obstacle type.
 const std::vector<std::string> kPlaneKeys = {"type", "point", "normal", "youngs_modulus",
@@ -408,10 +410,16 @@ ToothModel readTooth(const Section& s) {
   t.diameter_m = s.number("diameter", t.diameter_m, kPositive);
   t.youngs_modulus_Pa = s.number("youngs_modulus", t.youngs_modulus_Pa, kPositive);
   t.density_kgpm3 = s.number("density", t.density_kgpm3, kPositive);
-  t.n_modes = s.integer("modes", t.n_modes, 0, kMaxModes);
+  // modes: auto (the default) lets compileModel choose the count (model.cc, chooseModeCount).
+  const bool auto_modes =
+      !s.has("modes") || (s.node("modes").IsScalar() && s.node("modes").Tag() != "!" &&
+                          s.node("modes").Scalar() == "auto");
+  t.n_modes = auto_modes ? kAutoModes : s.integer("modes", t.n_modes, 0, kMaxModes);
   t.damping_ratio = s.number("damping_ratio", t.damping_ratio, kDampingRatio);
   t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio, kPoissonRatio);
   t.n_stations = s.integer("stations", t.n_stations, 2, std::numeric_limits<int>::max());
+  t.static_correction =
+      s.word("static_correction", "on", "static correction", {"on", "off"}) == "on";
   return t;
 }
 
