@@ -60,19 +60,41 @@ def scenes(quick):
     return out
 
 
+def mode_counts(simulate, args):
+    """Mode count of every tooth (simulate --modes)."""
+    text = subprocess.run([str(simulate)] + args + ["--modes"], capture_output=True, text=True,
+                          check=True).stdout
+    return [int(m) for m in re.findall(r", (\d+) modes", text)]
+
+
 def chosen_modes(simulate, args):
-    """Mode count of every tooth with teeth.*.modes=auto (simulate --modes)."""
-    text = subprocess.run([str(simulate)] + args + ["--set", "teeth.*.modes=auto", "--modes"],
-                          capture_output=True, text=True, check=True).stdout
-    counts = [int(m) for m in re.findall(r", (\d+) modes", text)]
-    return max(counts) if counts else 0
+    """The automatic mode count (teeth.*.modes=auto; the largest over the teeth), or 0 for a
+    scene of rigid teeth (modes: 0), which stays rigid."""
+    if max(mode_counts(simulate, args), default=0) == 0:
+        return 0
+    return max(mode_counts(simulate, args + ["--set", "teeth.*.modes=auto"]), default=0)
+
+
+TIME_LIMIT_S = 600  # per simulation; a level that takes longer is reported as timed out
+REUSE = False        # --reuse: keep summaries already in the work folder
 
 
 def run(simulate, args, extra, out_json):
-    cmd = [str(simulate)] + args + extra + ["--summary", str(out_json), "--quiet"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(" ".join(cmd) + "\n" + proc.stderr)
+    """Summary of one simulation, or None if it ran past TIME_LIMIT_S (remembered by a
+    `.timeout` file next to the summary, which --reuse honours)."""
+    marker = out_json.with_suffix(".timeout")
+    if REUSE and marker.is_file():
+        return None
+    if not (REUSE and out_json.is_file() and out_json.stat().st_size > 0):
+        cmd = [str(simulate)] + args + extra + ["--summary", str(out_json), "--quiet"]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIME_LIMIT_S)
+        except subprocess.TimeoutExpired:
+            out_json.unlink(missing_ok=True)
+            marker.write_text(f"ran past {TIME_LIMIT_S:.0f} s\n")
+            return None
+        if proc.returncode != 0:
+            raise RuntimeError(" ".join(cmd) + "\n" + proc.stderr)
     with open(out_json) as f:
         return json.load(f)
 
@@ -107,8 +129,11 @@ def study(simulate, name, args, work):
     rows = []
     kernel = None
     for level in levels_of(n):
-        s = run(simulate, args, ["--set", f"teeth.*.modes={level}"],
+        s = run(simulate, args, ["--set", f"teeth.*.modes={level}"] if level else [],
                 work / f"{name.replace('/', '_')}_{level}.json")
+        if s is None:
+            rows.append((level, None))
+            break
         m = metrics(s, kernel)
         kernel = m["kernel"]
         rows.append((level, m))
@@ -136,13 +161,15 @@ def knead_before_after(simulate, work):
 
 
 def change_cells(rows, i):
-    if i + 1 >= len(rows):
+    if i + 1 >= len(rows) or rows[i + 1][1] is None:
         return ["-", "-", "-"]
     a, b = rows[i][1], rows[i + 1][1]
     return [f"{100 * rel(a[k], b[k]):.2f} %" for k in ("fn", "ft", "v")]
 
 
 def verdict(rows):
+    if len(rows) >= 2 and rows[1][1] is None:
+        return f"timed out (> {TIME_LIMIT_S:.0f} s at {rows[1][0]} modes)"
     if len(rows) < 2:
         return "rigid" if rows[0][0] == 0 else "at cap"
     a, b = rows[0][1], rows[1][1]
@@ -156,6 +183,9 @@ def full_table(results):
              "|---|---|---|---|---|---|---|---|"]
     for name, rows in results:
         for i, (level, m) in enumerate(rows):
+            if m is None:
+                lines.append(f"| | {level} | timed out (> {TIME_LIMIT_S:.0f} s) | | | | | |")
+                continue
             cells = change_cells(rows, i)
             lines.append(f"| {name if i == 0 else ''} | {level}{' (auto)' if i == 0 else ''} | "
                          f"{m['fn']:.4g} | {m['ft']:.4g} | {m['v']:.4g} | {m['impacts']} | "
@@ -168,12 +198,12 @@ def short_table(results):
              "next level | within 1 % | tip / L |", "|---|---|---|---|---|---|---|"]
     for name, rows in results:
         level, m = rows[0]
-        if len(rows) > 1:
+        if len(rows) > 1 and rows[1][1] is not None:
             b = rows[1][1]
             worst = f"{100 * max(rel(m[k], b[k]) for k in ('fn', 'ft', 'v')):.2f} %"
         else:
             worst = "-"
-        ok = verdict(rows).split(" ")[0]
+        ok = verdict(rows).split(" (")[0]
         lines.append(f"| {name} | {level} | {m['fn']:.3g} / {m['ft']:.3g} | {m['v']:.3g} | "
                      f"{worst} | {ok} | {m['tip']:.3f} |")
     return "\n".join(lines)
@@ -191,11 +221,16 @@ def knead_text(before, after):
 
 
 def write_docs(results, before, after, out_md, readme):
-    n_ok = sum(1 for _, rows in results if verdict(rows).startswith(("yes", "rigid")))
+    flexible = [rows for _, rows in results if rows[0][0] > 0]
+    n_ok = sum(1 for rows in flexible if verdict(rows).startswith("yes"))
+    summary = (f"{n_ok} of {len(flexible)} scenes with flexible teeth meet it (rigid teeth have "
+               "no modes to converge).")
+    limit = (f" A level whose run took longer than {TIME_LIMIT_S:.0f} s is reported as timed out "
+             "(`--time-limit`).")
     body = [
         "# Mode convergence of the tooth forces",
         "",
-        "Regenerated by `python3 scripts/convergence_table.py` (README \"Converged tooth "
+        "Regenerated by `/usr/bin/python3 scripts/convergence_table.py` (README \"Converged tooth "
         "forces\"). Every scene of `config/bench/` and every case x tooth variant of "
         "`config/scenes/` (as `scripts/compare_teeth.py` combines them, at the scene's drum "
         "speed) runs at the automatic mode count (`teeth.*.modes: auto`, the first row of each "
@@ -203,9 +238,17 @@ def write_docs(results, before, after, out_md, readme):
         "tooth force peaks on any kernel; the exit speed is the end speed of the kernel the "
         "tooth struck hardest; the change columns compare a row with the next finer one. "
         f"Target: every force and exit speed within {100 * TARGET:.0f} % between the chosen "
-        "level and the next finer one.",
+        "level and the next finer one." + limit,
         "",
-        f"{n_ok} of {len(results)} scenes meet it.",
+        summary,
+        "",
+        "Where it is missed: the tangential peaks of the nylon and polyurethane strikes, which "
+        "fall at a stick-slip transition and depend on the tooth's slope compliance; the static "
+        "correction covers only the normal direction (README \"Converged tooth forces\"), so "
+        "the slope part converges like 1/n through the modes alone. The streams (many kernels "
+        "meeting several teeth) are chaotic: a small change early on (a kernel caught a little "
+        "earlier) leads to different later collisions, so their peaks need not converge "
+        "run by run; their statistics do not enter this table.",
         "",
         knead_text(before, after),
         "",
@@ -219,21 +262,27 @@ def write_docs(results, before, after, out_md, readme):
     start, end = "<!-- convergence -->", "<!-- convergence-end -->"
     if start not in text or end not in text:
         raise SystemExit(f"README has no {start} ... {end} section")
-    section = "\n".join([start, "", f"{n_ok} of {len(results)} scenes within 1 % "
-                         "(details, all levels: [docs/convergence.md](docs/convergence.md)). " +
+    section = "\n".join([start, "", summary + " Details, all levels and why the others miss "
+                         "it: [docs/convergence.md](docs/convergence.md). " +
                          knead_text(before, after), "", short_table(results), "", end])
     head, rest = text.split(start, 1)
     readme.write_text(head + section + rest.split(end, 1)[1])
 
 
 def main():
+    global TIME_LIMIT_S, REUSE
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--simulate", type=pathlib.Path, default=None)
     p.add_argument("--quick", action="store_true", help="two bench scenes, no README")
     p.add_argument("--out", type=pathlib.Path, default=ROOT / "docs/convergence.md")
     p.add_argument("--work", type=pathlib.Path, default=ROOT / ".build/convergence")
     p.add_argument("--jobs", type=int, default=max(1, min(2, os.cpu_count() or 1)))
+    p.add_argument("--time-limit", type=float, default=TIME_LIMIT_S,
+                   help="seconds per simulation before its level counts as timed out")
+    p.add_argument("--reuse", action="store_true",
+                   help="keep the summaries already in --work (to redo the tables)")
     a = p.parse_args()
+    TIME_LIMIT_S, REUSE = a.time_limit, a.reuse
     simulate = a.simulate or default_simulate()
     a.work.mkdir(parents=True, exist_ok=True)
     todo = scenes(a.quick)
@@ -244,7 +293,8 @@ def main():
         before, after = knead.result()
     for name, rows in results:
         print(f"{name}: {verdict(rows)}  " +
-              "  ".join(f"{n}: N {m['fn']:.4g} T {m['ft']:.4g} v {m['v']:.4g}" for n, m in rows))
+              "  ".join(f"{n}: N {m['fn']:.4g} T {m['ft']:.4g} v {m['v']:.4g}" for n, m in rows
+                        if m is not None))
     print(knead_text(before, after))
     write_docs(results, before, after, a.out, None if a.quick else ROOT / "README.md")
 
