@@ -129,6 +129,10 @@ void checkChunkRecords(const std::string& chunk,
         u32(reinterpret_cast<const unsigned char*>(&chunk[pos + 4 + header_len]));
     if (data_len > chunk.size() - pos - 8 - header_len)
       refuse("chunk record data beyond its chunk");
+    // A connection record's data is itself a header (topic, type, md5sum, definition).
+    RecordHeader connection;
+    if (h.op == 0x07 && !parseHeader(chunk.substr(pos + 8 + header_len, data_len), &connection))
+      refuse("connection header field beyond its record");
     pos += 8 + header_len + data_len;
   }
 }
@@ -186,6 +190,13 @@ void checkBagLengths(const std::string& path) {
       std::string chunk(data_len, '\0');
       in.read(&chunk[0], static_cast<std::streamsize>(data_len));
       checkChunkRecords(chunk, refuse, &chunk_starts);
+    } else if (h.op == 0x07) {
+      // A connection record's data is itself a header (topic, type, md5sum, definition).
+      if (data_len > (16u << 20)) refuse("connection record too large");
+      std::string data(data_len, '\0');
+      in.read(&data[0], static_cast<std::streamsize>(data_len));
+      RecordHeader connection;
+      if (!parseHeader(data, &connection)) refuse("connection header field beyond its record");
     } else if (h.op == 0x04) {
       // Index data: entries of (time 8 bytes, offset 4 bytes) into the chunk before it.
       if (data_len > (64u << 20)) refuse("index record too large");

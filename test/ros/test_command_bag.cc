@@ -188,6 +188,16 @@ TEST(CommandBag, DamagedFirstLineIsRefused) {
       << message;
 }
 
+// Found by fuzz_command_bag: a connection record whose data (itself a header) has a field length
+// past its end made ros::Header::parse copy past the heap block.
+TEST(CommandBag, CorruptConnectionHeaderIsRefused) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/overflow_connection_header.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(message.find("~command_bag (" + path + "): corrupt record"), std::string::npos)
+      << message;
+}
+
 TEST(CommandBag, MissingAndNonBagFilesAreRefused) {
   EXPECT_NE(refusal("/nonexistent/x.bag").find("~command_bag (/nonexistent/x.bag)"),
             std::string::npos);
