@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include "threshing_sim/core/state_overlap.h"
 #include "threshing_sim/core/simulator.h"
+#include "threshing_sim/core/state_overlap.h"
 #include "threshing_sim/ros/threshing_sim_node.h"
 
 namespace threshing_sim {

@@ -6,6 +6,9 @@ namespace threshing_sim {
 namespace internal {
 namespace {
 
+// Renewals of an island's work budget within one window (each needs progress in time).
+constexpr int kMaxBudgetRenewals = 1000;
+
 bool timeStepping(const Model& m) { return m.integrator.type == IntegratorType::kTimeStepping; }
 
 bool rampingOver(const Model& m, const Data& d) {
@@ -153,7 +156,16 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
     if (!isl.alive) continue;
     isl.data.omega_target_radps = d->omega_target_radps;
     const long steps_before = isl.data.steps;
-    const StepStatus st = advanceTo(isl.model, &isl.data, t1);
+    // advanceTo's work budget scales with the interval; an island's interval is one window, so
+    // a budget spent while time still advances is renewed, a bounded number of times.
+    StepStatus st = StepStatus::kOk;
+    for (int renewal = 0; renewal <= kMaxBudgetRenewals; ++renewal) {
+      const double t_before = isl.data.t_s;
+      st = advanceTo(isl.model, &isl.data, t1);
+      if (st != StepStatus::kFailed || isl.data.stats.failure.cause != FailureCause::kWorkBudget ||
+          !(isl.data.t_s > t_before))
+        break;
+    }
     as->counters.island_body_steps +=
         (isl.data.steps - steps_before) * static_cast<long>(isl.teeth.size() + isl.kernels.size());
     if (!timeStepping(m)) isl.data.t_s = t1;  // it lands on t1 or an ulp past it
