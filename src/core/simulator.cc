@@ -383,12 +383,11 @@ namespace {
 // of simulated time the call covers. A unit is one integrator step (time stepping) or one
 // Dormand-Prince trial step (event-driven: accepted, rejected, or one of an event's bisection).
 // The scenes of config/ and the tests use far less (simulate's steps + rejected_steps: 1e4-1e5
-// per simulated second; a soft tooth with many modes, such as a polyurethane knead at 47
-// modes, up to 1e9); the budget allows an average trial step of 0.1 ns over a long interval and
-// 20,000 units however short it is, so a call whose steps collapse (a body inside another:
-// ~1e-11 s) fails within seconds of wall time.
-constexpr double kBaseWork = 2e4;
-constexpr double kWorkPerSecond = 1e10;
+// per simulated second); the budget allows an average trial step of 33 ns over a long interval
+// and 2,000 units however short it is. A trial step near a contact costs ~1e6 instructions, so
+// a call that cannot progress fails within about a second of wall time.
+constexpr double kBaseWork = 2e3;
+constexpr double kWorkPerSecond = 3e7;
 // Accepted steps in a row that leave t_s unchanged before the call fails as kTimeStalled.
 constexpr int kMaxStalledSteps = 100;
 

