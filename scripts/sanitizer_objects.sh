@@ -21,11 +21,12 @@ for p in clang-14 libclang-rt-14-dev; do
 done
 [ -d "$ROOT/.build/ws/devel/include/threshing_sim" ] || bash "$ROOT/scripts/setup.sh"
 san_stale() {  # object source: true if the object must be rebuilt
-  [ ! -f "$1" ] || [ -n "$(find "$2" "$ROOT/include" "$ROOT/src/core/internal.h" -newer "$1" | head -1)" ]
+  [ ! -f "$1" ] || [ -n "$(find "$2" "$ROOT/include" "$ROOT/src/core/internal.h" "$ROOT/src/core/async" -newer "$1" | head -1)" ]
 }
 san_jobs=()
 SAN_LIB_OBJS=()
-for src in "$ROOT"/src/core/*.cc "$ROOT"/src/scene/*.cc "$ROOT/src/ros/command_bag.cc"; do
+for src in "$ROOT"/src/core/*.cc "$ROOT"/src/core/async/*.cc "$ROOT"/src/scene/*.cc \
+  "$ROOT/src/ros/command_bag.cc"; do
   obj="$SAN_OBJ/$(basename "$src" .cc).o"
   san_stale "$obj" "$src" && san_jobs+=("$src|$obj|")
   case "$src" in */command_bag.cc) ;; *) SAN_LIB_OBJS+=("$obj") ;; esac
