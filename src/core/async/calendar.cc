@@ -47,10 +47,17 @@ void siftDown(AsyncState* as, int pos) {
   }
 }
 
+// Table key of grid cell (cx, cy): the row in the high 32 bits, the column in the low ones
+// (in unsigned arithmetic: a negative row must not be shifted as a signed value).
+std::int64_t cellKey(std::int64_t cx, std::int64_t cy) {
+  return static_cast<std::int64_t>((static_cast<std::uint64_t>(cy) << 32) ^
+                                   (static_cast<std::uint64_t>(cx) & 0xffffffffULL));
+}
+
 std::int64_t cellOf(const AsyncState& as, const Vec2& p) {
   const std::int64_t cx = static_cast<std::int64_t>(std::floor(p.x() / as.cell_m));
   const std::int64_t cy = static_cast<std::int64_t>(std::floor(p.y() / as.cell_m));
-  return (cy << 32) ^ (cx & 0xffffffffLL);
+  return cellKey(cx, cy);
 }
 
 size_t slotHash(std::int64_t key, size_t n_slots) {
@@ -168,7 +175,7 @@ void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
   }
   for (std::int64_t cy = y0; cy <= y1; ++cy) {
     for (std::int64_t cx = x0; cx <= x1; ++cx) {
-      const size_t s = findSlot(*as, (cy << 32) ^ (cx & 0xffffffffLL));
+      const size_t s = findSlot(*as, cellKey(cx, cy));
       if (as->cell_key[s] == kEmptyCell) continue;
       for (int j = as->cell_head[s]; j >= 0; j = as->kernels[j].cell_next) as->found.push_back(j);
     }
