@@ -20,7 +20,9 @@ for t in "${tests[@]}"; do
   bin="$OUT/$(basename "$t")"
   src="$ROOT/test/$t.cc"
   if [ ! -x "$bin" ] || [ -n "$(find "$src" "${objs[@]}" -newer "$bin" | head -1)" ]; then
-    "$SAN_CXX" "${SAN_FLAGS[@]}" -DTHRESHING_SIM_SOURCE_DIR="\"$ROOT\"" "$src" "${objs[@]}" \
+    # The core's unit tests run the global scheme, as CMakeLists.txt builds them.
+    "$SAN_CXX" "${SAN_FLAGS[@]}" -DTHRESHING_SIM_SOURCE_DIR="\"$ROOT\"" \
+      -DTHRESHING_SIM_GLOBAL_SCHEME "$src" "${objs[@]}" \
       -o "$bin" -lyaml-cpp -lgtest -lgtest_main -pthread
   fi
   if (cd "$ROOT" && timeout 300 "$bin" --gtest_brief=1 >"$bin.log" 2>&1); then

@@ -199,7 +199,9 @@ RhsMemo::PairState pairStateOf(const PairMemory& mem) {
 }
 
 bool bitsEqual(const VecX& a, const VecX& b) {
-  return a.size() == b.size() &&
+  if (a.size() != b.size()) return false;
+  // Empty vectors (a scene without dofs) have no storage: memcmp must not see a null pointer.
+  return a.size() == 0 ||
          std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;
 }
 
