@@ -157,8 +157,9 @@ class StateValues {
   bool lookup(const Data& d, double* energy_J, double* momentum_kgm2ps) const {
     if (!valid_ || d.omega_radps != omega_radps_ || d.z.size() != z_.size() ||
         d.u.size() != u_.size() || d.kernel_attached != attached_ ||
-        std::memcmp(d.z.data(), z_.data(), sizeof(double) * z_.size()) != 0 ||
-        std::memcmp(d.u.data(), u_.data(), sizeof(double) * u_.size()) != 0)
+        (z_.size() > 0 &&  // empty vectors have no storage: no memcmp on a null pointer
+         (std::memcmp(d.z.data(), z_.data(), sizeof(double) * z_.size()) != 0 ||
+          std::memcmp(d.u.data(), u_.data(), sizeof(double) * u_.size()) != 0)))
       return false;
     *energy_J = energy_J_;
     *momentum_kgm2ps = momentum_kgm2ps_;
