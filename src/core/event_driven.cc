@@ -28,18 +28,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// Dormand-Prince 5(4) tableau.
-constexpr double kC[7] = {0, 1. / 5, 3. / 10, 4. / 5, 8. / 9, 1, 1};
-constexpr double kA[7][6] = {{0},
-                             {1. / 5},
-                             {3. / 40, 9. / 40},
-                             {44. / 45, -56. / 15, 32. / 9},
-                             {19372. / 6561, -25360. / 2187, 64448. / 6561, -212. / 729},
-                             {9017. / 3168, -355. / 33, 46732. / 5247, 49. / 176, -5103. / 18656},
-                             {35. / 384, 0, 500. / 1113, 125. / 192, -2187. / 6784, 11. / 84}};
-constexpr double kE[7] = {71. / 57600,      0,         -71. / 16695, 71. / 1920,
-                          -17253. / 339200, 22. / 525, -1. / 40};
-
 // Per-step context: the data at the step start (drum state) and the candidate pairs.
 struct Ctx {
   const Model& m;

@@ -25,6 +25,20 @@ namespace internal {
 // A short vector that never touches the heap (a tooth has at most 12 modes, a kernel 3 dofs).
 using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1>;
 
+// Dormand-Prince 5(4) tableau: nodes kC, stages kA (row 7 is the 5th-order solution, FSAL),
+// error weights kE. Shared by the event-driven integrator and the kernels' own clocks.
+inline constexpr double kC[7] = {0, 1. / 5, 3. / 10, 4. / 5, 8. / 9, 1, 1};
+inline constexpr double kA[7][6] = {
+    {0},
+    {1. / 5},
+    {3. / 40, 9. / 40},
+    {44. / 45, -56. / 15, 32. / 9},
+    {19372. / 6561, -25360. / 2187, 64448. / 6561, -212. / 729},
+    {9017. / 3168, -355. / 33, 46732. / 5247, 49. / 176, -5103. / 18656},
+    {35. / 384, 0, 500. / 1113, 125. / 192, -2187. / 6784, 11. / 84}};
+inline constexpr double kE[7] = {71. / 57600,      0,         -71. / 16695, 71. / 1920,
+                                 -17253. / 339200, 22. / 525, -1. / 40};
+
 // Grow-only sizing of scratch storage: the size rises to the largest request seen and stays,
 // so that steady stepping allocates nothing; callers use the leading n entries (head, block).
 inline void growTo(VecX* v, Eigen::Index n) {

@@ -14,17 +14,6 @@ namespace {
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;  // [c_x, c_y, psi, v_x, v_y, omega] [m, rad, m/s, rad/s]
 
-// Dormand-Prince 5(4) tableau (as in event_driven.cc).
-constexpr double kA[7][6] = {{0},
-                             {1. / 5},
-                             {3. / 40, 9. / 40},
-                             {44. / 45, -56. / 15, 32. / 9},
-                             {19372. / 6561, -25360. / 2187, 64448. / 6561, -212. / 729},
-                             {9017. / 3168, -355. / 33, 46732. / 5247, 49. / 176, -5103. / 18656},
-                             {35. / 384, 0, 500. / 1113, 125. / 192, -2187. / 6784, 11. / 84}};
-constexpr double kE[7] = {71. / 57600,      0,         -71. / 16695, 71. / 1920,
-                          -17253. / 339200, 22. / 525, -1. / 40};
-
 inline Vec2 rotated(double angle_rad, const Vec2& v) {
   const double c = std::cos(angle_rad), s = std::sin(angle_rad);
   return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y());
