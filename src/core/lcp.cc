@@ -147,14 +147,14 @@ bool readSolution(const Tableau& T, const Eigen::Ref<const MatX>& M,
 // Lemke's algorithm on views, so that the contact solver can pass blocks of its workspace.
 // Variables are numbered w_0..w_{n-1}, z_0..z_{n-1}, z0 = 2n; tableau column j belongs to
 // variable j and column 2n+1 holds the basic values.
-bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eigen::Ref<VecX> z,
-           LcpWorkspace* ws, int max_pivots, int* pivots) {
+LcpStatus lemkeStatus(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q,
+                      Eigen::Ref<VecX> z, LcpWorkspace* ws, int max_pivots, int* pivots) {
   const Index n = q.size();
   if (pivots) *pivots = 0;
   z.setZero();
   // Trivial solution: q >= 0 is solved by z = 0. A q that is negative only within the tie
   // tolerance counts as zero too: pivoting on it would make the basis infeasible by round-off.
-  if (n == 0 || q.minCoeff() >= -kTieTol * q.cwiseAbs().maxCoeff()) return true;
+  if (n == 0 || q.minCoeff() >= -kTieTol * q.cwiseAbs().maxCoeff()) return LcpStatus::kSolved;
   if (max_pivots <= 0) max_pivots = static_cast<int>(50 * (n + 1) + 100);
   const Index z0 = 2 * n;
 
@@ -194,11 +194,17 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
     const bool suspicious =
         r < 0 || std::abs(T(r, entering)) < kRefactorTol * T.col(entering).cwiseAbs().maxCoeff();
     if (suspicious && !fresh) {
-      if (!refactor(T, M, q, basis, col)) break;
+      if (!refactor(T, M, q, basis, col)) {
+        if (pivots) *pivots = count;
+        return LcpStatus::kSingularBasis;
+      }
       fresh = true;
       continue;
     }
-    if (r < 0) break;
+    if (r < 0) {
+      if (pivots) *pivots = count;
+      return LcpStatus::kRayTermination;
+    }
     pivot(T, r, entering, col);
     fresh = false;
     ++count;
@@ -207,13 +213,21 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
     if (leaving == z0) {
       if (pivots) *pivots = count;
       // Accept the solution if it verifies, else once more from a rebuilt tableau.
-      if (readSolution(T, M, q, basis, z, w)) return true;
-      return refactor(T, M, q, basis, col) && readSolution(T, M, q, basis, z, w);
+      if (readSolution(T, M, q, basis, z, w)) return LcpStatus::kSolved;
+      if (!refactor(T, M, q, basis, col)) return LcpStatus::kSingularBasis;
+      return readSolution(T, M, q, basis, z, w) ? LcpStatus::kSolved : LcpStatus::kUnverified;
     }
     entering = leaving < n ? leaving + n : leaving - n;
   }
   if (pivots) *pivots = count;
-  return false;
+  return LcpStatus::kPivotLimit;
+}
+
+// lemkeStatus, its status kept in ws->status: true when solved.
+bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eigen::Ref<VecX> z,
+           LcpWorkspace* ws, int max_pivots, int* pivots) {
+  ws->status = lemkeStatus(M, q, z, ws, max_pivots, pivots);
+  return ws->status == LcpStatus::kSolved;
 }
 
 // Tangential force per unit normal force imposed on a contact that slides with a known sign.
@@ -222,6 +236,22 @@ double slipCoefficient(const ContactRow& row) {
 }
 
 }  // namespace
+
+const char* toString(LcpStatus status) {
+  switch (status) {
+    case LcpStatus::kSolved:
+      return "solved";
+    case LcpStatus::kRayTermination:
+      return "ray_termination";
+    case LcpStatus::kPivotLimit:
+      return "pivot_limit";
+    case LcpStatus::kSingularBasis:
+      return "singular_basis";
+    case LcpStatus::kUnverified:
+      return "unverified";
+  }
+  return "?";
+}
 
 bool solveLcpLemke(const MatX& M, const VecX& q, VecX* z, LcpWorkspace* ws, int max_pivots,
                    int* pivots) {
@@ -339,6 +369,7 @@ bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const
   }
 
   // Solve (nothing to solve leaves only the constant part of lambda).
+  ws->status = LcpStatus::kSolved;
   if (m > 0 && !lemke(M, q, x, ws, 0, nullptr)) return false;
 
   // Map the unknowns back to lambda (lambda_T+ and lambda_T- may both be positive; only their
