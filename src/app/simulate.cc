@@ -85,11 +85,95 @@ struct Options {
 // ---------------------------------------------------------------------------------------------
 // Command line.
 
+// --sample-interval: a number > 0 [s].
+double parseSampleInterval(const std::string& text) {
+  size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::logic_error&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size() || !(value > 0) || !std::isfinite(value))
+    throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
+  return value;
+}
+
+// --trace-every: an integer >= 1.
+int parseTraceEvery(const std::string& text) {
+  size_t used = 0;
+  int value = 0;
+  try {
+    value = std::stoi(text, &used);
+  } catch (const std::logic_error&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size() || value < 1)
+    throw UsageError("--trace-every expects an integer >= 1 (got '" + text + "')");
+  return value;
+}
+
+// The sugar options, turned into overrides after every --set.
+struct Sugar {
+  std::optional<std::string> duration, integrator, dt, tolerance;
+};
+
+// One command-line option: its name, whether it takes a value, and what it sets.
+struct OptionSpec {
+  const char* name;
+  bool takes_value;
+  void (*apply)(const std::string& value, Options* options, Sugar* sugar);
+};
+
+const OptionSpec kOptionSpecs[] = {
+    {"--duration", true, [](const std::string& v, Options*, Sugar* s) { s->duration = v; }},
+    {"--integrator", true, [](const std::string& v, Options*, Sugar* s) { s->integrator = v; }},
+    {"--dt", true, [](const std::string& v, Options*, Sugar* s) { s->dt = v; }},
+    {"--tolerance", true, [](const std::string& v, Options*, Sugar* s) { s->tolerance = v; }},
+    {"--set", true, [](const std::string& v, Options* o, Sugar*) { o->overrides.push_back(v); }},
+    {"--set-file", true,
+     [](const std::string& v, Options* o, Sugar*) { o->set_files.push_back(v); }},
+    {"--summary", true, [](const std::string& v, Options* o, Sugar*) { o->summary_path = v; }},
+    {"--trace", true, [](const std::string& v, Options* o, Sugar*) { o->trace_path = v; }},
+    {"--events", true, [](const std::string& v, Options* o, Sugar*) { o->events_path = v; }},
+    {"--outcomes", true, [](const std::string& v, Options* o, Sugar*) { o->outcomes_path = v; }},
+    {"--forces", true, [](const std::string& v, Options* o, Sugar*) { o->forces_path = v; }},
+    {"--sample-interval", true,
+     [](const std::string& v, Options* o, Sugar*) {
+       o->sample_interval_s = parseSampleInterval(v);
+     }},
+    {"--trace-every", true,
+     [](const std::string& v, Options* o, Sugar*) { o->trace_every = parseTraceEvery(v); }},
+    {"--modes", false, [](const std::string&, Options* o, Sugar*) { o->modes = true; }},
+    {"--check", false, [](const std::string&, Options* o, Sugar*) { o->check = true; }},
+    {"--check-batch", true,
+     [](const std::string& v, Options* o, Sugar*) { o->check_batch_path = v; }},
+    {"--quiet", false, [](const std::string&, Options* o, Sugar*) { o->quiet = true; }},
+    {"--print-schema", false,
+     [](const std::string&, Options* o, Sugar*) { o->print_schema = true; }},
+    {"--help", false, [](const std::string&, Options* o, Sugar*) { o->help = true; }},
+    {"-h", false, [](const std::string&, Options* o, Sugar*) { o->help = true; }},
+};
+
+const OptionSpec* findOption(const std::string& name) {
+  for (const OptionSpec& spec : kOptionSpecs)
+    if (name == spec.name) return &spec;
+  return nullptr;
+}
+
+// A scene path: the first argument that is not an option.
+void takeScenePath(const std::string& arg, Options* options) {
+  if (arg.rfind("-", 0) == 0) throw UsageError("unknown option '" + arg + "'");
+  if (!options->scene_path.empty())
+    throw UsageError("more than one scene file ('" + options->scene_path + "', '" + arg + "')");
+  options->scene_path = arg;
+}
+
 // Accepts "--name value" and "--name=value"; the sugar options become overrides applied after
 // every --set.
 Options parseOptions(int argc, char** argv) {
   Options options;
-  std::optional<std::string> duration, integrator, dt, tolerance;
+  Sugar sugar;
   for (int i = 1; i < argc; ++i) {
     std::string arg = argv[i];
     std::optional<std::string> inline_value;
@@ -98,91 +182,27 @@ Options parseOptions(int argc, char** argv) {
       inline_value = arg.substr(equals + 1);
       arg = arg.substr(0, equals);
     }
-    const auto value = [&]() -> std::string {
-      if (inline_value) return *inline_value;
-      if (i + 1 >= argc) throw UsageError("option " + arg + " needs a value");
-      return argv[++i];
-    };
-    const auto flag = [&]() {
-      if (inline_value) throw UsageError("option " + arg + " takes no value");
-      return true;
-    };
-
-    if (arg == "--duration") {
-      duration = value();
-    } else if (arg == "--integrator") {
-      integrator = value();
-    } else if (arg == "--dt") {
-      dt = value();
-    } else if (arg == "--tolerance") {
-      tolerance = value();
-    } else if (arg == "--set") {
-      options.overrides.push_back(value());
-    } else if (arg == "--set-file") {
-      options.set_files.push_back(value());
-    } else if (arg == "--summary") {
-      options.summary_path = value();
-    } else if (arg == "--trace") {
-      options.trace_path = value();
-    } else if (arg == "--events") {
-      options.events_path = value();
-    } else if (arg == "--outcomes") {
-      options.outcomes_path = value();
-    } else if (arg == "--forces") {
-      options.forces_path = value();
-    } else if (arg == "--sample-interval") {
-      const std::string text = value();
-      size_t used = 0;
-      try {
-        options.sample_interval_s = std::stod(text, &used);
-      } catch (const std::logic_error&) {
-        used = 0;
-      }
-      if (text.empty() || used != text.size() || !(options.sample_interval_s > 0) ||
-          !std::isfinite(options.sample_interval_s)) {
-        throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
-      }
-    } else if (arg == "--trace-every") {
-      const std::string text = value();
-      size_t used = 0;
-      try {
-        options.trace_every = std::stoi(text, &used);
-      } catch (const std::logic_error&) {
-        used = 0;
-      }
-      if (text.empty() || used != text.size() || options.trace_every < 1) {
-        throw UsageError("--trace-every expects an integer >= 1 (got '" + text + "')");
-      }
-    } else if (arg == "--modes") {
-      options.modes = flag();
-    } else if (arg == "--check") {
-      options.check = flag();
-    } else if (arg == "--check-batch") {
-      options.check_batch_path = value();
-    } else if (arg == "--quiet") {
-      options.quiet = flag();
-    } else if (arg == "--print-schema") {
-      options.print_schema = flag();
-    } else if (arg == "--help" || arg == "-h") {
-      options.help = flag();
-    } else if (arg.rfind("-", 0) == 0) {
-      throw UsageError("unknown option '" + arg + "'");
-    } else if (options.scene_path.empty()) {
-      options.scene_path = arg;
-    } else {
-      throw UsageError("more than one scene file ('" + options.scene_path + "', '" + arg + "')");
+    const OptionSpec* spec = findOption(arg);
+    if (spec == nullptr) {
+      takeScenePath(arg, &options);
+      continue;
     }
+    if (!spec->takes_value && inline_value) throw UsageError("option " + arg + " takes no value");
+    if (spec->takes_value && !inline_value && i + 1 >= argc)
+      throw UsageError("option " + arg + " needs a value");
+    spec->apply(!spec->takes_value ? std::string()
+                : inline_value     ? *inline_value
+                                   : argv[++i],
+                &options, &sugar);
   }
   if (options.scene_path.empty() && !options.help && !options.print_schema &&
       options.check_batch_path.empty()) {
     throw UsageError("no scene file given");
   }
-
-  // Sugar options, after the --set ones.
-  if (duration) options.overrides.push_back("duration=" + *duration);
-  if (integrator) options.overrides.push_back("integrator.type=" + *integrator);
-  if (dt) options.overrides.push_back("integrator.dt=" + *dt);
-  if (tolerance) options.overrides.push_back("integrator.tolerance=" + *tolerance);
+  if (sugar.duration) options.overrides.push_back("duration=" + *sugar.duration);
+  if (sugar.integrator) options.overrides.push_back("integrator.type=" + *sugar.integrator);
+  if (sugar.dt) options.overrides.push_back("integrator.dt=" + *sugar.dt);
+  if (sugar.tolerance) options.overrides.push_back("integrator.tolerance=" + *sugar.tolerance);
   return options;
 }
 
