@@ -333,91 +333,112 @@ std::string checkResult(const Model& model, const Data& data, double energy_fina
 
 // Steps to the duration chunk by chunk, writing trace rows, draining events and sampling
 // contacts as it goes. Returns the exit status.
-int run(const Model& model, const DamageThresholds& damage, const Options& options) {
-  // Outputs first, so that a bad path fails before the run.
-  std::ofstream summary, trace, events, outcomes_csv, forces;
-  openOutput(options.summary_path, "--summary", &summary);
-  openOutput(options.trace_path, "--trace", &trace);
-  openOutput(options.events_path, "--events", &events);
-  openOutput(options.outcomes_path, "--outcomes", &outcomes_csv);
-  openOutput(options.forces_path, "--forces", &forces);
-
-  // Initial state and file headers.
-  Data data;
-  resetData(model, &data);
-  if (trace.is_open()) {
-    writeTraceHeader(trace, model);
-    writeTraceRow(trace, model, data);
+// The run's output files, opened before the run so that a bad path fails first.
+struct RunFiles {
+  std::ofstream summary, trace, events, outcomes, forces;
+  explicit RunFiles(const Options& o) {
+    openOutput(o.summary_path, "--summary", &summary);
+    openOutput(o.trace_path, "--trace", &trace);
+    openOutput(o.events_path, "--events", &events);
+    openOutput(o.outcomes_path, "--outcomes", &outcomes);
+    openOutput(o.forces_path, "--forces", &forces);
   }
-  if (events.is_open()) writeEventsHeader(events);
-  if (forces.is_open()) writeForcesHeader(forces);
-  OutcomeTracker tracker(model, damage);
-  // Time stepping lands on whole steps: never sample more finely than one step.
-  const double min_interval_s =
-      model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s : 0.0;
-  const double sample_interval_s = std::max(options.sample_interval_s, min_interval_s);
+  void checkAllWritten(const Options& o) {
+    checkWritten(o.summary_path, "--summary", &summary);
+    checkWritten(o.trace_path, "--trace", &trace);
+    checkWritten(o.events_path, "--events", &events);
+    checkWritten(o.outcomes_path, "--outcomes", &outcomes);
+    checkWritten(o.forces_path, "--forces", &forces);
+  }
+};
 
-  // Chunks of kChunk_s; the last one lands exactly on the duration. Wall time counts only the
-  // time spent inside advanceTo.
-  const long n_chunks = std::max(1L, std::lround(std::ceil(model.duration_s / kChunk_s - 1e-9)));
-  std::chrono::steady_clock::duration stepping_time{0};
-  Progress progress(options.quiet);
+// A run between its chunks.
+struct Run {
+  Data data;
+  OutcomeTracker tracker;
+  double min_interval_s = 0;     // time stepping never samples below one step [s]
+  double sample_interval_s = 0;  // force sampling near contacts [s]
+  std::chrono::steady_clock::duration stepping_time{0};  // wall time inside advanceTo
   std::string status = "ok";
   bool failed = false;
-  for (long chunk = 1; chunk <= n_chunks && !failed; ++chunk) {
-    const double t_chunk_s = chunk == n_chunks ? model.duration_s : chunk * kChunk_s;
-    // Sampling intervals within the chunk; the last one lands on the chunk's end.
-    for (bool last = false; !last && !failed;) {
-      const double interval_s = forces.is_open() && nearContact(data)
-                                    ? sample_interval_s
-                                    : std::max(coarseInterval(model, data), min_interval_s);
-      const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
-      last = t_next_s >= t_chunk_s;
-      const auto started = std::chrono::steady_clock::now();
-      const StepStatus step_status = advanceTo(model, &data, t_next_s);
-      stepping_time += std::chrono::steady_clock::now() - started;
+  Run(const Model& model, const DamageThresholds& damage) : tracker(model, damage) {}
+};
 
-      // Events and contact samples of this interval.
-      if (events.is_open()) writeEventRows(events, data.events);
-      tracker.addEvents(data.events);
-      data.events.clear();
-      if (step_status == StepStatus::kFailed) {
-        status = "failed: " + describe(data.stats.failure);
-        failed = true;
-        break;
-      }
-      tracker.sample(data);
-      if (forces.is_open()) writeForceRows(forces, data);
+// Advances the run to t_chunk_s in sampling intervals (the last one lands on t_chunk_s),
+// writing events and force samples; stops on a failure.
+void advanceChunk(const Model& model, double t_chunk_s, RunFiles* files, Run* run) {
+  Data& data = run->data;
+  for (bool last = false; !last;) {
+    const double interval_s = files->forces.is_open() && nearContact(data)
+                                  ? run->sample_interval_s
+                                  : std::max(coarseInterval(model, data), run->min_interval_s);
+    const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
+    last = t_next_s >= t_chunk_s;
+    const auto started = std::chrono::steady_clock::now();
+    const StepStatus step_status = advanceTo(model, &data, t_next_s);
+    run->stepping_time += std::chrono::steady_clock::now() - started;
+    // Events and contact samples of this interval.
+    if (files->events.is_open()) writeEventRows(files->events, data.events);
+    run->tracker.addEvents(data.events);
+    data.events.clear();
+    if (step_status == StepStatus::kFailed) {
+      run->status = "failed: " + describe(data.stats.failure);
+      run->failed = true;
+      return;
     }
-    if (failed) break;
-    if (trace.is_open() && (chunk % options.trace_every == 0 || chunk == n_chunks)) {
-      writeTraceRow(trace, model, data);
-    }
-    progress.update(data, model.duration_s);
+    run->tracker.sample(data);
+    if (files->forces.is_open()) writeForceRows(files->forces, data);
+  }
+}
+
+// The summary, the outcomes and the printed report of a finished (or failed) run.
+void reportRun(const Model& model, const DamageThresholds& damage, const Options& options,
+               RunFiles* files, Run* run) {
+  const double wall_time_s = std::chrono::duration<double>(run->stepping_time).count();
+  const double energy_final_J = mechanicalEnergy(model, run->data);
+  if (!run->failed) run->status = checkResult(model, run->data, energy_final_J, &run->failed);
+  OutcomeReport report;
+  report.kernels = run->tracker.outcomes(run->data);
+  report.thresholds = damage;
+  report.sample_interval_s = run->sample_interval_s;
+  if (files->summary.is_open()) {
+    writeSummaryJson(files->summary, model, run->data, run->status, wall_time_s, energy_final_J,
+                     &report);
+  }
+  if (files->outcomes.is_open()) writeOutcomesCsv(files->outcomes, report.kernels);
+  if (!options.quiet) {
+    printSummary(std::cout, model, run->data, run->status, wall_time_s, energy_final_J, &report);
+  }
+}
+
+int run(const Model& model, const DamageThresholds& damage, const Options& options) {
+  RunFiles files(options);
+  // Initial state and file headers.
+  Run run(model, damage);
+  resetData(model, &run.data);
+  if (files.trace.is_open()) {
+    writeTraceHeader(files.trace, model);
+    writeTraceRow(files.trace, model, run.data);
+  }
+  if (files.events.is_open()) writeEventsHeader(files.events);
+  if (files.forces.is_open()) writeForcesHeader(files.forces);
+  run.min_interval_s =
+      model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s : 0.0;
+  run.sample_interval_s = std::max(options.sample_interval_s, run.min_interval_s);
+  // Chunks of kChunk_s; the last one lands exactly on the duration.
+  const long n_chunks = std::max(1L, std::lround(std::ceil(model.duration_s / kChunk_s - 1e-9)));
+  Progress progress(options.quiet);
+  for (long chunk = 1; chunk <= n_chunks && !run.failed; ++chunk) {
+    advanceChunk(model, chunk == n_chunks ? model.duration_s : chunk * kChunk_s, &files, &run);
+    if (run.failed) break;
+    if (files.trace.is_open() && (chunk % options.trace_every == 0 || chunk == n_chunks))
+      writeTraceRow(files.trace, model, run.data);
+    progress.update(run.data, model.duration_s);
   }
   progress.finish();
-
-  // Summary and outcomes.
-  const double wall_time_s = std::chrono::duration<double>(stepping_time).count();
-  const double energy_final_J = mechanicalEnergy(model, data);
-  if (!failed) status = checkResult(model, data, energy_final_J, &failed);
-  OutcomeReport report;
-  report.kernels = tracker.outcomes(data);
-  report.thresholds = damage;
-  report.sample_interval_s = sample_interval_s;
-  if (summary.is_open()) {
-    writeSummaryJson(summary, model, data, status, wall_time_s, energy_final_J, &report);
-  }
-  if (outcomes_csv.is_open()) writeOutcomesCsv(outcomes_csv, report.kernels);
-  if (!options.quiet) {
-    printSummary(std::cout, model, data, status, wall_time_s, energy_final_J, &report);
-  }
-  checkWritten(options.summary_path, "--summary", &summary);
-  checkWritten(options.trace_path, "--trace", &trace);
-  checkWritten(options.events_path, "--events", &events);
-  checkWritten(options.outcomes_path, "--outcomes", &outcomes_csv);
-  checkWritten(options.forces_path, "--forces", &forces);
-  return failed ? 1 : 0;
+  reportRun(model, damage, options, &files, &run);
+  files.checkAllWritten(options);
+  return run.failed ? 1 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------
