@@ -303,6 +303,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   }
   smoothForces(m, c.d, z, u, dr, &ws.forces);
   evaluateAll(c, z, u, dr, separated, horizon_s);
+  // Inverse masses: the identity of the modes (nullptr) unless a tooth is a large-deflection rod.
+  const std::vector<MatX>* minv = toothInverseMass(m, z, &ws);
 
   // Known forces: compliant normals and every sliding friction with a known normal.
   ws.active.clear();
@@ -335,9 +337,16 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   // Free accelerations a = Minv f (mass-normalised modes; kernels diag(1/m, 1/m, 1/J)), with
   // the operations of applyInverseMass on a zero vector.
   ws.du.resize(m.n_dof);
-  for (const ToothModel& tm : m.teeth)
+  for (size_t tk = 0; tk < m.teeth.size(); ++tk) {
+    const ToothModel& tm = m.teeth[tk];
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      ws.du.segment(tm.dof_offset, tm.n_modes).noalias() =
+          (*minv)[tk] * ws.forces.segment(tm.dof_offset, tm.n_modes);
+      continue;
+    }
     for (int i = 0; i < tm.n_modes; ++i)
       ws.du[tm.dof_offset + i] = 0.0 + ws.forces[tm.dof_offset + i];
+  }
   for (const KernelModel& km : m.kernels) {
     const int o = km.dof_offset;
     ws.du[o] = 0.0 + ws.forces[o] / km.mass_kg;
@@ -354,8 +363,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     ws.lambda[2 * i] = fn;
     ws.lambda[2 * i + 1] = ft;
     for (const BodyJac& s : g.side) {
-      applyInverseMass(m, nullptr, s.body, s.w_n, fn, &ws.du);
-      applyInverseMass(m, nullptr, s.body, s.w_t, ft, &ws.du);
+      applyInverseMass(m, minv, s.body, s.w_n, fn, &ws.du);
+      applyInverseMass(m, minv, s.body, s.w_t, ft, &ws.du);
     }
   }
   if (nc > 0) {
@@ -404,7 +413,10 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
             if (sr.body < 0 || sr.body != sc.body) continue;
             const SmallVec& wr = idx[r].second == 0 ? sr.w_n : sr.w_t;
             const int T = static_cast<int>(m.teeth.size());
-            if (sr.body < T) {
+            if (sr.body < T && minv != nullptr) {
+              v += fn_per * weightedDot(m, minv, sr.body, wr, sc.w_n) +
+                   ft_per * weightedDot(m, minv, sr.body, wr, sc.w_t);
+            } else if (sr.body < T) {
               v += fn_per * wr.dot(sc.w_n) + ft_per * wr.dot(sc.w_t);
             } else {
               const KernelModel& km = m.kernels[sr.body - T];
@@ -436,8 +448,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
         ws.lambda[2 * i + 1] = ft;
       }
       for (const BodyJac& s : g.side) {
-        applyInverseMass(m, nullptr, s.body, s.w_n, fn, &ws.du);
-        applyInverseMass(m, nullptr, s.body, s.w_t, ft, &ws.du);
+        applyInverseMass(m, minv, s.body, s.w_n, fn, &ws.du);
+        applyInverseMass(m, minv, s.body, s.w_t, ft, &ws.du);
       }
     }
   }
@@ -665,14 +677,15 @@ void solveImpact(const Ctx& c, double t, bool force_plastic) {
     }
     const double e_before = energyOf(m, d, d.z, d.u, dr.omega_radps);
     const double H_before = angularMomentumOf(m, d.z, d.u, dr.omega_radps);
-    solveContactIslands(m, nullptr, &ws);
+    const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
+    solveContactIslands(m, minv, &ws);
     ws.u_old = d.u;
     double ang = 0.0;
     for (int i = 0; i < k; ++i) {
       const ContactGeom& g = ws.geoms[ws.active[i]];
       for (const BodyJac& s : g.side) {
-        applyInverseMass(m, nullptr, s.body, s.w_n, ws.lambda[2 * i], &d.u);
-        applyInverseMass(m, nullptr, s.body, s.w_t, ws.lambda[2 * i + 1], &d.u);
+        applyInverseMass(m, minv, s.body, s.w_n, ws.lambda[2 * i], &d.u);
+        applyInverseMass(m, minv, s.body, s.w_t, ws.lambda[2 * i + 1], &d.u);
       }
       if (g.pair.kind == PairKind::kToothKernel) {
         const Vec2& p = g.p0;
@@ -754,13 +767,14 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
   const Drive dr = driveAtTime(c, t);
   smoothForces(m, d, d.z, d.u, dr, &ws.forces);
   evaluateAll(c, d.z, d.u, dr);
+  const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
   ws.du.setZero(m.n_dof);
   for (size_t b = 0; b < m.teeth.size() + m.kernels.size(); ++b) {
     const int off = bodyDofOffset(m, static_cast<int>(b));
     const int n = bodyDofCount(m, static_cast<int>(b));
     if (n == 0) continue;
     SmallVec fb = ws.forces.segment(off, n);
-    applyInverseMass(m, nullptr, static_cast<int>(b), fb, 1.0, &ws.du);
+    applyInverseMass(m, minv, static_cast<int>(b), fb, 1.0, &ws.du);
   }
   const double v_eps = m.integrator.zeno_velocity_mps;
   ws.active.clear();
@@ -805,7 +819,7 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
     ws.b[2 * i] = an;
     ws.b[2 * i + 1] = at;
   }
-  if (!solveContactIslands(m, nullptr, &ws)) return false;
+  if (!solveContactIslands(m, minv, &ws)) return false;
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     const ContactRow& row = ws.rows[i];
@@ -865,23 +879,24 @@ bool projectConstraints(const Ctx& c, double t) {
         updateToothStations(m, d.z, dr.theta_rad, pair.a, &ws);
       evaluateContact(m, d.z, d.u, dr, pair, &ws, &g);
       // Minimal mass-weighted correction of this contact alone.
+      const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
       double gnn = 0, gtt = 0;
       for (const BodyJac& s : g.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
-        gnn += weightedDot(m, nullptr, s.body, s.w_n, s.w_n);
-        gtt += weightedDot(m, nullptr, s.body, s.w_t, s.w_t);
+        gnn += weightedDot(m, minv, s.body, s.w_n, s.w_n);
+        gtt += weightedDot(m, minv, s.body, s.w_t, s.w_t);
       }
       if (normal && gnn > 0) {
         corrected = true;
         for (const BodyJac& s : g.side) {
-          applyInverseMass(m, nullptr, s.body, s.w_n, -g.gap_m / gnn, &d.z);
-          applyInverseMass(m, nullptr, s.body, s.w_n, -g.vn / gnn, &d.u);
+          applyInverseMass(m, minv, s.body, s.w_n, -g.gap_m / gnn, &d.z);
+          applyInverseMass(m, minv, s.body, s.w_n, -g.vn / gnn, &d.u);
         }
       }
       if (tangent && gtt > 0) {
         corrected = true;
         for (const BodyJac& s : g.side)
-          applyInverseMass(m, nullptr, s.body, s.w_t, -g.vt / gtt, &d.u);
+          applyInverseMass(m, minv, s.body, s.w_t, -g.vt / gtt, &d.u);
       }
     }
   }
@@ -899,7 +914,11 @@ double motionBound(const Ctx& c) {
   for (const ToothModel& tm : c.m.teeth)
     v = std::max(
         v, std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) +
-               (tm.n_modes > 0 ? 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm() : 0.0));
+               (tm.n_modes == 0 ? 0.0
+                : tm.beam_model == ToothBeamModel::kLargeDeflection
+                    // |theta_dot| <= sum |q_dot_i| (|phi_i| <= 1), points within L of the root.
+                    ? tm.length_m * c.d.u.segment(tm.dof_offset, tm.n_modes).lpNorm<1>()
+                    : 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm()));
   for (int i = 0; i < static_cast<int>(c.m.kernels.size()); ++i)
     v = std::max(v, kernelSpeedBound(c.m, c.d.u, i));
   return v;

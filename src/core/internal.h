@@ -15,6 +15,7 @@
 
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/geometry.h"
+#include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/lcp.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/simulator.h"
@@ -342,9 +343,26 @@ struct Workspace {
                                         // energy slot unused)
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
+  // Large-deflection teeth: the configuration of each at the q it was last computed for, and
+  // every tooth's inverse mass at the state ld_minv_z (identity for modal teeth).
+  std::vector<LdConfig> ld_cfg;              // per tooth
+  std::vector<VecX> ld_cfg_q;                // the q of each [rad]
+  std::vector<MatX> ld_minv;                 // per tooth, M^-1 [1/(kg m^2)] or identity
+  VecX ld_minv_z;                            // the state ld_minv holds for
+  bool ld_minv_valid = false;                // ld_minv is that of ld_minv_z
 };
 
 namespace internal {
+
+// --- large-deflection teeth (large_deflection.cc) -----------------------------------------
+// The configuration of large-deflection tooth k at z (recomputed only when its q changed).
+const LdConfig& ldConfigOf(const Model& m, int tooth, const VecX& z, Workspace* ws);
+// Every tooth's inverse mass at z for applyInverseMass / weightedDot: nullptr (the identity
+// of the mass-normalised modes) when the model has no large-deflection tooth.
+const std::vector<MatX>* toothInverseMass(const Model& m, const VecX& z, Workspace* ws);
+// Time stepping: the iteration matrix M(q) + h theta D + h^2 theta^2 K of every
+// large-deflection tooth at the midpoint z_mid, into ws->iteration_inverse.
+void updateLdIterationMatrices(const Model& m, const VecX& z_mid, double h_s, Workspace* ws);
 
 // --- drum drive ---------------------------------------------------------------------------
 // Drum state after dt from d with the current target (piecewise-constant acceleration).

@@ -15,8 +15,11 @@
 
 #include "threshing_sim/core/large_deflection.h"
 
+#include "internal.h"
+
 #include <algorithm>
 #include <array>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -327,4 +330,66 @@ Vec2 ldStaticTipLoad(const ToothModel& t, const Vec2& P, VecX* q_out) {
   return cfg.r_end[kLdIntervals] - (t.ld_root_T + Vec2(t.length_m, 0.0));
 }
 
+namespace internal {
+
+const LdConfig& ldConfigOf(const Model& m, int tooth, const VecX& z, Workspace* ws) {
+  const ToothModel& tm = m.teeth[tooth];
+  if (ws->ld_cfg.size() != m.teeth.size()) {
+    ws->ld_cfg.resize(m.teeth.size());
+    ws->ld_cfg_q.assign(m.teeth.size(), VecX());
+  }
+  VecX& key = ws->ld_cfg_q[tooth];
+  const double* q = z.data() + tm.dof_offset;
+  const int n = tm.n_modes;
+  if (key.size() == n && n > 0 && std::memcmp(key.data(), q, sizeof(double) * n) == 0)
+    return ws->ld_cfg[tooth];
+  key = z.segment(tm.dof_offset, n);
+  ldConfigure(tm, q, &ws->ld_cfg[tooth]);
+  return ws->ld_cfg[tooth];
+}
+
+const std::vector<MatX>* toothInverseMass(const Model& m, const VecX& z, Workspace* ws) {
+  if (!m.has_large_deflection) return nullptr;
+  if (ws->ld_minv_valid && ws->ld_minv_z.size() == z.size() &&
+      std::memcmp(ws->ld_minv_z.data(), z.data(), sizeof(double) * z.size()) == 0)
+    return &ws->ld_minv;
+  ws->ld_minv.resize(m.teeth.size());
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    const int n = tm.n_modes;
+    MatX& minv = ws->ld_minv[k];
+    if (tm.beam_model != ToothBeamModel::kLargeDeflection) {
+      minv.setIdentity(n, n);
+      continue;
+    }
+    const LdConfig& cfg = ldConfigOf(m, static_cast<int>(k), z, ws);
+    LdMat M;
+    const double* q = z.data() + tm.dof_offset;
+    ldDynamics(tm, cfg, q, q, 0.0, 0.0, &M, nullptr, nullptr, nullptr);
+    minv.resize(n, n);
+    minv = M.llt().solve(LdMat::Identity(n, n));
+  }
+  ws->ld_minv_z = z;
+  ws->ld_minv_valid = true;
+  return &ws->ld_minv;
+}
+
+void updateLdIterationMatrices(const Model& m, const VecX& z_mid, double h, Workspace* ws) {
+  if (!m.has_large_deflection) return;
+  const double th = m.integrator.theta;
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (tm.beam_model != ToothBeamModel::kLargeDeflection || tm.n_modes == 0) continue;
+    const LdConfig& cfg = ldConfigOf(m, static_cast<int>(k), z_mid, ws);
+    LdMat M;
+    const double* q = z_mid.data() + tm.dof_offset;
+    ldDynamics(tm, cfg, q, q, 0.0, 0.0, &M, nullptr, nullptr, nullptr);
+    MatX& W = ws->iteration_matrix[k];
+    W = M + (h * th) * tm.ld_D + (h * h * th * th) * tm.ld_K;
+    ws->iteration_lu[k].compute(W);
+    ws->iteration_inverse[k] = ws->iteration_lu[k].inverse();
+  }
+}
+
+}  // namespace internal
 }  // namespace threshing_sim

@@ -171,6 +171,7 @@ struct Model {
 
   // --- derived ---
   int n_dof = 0;  // size of the generalised coordinate vector (tooth modes, then kernel x,y,psi)
+  bool has_large_deflection = false;  // some tooth is a large-deflection rod
   bool compiled = false;
 };
 
