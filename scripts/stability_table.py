@@ -466,6 +466,9 @@ def main():
     parser.add_argument("--full", action="store_true",
                         help="run every scene's full long duration (scene 10: 10 000 revolutions "
                         "instead of 300, 33 times as long)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="an extra scene override for every run, e.g. "
+                        "teeth.0.model=large_deflection (with --scenes of scenes that have it)")
     parser.add_argument("--output", help="write the markdown document here (default: stdout)")
     parser.add_argument("--save", metavar="FILE.json",
                         help="also write the results (rows, notes, command) as JSON")
@@ -498,6 +501,8 @@ def main():
     scenes = [s for s in SCENES if not args.scenes or s.key in args.scenes]
     if not scenes:
         parser.error("no scene matches %s" % args.scenes)
+    for s in scenes:
+        s.overrides += args.set
 
     rows, notes, all_ok = [], [], True
     started = time.monotonic()
