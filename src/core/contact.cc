@@ -107,9 +107,9 @@ void stationHq(const ToothModel& tm, int s, const double* q, double* hq, double*
 
 // The stations bracketing one interval, computed directly (without the workspace's stations).
 struct StationPair {
-  int s = -1;                                       // interval [x_s, x_{s+1}] held (-1: none) [-]
+  int s = -1;               // interval [x_s, x_{s+1}] held (-1: none) [-]
   double hq0[16], hq1[16];  // H q at its two stations (SmallVec capacity) [1/sqrt(kg)]
-  double wc0 = 0, wc1 = 0;                          // w_c there [m]
+  double wc0 = 0, wc1 = 0;  // w_c there [m]
   void update(const ToothModel& tm, int s_new, const double* q) {
     if (s == s_new) return;
     s = s_new;
@@ -123,8 +123,8 @@ Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const Vec
                      StationPair* direct = nullptr) {
   if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
     // Exact centreline of the rod; the configuration is cached per q in the workspace.
-    if (ws->ld_cfg_q.size() <= static_cast<size_t>(tooth) || ws->ld_cfg_q[tooth].size() != q.size() ||
-        ws->ld_cfg_q[tooth] != q) {
+    if (ws->ld_cfg_q.size() <= static_cast<size_t>(tooth) ||
+        ws->ld_cfg_q[tooth].size() != q.size() || ws->ld_cfg_q[tooth] != q) {
       ws->ld_cfg.resize(std::max(ws->ld_cfg.size(), static_cast<size_t>(tooth) + 1));
       ws->ld_cfg_q.resize(ws->ld_cfg.size());
       ws->ld_cfg_q[tooth] = q;
@@ -613,7 +613,11 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     const double r_t = 0.5 * tm.diameter_m;
     // A pair in contact starts from its last closest point (warm_x_m) on the exact centreline;
     // should that refinement not converge, the polyline search below is the fallback.
+    // (Not for a large-deflection rod: a strongly bent rod alongside an elongated kernel can
+    // have two local minima of the distance, and the warm start and the search must not pick
+    // different ones, or the pair would close and open at once.)
     const bool warm = warm_x_m != nullptr && *warm_x_m >= 0.0 && tm.n_modes > 0 &&
+                      tm.beam_model == ToothBeamModel::kModal &&
                       far_m == std::numeric_limits<double>::infinity();
     StationPair direct;      // the warm start's stations (the workspace's may be stale then)
     bool from_warm = false;  // the closest point came from the warm start

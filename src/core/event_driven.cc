@@ -85,7 +85,9 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     const PairMemory& mem = c.ws.memory[pairKey(p)];
     const bool separated_pair = mem.state == ContactState::kSeparated;
     if (separated == SeparatedPairs::kNone && separated_pair) continue;
-    if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0) continue;
+    if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0 &&
+        c.m.teeth[p.a].beam_model == ToothBeamModel::kModal)
+      continue;
     updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
     last_tooth = p.a;
   }
@@ -895,8 +897,7 @@ bool projectConstraints(const Ctx& c, double t) {
       }
       if (tangent && gtt > 0) {
         corrected = true;
-        for (const BodyJac& s : g.side)
-          applyInverseMass(m, minv, s.body, s.w_t, -g.vt / gtt, &d.u);
+        for (const BodyJac& s : g.side) applyInverseMass(m, minv, s.body, s.w_t, -g.vt / gtt, &d.u);
       }
     }
   }

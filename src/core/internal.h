@@ -345,11 +345,11 @@ struct Workspace {
   std::vector<int> prev_active;
   // Large-deflection teeth: the configuration of each at the q it was last computed for, and
   // every tooth's inverse mass at the state ld_minv_z (identity for modal teeth).
-  std::vector<LdConfig> ld_cfg;              // per tooth
-  std::vector<VecX> ld_cfg_q;                // the q of each [rad]
-  std::vector<MatX> ld_minv;                 // per tooth, M^-1 [1/(kg m^2)] or identity
-  VecX ld_minv_z;                            // the state ld_minv holds for
-  bool ld_minv_valid = false;                // ld_minv is that of ld_minv_z
+  std::vector<LdConfig> ld_cfg;  // per tooth
+  std::vector<VecX> ld_cfg_q;    // the q of each [rad]
+  std::vector<MatX> ld_minv;     // per tooth, M^-1 [1/(kg m^2)] or identity
+  VecX ld_minv_z;                // the state ld_minv holds for
+  bool ld_minv_valid = false;    // ld_minv is that of ld_minv_z
 };
 
 namespace internal {

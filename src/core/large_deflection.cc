@@ -13,16 +13,15 @@
 #pragma GCC diagnostic pop
 #endif
 
-#include "threshing_sim/core/large_deflection.h"
-
-#include "internal.h"
-
 #include <algorithm>
 #include <array>
-#include <cstring>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
+
+#include "internal.h"
+#include "threshing_sim/core/large_deflection.h"
 
 namespace threshing_sim {
 namespace {
@@ -30,10 +29,10 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 // 8-point Gauss-Legendre rule on [-1, 1].
-constexpr std::array<double, kLdGauss> kNode = {
-    -0.96028985649753623168, -0.79666647741362673959, -0.52553240991632898582,
-    -0.18343464249564980494, 0.18343464249564980494,  0.52553240991632898582,
-    0.79666647741362673959,  0.96028985649753623168};
+constexpr std::array<double, kLdGauss> kNode = {-0.96028985649753623168, -0.79666647741362673959,
+                                                -0.52553240991632898582, -0.18343464249564980494,
+                                                0.18343464249564980494,  0.52553240991632898582,
+                                                0.79666647741362673959,  0.96028985649753623168};
 constexpr std::array<double, kLdGauss> kWeight = {
     0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734, 0.36268378337836198297,
     0.36268378337836198297, 0.31370664587788728734, 0.22238103445337447054, 0.10122853629037625915};

@@ -260,10 +260,10 @@ void checkToothDeflection(const Model& m, Data* d) {
     // The last station is the tip, x = L. A large-deflection rod is valid at any deflection:
     // only tracked.
     const bool rod = tm.beam_model == ToothBeamModel::kLargeDeflection;
-    const double w_tip_m =
-        rod ? toothDeflection(m, *d, static_cast<int>(k), tm.length_m)
-            : tm.phi_s.row(tm.n_stations - 1).transpose().dot(
-                  d->z.segment(tm.dof_offset, tm.n_modes));
+    const double w_tip_m = rod ? toothDeflection(m, *d, static_cast<int>(k), tm.length_m)
+                               : tm.phi_s.row(tm.n_stations - 1)
+                                     .transpose()
+                                     .dot(d->z.segment(tm.dof_offset, tm.n_modes));
     const double ratio = std::abs(w_tip_m) / tm.length_m;
     st.max_tip_deflection_ratio = std::max(st.max_tip_deflection_ratio, ratio);
     if (!rod && ratio > m.deflection_validity_fraction && st.deflection_warning_time_s < 0) {

@@ -458,8 +458,7 @@ ToothModel readTooth(const Section& s) {
   t.n_stations = s.integer("stations", t.n_stations);
   // modal: assumed modes (small deflection); large_deflection: the exact planar rod, whose
   // `modes` are its Ritz shape functions (docs/large_deflection.md).
-  const std::string model =
-      s.word("model", "modal", "tooth model", {"modal", "large_deflection"});
+  const std::string model = s.word("model", "modal", "tooth model", {"modal", "large_deflection"});
   t.beam_model =
       model == "large_deflection" ? ToothBeamModel::kLargeDeflection : ToothBeamModel::kModal;
   return t;

@@ -5,7 +5,6 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdio>
-
 #include <stdexcept>
 #include <string>
 
@@ -107,10 +106,10 @@ TEST(LargeDeflection, TipLoadMatchesElastica) {
       ASSERT_TRUE(tip.allFinite()) << "alpha " << alpha;
       const double err_v = tip.y() / L - e.deflection;
       const double err_h = -tip.x() / L - e.shortening;
-      std::printf("LD_TABLE shapes %d alpha %5.2f vertical %.6f (elastica %.6f, error %+.1e L) "
-                  "horizontal %.6f (elastica %.6f, error %+.1e L)\n",
-                  shapes, alpha, tip.y() / L, e.deflection, err_v, -tip.x() / L, e.shortening,
-                  err_h);
+      std::printf(
+          "LD_TABLE shapes %d alpha %5.2f vertical %.6f (elastica %.6f, error %+.1e L) "
+          "horizontal %.6f (elastica %.6f, error %+.1e L)\n",
+          shapes, alpha, tip.y() / L, e.deflection, err_v, -tip.x() / L, e.shortening, err_h);
       if (alpha <= 5.0) {
         EXPECT_LT(std::abs(err_v), 1e-3) << "alpha " << alpha;
         EXPECT_LT(std::abs(err_h), 1e-3) << "alpha " << alpha;
@@ -201,15 +200,16 @@ void expectSmallDeflectionAgreement(IntegratorType type) {
   EXPECT_LT(rod.max_tip_ratio, 0.02);
   const double dn = rod.peak_normal_N / modal.peak_normal_N - 1;
   const double dt = rod.peak_tangential_N / modal.peak_tangential_N - 1;
-  const double dv = (rod.exit_velocity_mps - modal.exit_velocity_mps).norm() /
-                    modal.exit_velocity_mps.norm();
-  std::printf("LD_AGREEMENT %s: peak normal %.4f vs %.4f N (%+.2e), peak tangential %.4f vs "
-              "%.4f N (%+.2e), exit velocity (%.4f, %.4f) vs (%.4f, %.4f) m/s (%.2e), tip "
-              "%.2e L\n",
-              type == IntegratorType::kEventDriven ? "event_driven" : "time_stepping",
-              rod.peak_normal_N, modal.peak_normal_N, dn, rod.peak_tangential_N,
-              modal.peak_tangential_N, dt, rod.exit_velocity_mps.x(), rod.exit_velocity_mps.y(),
-              modal.exit_velocity_mps.x(), modal.exit_velocity_mps.y(), dv, rod.max_tip_ratio);
+  const double dv =
+      (rod.exit_velocity_mps - modal.exit_velocity_mps).norm() / modal.exit_velocity_mps.norm();
+  std::printf(
+      "LD_AGREEMENT %s: peak normal %.4f vs %.4f N (%+.2e), peak tangential %.4f vs "
+      "%.4f N (%+.2e), exit velocity (%.4f, %.4f) vs (%.4f, %.4f) m/s (%.2e), tip "
+      "%.2e L\n",
+      type == IntegratorType::kEventDriven ? "event_driven" : "time_stepping", rod.peak_normal_N,
+      modal.peak_normal_N, dn, rod.peak_tangential_N, modal.peak_tangential_N, dt,
+      rod.exit_velocity_mps.x(), rod.exit_velocity_mps.y(), modal.exit_velocity_mps.x(),
+      modal.exit_velocity_mps.y(), dv, rod.max_tip_ratio);
   EXPECT_LT(std::abs(dn), 0.01);
   EXPECT_LT(std::abs(dt), 0.01);
   EXPECT_LT(dv, 0.01);
@@ -239,8 +239,7 @@ void expectEnergyBalanceCloses(IntegratorType type, double tol_J) {
   Data d;
   testutil::runTo(m, &d, m.duration_s);
   ASSERT_GE(d.stats.impacts, 1);
-  const double balance =
-      mechanicalEnergy(m, d) - d.stats.energy_initial_J - d.stats.drive_work_J;
+  const double balance = mechanicalEnergy(m, d) - d.stats.energy_initial_J - d.stats.drive_work_J;
   std::printf("LD_ENERGY %s: E(end) - E(0) - W_drive = %.3e J (kernel %.3e J, drive %.3e J)\n",
               type == IntegratorType::kEventDriven ? "event_driven" : "time_stepping", balance,
               kernelKineticEnergy(m, d), d.stats.drive_work_J);

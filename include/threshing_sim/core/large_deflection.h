@@ -23,10 +23,10 @@
 
 namespace threshing_sim {
 
-constexpr int kLdIntervals = 8;                     // collocation intervals along the rod [-]
-constexpr int kLdGauss = 8;                         // Gauss nodes per interval [-]
+constexpr int kLdIntervals = 8;                    // collocation intervals along the rod [-]
+constexpr int kLdGauss = 8;                        // Gauss nodes per interval [-]
 constexpr int kLdNodes = kLdIntervals * kLdGauss;  // mass and collocation nodes [-]
-constexpr int kLdMaxShapes = 12;                    // most Ritz shape functions (teeth.*.modes)
+constexpr int kLdMaxShapes = 12;                   // most Ritz shape functions (teeth.*.modes)
 
 // 2 x n Jacobian of a point (dr/dq, tooth frame) [m/rad], n <= kLdMaxShapes.
 using LdJac = Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, kLdMaxShapes>;
@@ -44,12 +44,12 @@ void ldShapes(const ToothModel& tooth, double s_m, double* phi, double* dphi);
 // The rod at one configuration q: node angles and the centreline and its Jacobian at the
 // interval ends (tooth frame, drum origin).
 struct LdConfig {
-  int n = 0;                           // shape functions [-]
-  double theta[kLdNodes];              // section angle at the nodes [rad]
-  double cos_t[kLdNodes];              // its cosine [-]
-  double sin_t[kLdNodes];              // its sine [-]
-  Vec2 r_end[kLdIntervals + 1];        // r at the interval ends [m]
-  LdJac J_end[kLdIntervals + 1];       // dr/dq there [m/rad]
+  int n = 0;                      // shape functions [-]
+  double theta[kLdNodes];         // section angle at the nodes [rad]
+  double cos_t[kLdNodes];         // its cosine [-]
+  double sin_t[kLdNodes];         // its sine [-]
+  Vec2 r_end[kLdIntervals + 1];   // r at the interval ends [m]
+  LdJac J_end[kLdIntervals + 1];  // dr/dq there [m/rad]
 };
 
 // Computes the configuration of `tooth` at q (n_modes values) [rad].

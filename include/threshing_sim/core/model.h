@@ -73,13 +73,13 @@ struct ToothModel {
   int dof_offset = 0;               // first index of this tooth's q in the generalised vector
   // Large-deflection tooth only (beam_model kLargeDeflection; q in rad, section angle
   // theta(s) = sum_i q_i phi_i(s)); see large_deflection.h. N collocation nodes s_a.
-  VecX ld_node_s_m;    // node coordinates s_a [m], size N
+  VecX ld_node_s_m;      // node coordinates s_a [m], size N
   VecX ld_node_mass_kg;  // node masses rho A w_a (Gauss weights w_a) [kg], size N
-  MatX ld_Phi;         // phi_i(s_a), N x n [-]
-  MatX ld_C;           // integration matrix: r(s_a) = b + sum_b C_ab (cos, sin)(theta_b), N x N [m]
-  MatX ld_B;           // C^T diag(node mass) C, N x N [kg m^2]
-  MatX ld_K;           // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
-  MatX ld_D;           // damping matrix (modal damping of the linearised tooth at rest) [N m s]
+  MatX ld_Phi;           // phi_i(s_a), N x n [-]
+  MatX ld_C;  // integration matrix: r(s_a) = b + sum_b C_ab (cos, sin)(theta_b), N x N [m]
+  MatX ld_B;  // C^T diag(node mass) C, N x N [kg m^2]
+  MatX ld_K;  // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
+  MatX ld_D;  // damping matrix (modal damping of the linearised tooth at rest) [N m s]
   Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
 };
 
@@ -143,9 +143,9 @@ struct IntegratorParams {
              // time stepping: dt x this is the slop of a pressed rigid contact, how far it
              // may sink below its impact depth or open before it is moved back) [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
-  bool islands = false;  // event-driven and time stepping: the asynchronous island-local scheme
-                         // (per-kernel clocks, islands of bodies that can touch, an event
-                         // calendar); false: every body advances together (the reference) [-]
+  bool islands = false;      // event-driven and time stepping: the asynchronous island-local scheme
+                             // (per-kernel clocks, islands of bodies that can touch, an event
+                             // calendar); false: every body advances together (the reference) [-]
   bool exact_free_teeth =
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
              // is advanced by the exact solution of its linear modal equations, outside the
