@@ -3,7 +3,7 @@
 
 Runs the large-deflection tooth's tests (test_large_deflection: the elastica, the agreement
 with the modal tooth on the default strike, the energy balance), reads the figures they print
-(lines starting LD_TABLE, LD_AGREEMENT, LD_ENERGY) and writes them as markdown between the
+(lines starting LD_TABLE, LD_AGREEMENT, LD_ENERGY, LD_FREQUENCY) and writes them as markdown between the
 <!-- ld-tables --> and <!-- ld-tables-end --> lines of the page.
 
 Usage:
@@ -32,6 +32,7 @@ AGREE = re.compile(r"LD_AGREEMENT (\w+): peak normal ([\d.]+) vs ([\d.]+) N \(([
                    r"peak tangential ([\d.]+) vs ([\d.]+) N \(([-+\d.e]+)\), exit velocity "
                    r"\(([-\d.]+), ([-\d.]+)\) vs \(([-\d.]+), ([-\d.]+)\) m/s \(([-+\d.e]+)\), "
                    r"tip ([-+\d.e]+) L")
+FREQ = re.compile(r"LD_FREQUENCY omega ([\d.]+) rad/s: rod ([\d.]+) Hz, modal ([\d.]+) Hz")
 ENERGY = re.compile(r"LD_ENERGY (\w+): E\(end\) - E\(0\) - W_drive = ([-+\d.e]+) J \(kernel "
                     r"([-+\d.e]+) J, drive ([-+\d.e]+) J\)")
 
@@ -50,7 +51,8 @@ def render(out):
         lines.append("| %s | %s | %s | %s | %s | %s | %s | %s |" % m.groups())
     lines += ["",
               "Default strike (config/default_scene.yaml's model: nylon tooth, 4 modes or 4 "
-              "shape functions, 800 rpm), rod against modal tooth; relative differences, the "
+              "shape functions, 800 rpm; time stepping at the scene's h = 1e-6), rod against "
+              "modal tooth; relative differences, the "
               "exit velocity's as |v_rod - v_modal| / |v_modal|:",
               "",
               "| integrator | peak normal rod / modal [N] | diff | peak tangential rod / modal "
@@ -68,6 +70,15 @@ def render(out):
               "|---|---|---|---|"]
     for m in ENERGY.finditer(out):
         lines.append("| %s | %s | %s | %s |" % m.groups())
+    lines += ["",
+              "First natural frequency of the soft rubber tooth of physics.md section 3 (8 shape "
+              "functions, the rod linearised about its straight shape) against the modal tooth "
+              "(8 modes, with centrifugal stiffening K_G):",
+              "",
+              "| drum speed [rad/s] | rod [Hz] | modal [Hz] |",
+              "|---|---|---|"]
+    for m in FREQ.finditer(out):
+        lines.append("| %s | %s | %s |" % m.groups())
     return "\n".join(lines)
 
 
