@@ -333,7 +333,7 @@ namespace internal {
 
 const LdConfig& ldConfigOf(const Model& m, int tooth, const VecX& z, Workspace* ws) {
   const ToothModel& tm = m.teeth[tooth];
-  if (ws->ld_cfg.size() != m.teeth.size()) {
+  if (ws->ld_cfg.size() != m.teeth.size() || ws->ld_cfg_q.size() != m.teeth.size()) {
     ws->ld_cfg.resize(m.teeth.size());
     ws->ld_cfg_q.assign(m.teeth.size(), VecX());
   }

@@ -351,6 +351,9 @@ void resetData(const Model& model, Data* data) {
   data->ws->ed_h = 0;
   // The free-tooth propagators are rebuilt for this model on first use.
   for (internal::ToothPropagator& prop : data->ws->ed_prop) prop.n_modes = -1;
+  // The large-deflection caches are keyed on q and z only: forget another model's.
+  data->ws->ld_cfg_q.clear();
+  data->ws->ld_minv_valid = false;
   resetBodies(model, data);
   internal::resetAsync(data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
