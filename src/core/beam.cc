@@ -26,6 +26,7 @@
 
 #include "internal.h"
 #include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/simulator.h"
 
 namespace threshing_sim {
@@ -212,6 +213,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
                              H.noalias() += weight_m * dphi * dphi.transpose();
                            });
   }
+  if (t.beam_model == ToothBeamModel::kLargeDeflection) compileLargeDeflection(&t);
 }
 
 void evaluateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
@@ -296,6 +298,8 @@ namespace internal {
 bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPropagator* prop) {
   const ToothModel& tm = m.teeth[tooth];
   const int n = tm.n_modes;
+  // The large-deflection rod is nonlinear: always integrated.
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) return prop->valid = false;
   if (prop->omega_radps == omega_radps && prop->n_modes == n) return prop->valid;
   prop->omega_radps = omega_radps;
   prop->n_modes = n;

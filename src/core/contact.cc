@@ -121,6 +121,20 @@ struct StationPair {
 Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const VecX>& q,
                      const Rotation2& rot, double x_m, Workspace* ws, Vec2* dr_dx,
                      StationPair* direct = nullptr) {
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+    // Exact centreline of the rod; the configuration is cached per q in the workspace.
+    if (ws->ld_cfg_q.size() <= static_cast<size_t>(tooth) ||
+        ws->ld_cfg_q[tooth].size() != q.size() || ws->ld_cfg_q[tooth] != q) {
+      ws->ld_cfg.resize(std::max(ws->ld_cfg.size(), static_cast<size_t>(tooth) + 1));
+      ws->ld_cfg_q.resize(ws->ld_cfg.size());
+      ws->ld_cfg_q[tooth] = q;
+      ldConfigure(tm, q.data(), &ws->ld_cfg[tooth]);
+    }
+    Vec2 r_s;
+    const Vec2 r_T = ldPoint(tm, ws->ld_cfg[tooth], x_m, &r_s, nullptr, nullptr);
+    *dr_dx = rot * (r_s.x() * tm.e1_D + r_s.y() * tm.e2_D);
+    return rot * (r_T.x() * tm.e1_D + r_T.y() * tm.e2_D);
+  }
   evaluateModes(tm, x_m, &ws->scratch_phi, &ws->scratch_dphi);
   int s = 0;
   double t = 0;
@@ -246,6 +260,16 @@ void updateToothStations(const Model& m, const VecX& z, double theta_rad, int to
   const int n = tm.n_modes;
   const int s0 = ws->station_offset[tooth];
   const Rotation2 rot(theta_rad);
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+    // The rod's exact centreline at the stations (tooth frame T, then drum, then world).
+    const LdConfig& cfg = ldConfigOf(m, tooth, z, ws);
+    for (int s = 0; s < tm.n_stations; ++s) {
+      const Vec2 r_T = ldPoint(tm, cfg, tm.station_x_m[s], nullptr, nullptr, nullptr);
+      ws->stations_W[s0 + s] = rot * (r_T.x() * tm.e1_D + r_T.y() * tm.e2_D);
+      ws->station_wc_m[s0 + s] = 0.0;
+    }
+    return;
+  }
   const auto q = z.segment(tm.dof_offset, n);
   double hq[16];  // H(x_s) q (at most 12 modes)
   for (int s = 0; s < tm.n_stations; ++s) {
@@ -416,9 +440,13 @@ void broadPhase(const Model& m, const VecX& z, double margin_m, Workspace* ws,
       // stations computed; without one the exact box below would find none either.
       const Rotation2 rot(*stations_theta_rad);
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
-      const double deflection_m = (tm.n_modes > 0 ? ws->tooth_phi_max[k].dot(q.cwiseAbs()) +
-                                                        0.5 * ws->tooth_H_max[k] * q.squaredNorm()
-                                                  : 0.0);
+      // A large-deflection rod stays within its length of the root.
+      const double deflection_m =
+          tm.beam_model == ToothBeamModel::kLargeDeflection
+              ? tm.length_m
+              : (tm.n_modes > 0 ? ws->tooth_phi_max[k].dot(q.cwiseAbs()) +
+                                      0.5 * ws->tooth_H_max[k] * q.squaredNorm()
+                                : 0.0);
       const Vec2 root = rot * (tm.p_DR_D + tm.station_x_m[0] * tm.e1_D);
       const Vec2 tip = rot * (tm.p_DR_D + tm.station_x_m[tm.n_stations - 1] * tm.e1_D);
       const double grow_m = deflection_m * (1.0 + 1e-9) + 1e-9 * (root.norm() + tip.norm() + 1e-3);
@@ -585,7 +613,11 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     const double r_t = 0.5 * tm.diameter_m;
     // A pair in contact starts from its last closest point (warm_x_m) on the exact centreline;
     // should that refinement not converge, the polyline search below is the fallback.
+    // (Not for a large-deflection rod: a strongly bent rod alongside an elongated kernel can
+    // have two local minima of the distance, and the warm start and the search must not pick
+    // different ones, or the pair would close and open at once.)
     const bool warm = warm_x_m != nullptr && *warm_x_m >= 0.0 && tm.n_modes > 0 &&
+                      tm.beam_model == ToothBeamModel::kModal &&
                       far_m == std::numeric_limits<double>::infinity();
     StationPair direct;      // the warm start's stations (the workspace's may be stale then)
     bool from_warm = false;  // the closest point came from the warm start
@@ -714,7 +746,23 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
     const int n = tm.n_modes;
     s.w_n.resize(n);
     s.w_t.resize(n);
-    if (n > 0) {
+    if (n > 0 && tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      // Rod: the centreline point moves at A E (dr/dq) qdot, the surface offset r_t n turns
+      // with the section angle theta(x) = phi(x) . q.
+      LdJac jac;
+      ldPoint(tm, ldConfigOf(m, pair.a, z, ws), g->tooth_x_m, nullptr, nullptr, &jac);
+      double phi[kLdMaxShapes];
+      ldShapes(tm, g->tooth_x_m, phi, nullptr);
+      const Rotation2 rot(drive.theta_rad);
+      const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
+      const Vec2 jr = perp(r_t * g->n);
+      const double jrn = jr.dot(g->n), jrt = jr.dot(g->t);
+      for (int i = 0; i < n; ++i) {
+        const Vec2 col = jac(0, i) * e1 + jac(1, i) * e2;
+        s.w_n[i] = -(col.dot(g->n) + jrn * phi[i]);
+        s.w_t[i] = -(col.dot(g->t) + jrt * phi[i]);
+      }
+    } else if (n > 0) {
       // phi and phi' at x: still in the scratch from the refinement's last evaluation.
       // H(x) q blended from the stations like H(x) itself.
       int s_h = 0;
@@ -883,8 +931,37 @@ struct CentrelineMotion {
   double dslope_rate_dx = 0;  // d(w'_dot)/dx = phi'' . qdot [1/(m s)]
 };
 
-CentrelineMotion centrelineMotion(const ToothModel& tm, const VecX& z, const VecX& u, double x_m,
-                                  Workspace* ws) {
+// The same for a large-deflection rod, from its exact kinematics: the narrow phase's tangent is
+// the centreline's own (unit) tangent, and the surface offset turns with theta(x) = phi . q.
+CentrelineMotion rodMotion(const Model& m, int tooth, const VecX& z, const VecX& u, double x_m,
+                           Workspace* ws) {
+  const ToothModel& tm = m.teeth[tooth];
+  const LdConfig& cfg = ldConfigOf(m, tooth, z, ws);
+  Vec2 r_s, r_ss, v, a, v_s;
+  const Vec2 r = ldPoint(tm, cfg, x_m, &r_s, &r_ss, nullptr);
+  ldPointMotion(tm, cfg, u.data() + tm.dof_offset, x_m, &v, &a, &v_s);
+  double phi[kLdMaxShapes], dphi[kLdMaxShapes];
+  ldShapes(tm, x_m, phi, dphi);
+  double dthd = 0.0;
+  for (int i = 0; i < tm.n_modes; ++i) dthd += dphi[i] * u[tm.dof_offset + i];
+  auto toD = [&](const Vec2& p) { return Vec2(p.x() * tm.e1_D + p.y() * tm.e2_D); };
+  CentrelineMotion cm;
+  cm.r = toD(r);
+  cm.r_x = toD(r_s);
+  cm.v = toD(v);
+  cm.v_x = toD(v_s);
+  cm.a = toD(a);
+  cm.rt_x = cm.r_x;
+  cm.rt_xx = toD(r_ss);
+  cm.rt_x_rate = cm.v_x;
+  cm.dslope_rate_dx = dthd;
+  return cm;
+}
+
+CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, const VecX& u,
+                                  double x_m, Workspace* ws) {
+  const ToothModel& tm = m.teeth[tooth];
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) return rodMotion(m, tooth, z, u, x_m, ws);
   const int n = tm.n_modes;
   CentrelineMotion cm;
   double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wd2 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0,
@@ -952,7 +1029,7 @@ Vec2 toothPairDrift(const Model& m, const VecX& z, const VecX& u, const Drive& d
   const ToothModel& tm = m.teeth[g.pair.a];
   const KernelModel& k = m.kernels[g.pair.b];
   const double x = g.tooth_x_m;
-  const CentrelineMotion cm = centrelineMotion(tm, z, u, x, ws);
+  const CentrelineMotion cm = centrelineMotion(m, g.pair.a, z, u, x, ws);
   const Rotation2 rot(drive.theta_rad);
   const double om = drive.omega_radps, al = drive.alpha_radps2;
   // World vectors of the centreline point (the drum turns them at Omega).
@@ -1039,12 +1116,21 @@ void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, c
   f->setZero(m.n_dof);
   // Teeth: -D qdot - [Lambda + Omega^2 (K_G - I)] q - dOmega/dt p.
   const double w2 = drive.omega_radps * drive.omega_radps;
-  for (const ToothModel& tm : m.teeth) {
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
     const int n = tm.n_modes;
     if (n == 0) continue;
     const auto q = z.segment(tm.dof_offset, n);
     const auto qd = u.segment(tm.dof_offset, n);
     auto out = f->segment(tm.dof_offset, n);
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      // The rod's elastic, damping and inertial (centrifugal, Coriolis, Euler) forces.
+      LdVec fr;
+      ldDynamics(tm, ldConfigOf(m, static_cast<int>(k), z, d.ws.get()), q.data(), qd.data(),
+                 drive.omega_radps, drive.alpha_radps2, nullptr, &fr, nullptr, nullptr);
+      out = fr;
+      continue;
+    }
     // -Omega^2 K_G q by plain loops (a dynamic-size product costs more than the arithmetic).
     for (int i = 0; i < n; ++i) {
       double kq = 0.0;
@@ -1087,10 +1173,18 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
   }
 }
 
-void freeAcceleration(const Model& m, const VecX& f, VecX* a) {
+void freeAcceleration(const Model& m, const std::vector<MatX>* tooth_minv, const VecX& f,
+                      VecX* a) {
   a->resize(m.n_dof);
-  for (const ToothModel& tm : m.teeth)
+  for (size_t k = 0; k < m.teeth.size(); ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      a->segment(tm.dof_offset, tm.n_modes).noalias() =
+          (*tooth_minv)[k] * f.segment(tm.dof_offset, tm.n_modes);
+      continue;
+    }
     for (int i = 0; i < tm.n_modes; ++i) (*a)[tm.dof_offset + i] = 0.0 + f[tm.dof_offset + i];
+  }
   for (const KernelModel& km : m.kernels) {
     const int o = km.dof_offset;
     (*a)[o] = 0.0 + f[o] / km.mass_kg;

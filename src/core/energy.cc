@@ -18,12 +18,30 @@ double quadraticForm(const MatX& K, const Eigen::Ref<const VecX>& q) {
   return q.dot(Kq);
 }
 
+// A large-deflection rod's inertial-frame kinetic plus elastic energy [J] (energy true) or
+// its angular momentum about the drum axis [kg m^2/s] (energy false). The configuration is
+// computed here (energy and momentum are evaluated at a few states per step only).
+double rodEnergyOrMomentum(const ToothModel& tm, const Eigen::Ref<const VecX>& z,
+                           const Eigen::Ref<const VecX>& u, double omega, bool energy) {
+  LdConfig cfg;
+  const double* q = z.data() + tm.dof_offset;
+  ldConfigure(tm, q, &cfg);
+  double kinetic = 0.0, momentum = 0.0;
+  ldDynamics(tm, cfg, q, u.data() + tm.dof_offset, omega, 0.0, nullptr, nullptr, &kinetic,
+             &momentum);
+  return energy ? kinetic + ldElasticEnergy(tm, q) : momentum;
+}
+
 }  // namespace
 
 double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, double omega) {
   double e = 0.0;
   // Teeth: kinetic (inertial frame) plus bending energy.
   for (const ToothModel& tm : m.teeth) {
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      e += rodEnergyOrMomentum(tm, z, u, omega, true);
+      continue;
+    }
     double inertia = tm.I0_kgm2;
     if (tm.n_modes > 0) {
       const auto q = z.segment(tm.dof_offset, tm.n_modes);
@@ -72,9 +90,14 @@ double toothAngularMomentum(const ToothModel& tm, const Eigen::Ref<const VecX>& 
 
 double angularMomentumOf(const Model& m, const VecX& z, const VecX& u, double omega) {
   double h = 0.0;
-  for (const ToothModel& tm : m.teeth)
+  for (const ToothModel& tm : m.teeth) {
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      h += rodEnergyOrMomentum(tm, z, u, omega, false);
+      continue;
+    }
     h = addToothMomentum(h, tm, z.segment(tm.dof_offset, tm.n_modes),
                          u.segment(tm.dof_offset, tm.n_modes), omega);
+  }
   return h;
 }
 

@@ -85,7 +85,9 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     const PairMemory& mem = c.ws.memory[pairKey(p)];
     const bool separated_pair = mem.state == ContactState::kSeparated;
     if (separated == SeparatedPairs::kNone && separated_pair) continue;
-    if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0) continue;
+    if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0 &&
+        c.m.teeth[p.a].beam_model == ToothBeamModel::kModal)
+      continue;
     updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
     last_tooth = p.a;
   }
@@ -303,6 +305,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   }
   smoothForces(m, c.d, z, u, dr, &ws.forces);
   evaluateAll(c, z, u, dr, separated, horizon_s);
+  // Inverse masses: the identity of the modes (nullptr) unless a tooth is a large-deflection rod.
+  const std::vector<MatX>* minv = toothInverseMass(m, z, &ws);
 
   // Known forces: compliant normals and every sliding friction with a known normal.
   ws.active.clear();
@@ -332,7 +336,7 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     nc += ws.rows[i].normal_unknown ? 1 : 0;
     nc += (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) ? 1 : 0;
   }
-  freeAcceleration(m, ws.forces, &ws.du);
+  freeAcceleration(m, minv, ws.forces, &ws.du);
   // Known contact forces, into the free acceleration.
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
@@ -343,8 +347,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     ws.lambda[2 * i] = fn;
     ws.lambda[2 * i + 1] = ft;
     for (const BodyJac& s : g.side) {
-      applyInverseMass(m, nullptr, s.body, s.w_n, fn, &ws.du);
-      applyInverseMass(m, nullptr, s.body, s.w_t, ft, &ws.du);
+      applyInverseMass(m, minv, s.body, s.w_n, fn, &ws.du);
+      applyInverseMass(m, minv, s.body, s.w_t, ft, &ws.du);
     }
   }
   if (nc > 0) {
@@ -393,7 +397,10 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
             if (sr.body < 0 || sr.body != sc.body) continue;
             const SmallVec& wr = idx[r].second == 0 ? sr.w_n : sr.w_t;
             const int T = static_cast<int>(m.teeth.size());
-            if (sr.body < T) {
+            if (sr.body < T && minv != nullptr) {
+              v += fn_per * weightedDot(m, minv, sr.body, wr, sc.w_n) +
+                   ft_per * weightedDot(m, minv, sr.body, wr, sc.w_t);
+            } else if (sr.body < T) {
               v += fn_per * wr.dot(sc.w_n) + ft_per * wr.dot(sc.w_t);
             } else {
               const KernelModel& km = m.kernels[sr.body - T];
@@ -425,8 +432,8 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
         ws.lambda[2 * i + 1] = ft;
       }
       for (const BodyJac& s : g.side) {
-        applyInverseMass(m, nullptr, s.body, s.w_n, fn, &ws.du);
-        applyInverseMass(m, nullptr, s.body, s.w_t, ft, &ws.du);
+        applyInverseMass(m, minv, s.body, s.w_n, fn, &ws.du);
+        applyInverseMass(m, minv, s.body, s.w_t, ft, &ws.du);
       }
     }
   }
@@ -654,14 +661,15 @@ void solveImpact(const Ctx& c, double t, bool force_plastic) {
     }
     const double e_before = energyOf(m, d, d.z, d.u, dr.omega_radps);
     const double H_before = angularMomentumOf(m, d.z, d.u, dr.omega_radps);
-    solveContactIslands(m, nullptr, &ws);
+    const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
+    solveContactIslands(m, minv, &ws);
     ws.u_old = d.u;
     double ang = 0.0;
     for (int i = 0; i < k; ++i) {
       const ContactGeom& g = ws.geoms[ws.active[i]];
       for (const BodyJac& s : g.side) {
-        applyInverseMass(m, nullptr, s.body, s.w_n, ws.lambda[2 * i], &d.u);
-        applyInverseMass(m, nullptr, s.body, s.w_t, ws.lambda[2 * i + 1], &d.u);
+        applyInverseMass(m, minv, s.body, s.w_n, ws.lambda[2 * i], &d.u);
+        applyInverseMass(m, minv, s.body, s.w_t, ws.lambda[2 * i + 1], &d.u);
       }
       if (g.pair.kind == PairKind::kToothKernel) {
         const Vec2& p = g.p0;
@@ -743,13 +751,14 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
   const Drive dr = driveAtTime(c, t);
   smoothForces(m, d, d.z, d.u, dr, &ws.forces);
   evaluateAll(c, d.z, d.u, dr);
+  const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
   ws.du.setZero(m.n_dof);
   for (size_t b = 0; b < m.teeth.size() + m.kernels.size(); ++b) {
     const int off = bodyDofOffset(m, static_cast<int>(b));
     const int n = bodyDofCount(m, static_cast<int>(b));
     if (n == 0) continue;
     SmallVec fb = ws.forces.segment(off, n);
-    applyInverseMass(m, nullptr, static_cast<int>(b), fb, 1.0, &ws.du);
+    applyInverseMass(m, minv, static_cast<int>(b), fb, 1.0, &ws.du);
   }
   const double v_eps = m.integrator.zeno_velocity_mps;
   ws.active.clear();
@@ -794,7 +803,7 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
     ws.b[2 * i] = an;
     ws.b[2 * i + 1] = at;
   }
-  if (!solveContactIslands(m, nullptr, &ws)) return false;
+  if (!solveContactIslands(m, minv, &ws)) return false;
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     const ContactRow& row = ws.rows[i];
@@ -854,23 +863,23 @@ bool projectConstraints(const Ctx& c, double t) {
         updateToothStations(m, d.z, dr.theta_rad, pair.a, &ws);
       evaluateContact(m, d.z, d.u, dr, pair, &ws, &g);
       // Minimal mass-weighted correction of this contact alone.
+      const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
       double gnn = 0, gtt = 0;
       for (const BodyJac& s : g.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
-        gnn += weightedDot(m, nullptr, s.body, s.w_n, s.w_n);
-        gtt += weightedDot(m, nullptr, s.body, s.w_t, s.w_t);
+        gnn += weightedDot(m, minv, s.body, s.w_n, s.w_n);
+        gtt += weightedDot(m, minv, s.body, s.w_t, s.w_t);
       }
       if (normal && gnn > 0) {
         corrected = true;
         for (const BodyJac& s : g.side) {
-          applyInverseMass(m, nullptr, s.body, s.w_n, -g.gap_m / gnn, &d.z);
-          applyInverseMass(m, nullptr, s.body, s.w_n, -g.vn / gnn, &d.u);
+          applyInverseMass(m, minv, s.body, s.w_n, -g.gap_m / gnn, &d.z);
+          applyInverseMass(m, minv, s.body, s.w_n, -g.vn / gnn, &d.u);
         }
       }
       if (tangent && gtt > 0) {
         corrected = true;
-        for (const BodyJac& s : g.side)
-          applyInverseMass(m, nullptr, s.body, s.w_t, -g.vt / gtt, &d.u);
+        for (const BodyJac& s : g.side) applyInverseMass(m, minv, s.body, s.w_t, -g.vt / gtt, &d.u);
       }
     }
   }
@@ -888,7 +897,11 @@ double motionBound(const Ctx& c) {
   for (const ToothModel& tm : c.m.teeth)
     v = std::max(
         v, std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) +
-               (tm.n_modes > 0 ? 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm() : 0.0));
+               (tm.n_modes == 0 ? 0.0
+                : tm.beam_model == ToothBeamModel::kLargeDeflection
+                    // |theta_dot| <= sum |q_dot_i| (|phi_i| <= 1), points within L of the root.
+                    ? tm.length_m * c.d.u.segment(tm.dof_offset, tm.n_modes).lpNorm<1>()
+                    : 30.0 * c.d.u.segment(tm.dof_offset, tm.n_modes).norm()));
   for (int i = 0; i < static_cast<int>(c.m.kernels.size()); ++i)
     v = std::max(v, kernelSpeedBound(c.m, c.d.u, i));
   return v;

@@ -16,6 +16,7 @@
 #include "drive.h"
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/geometry.h"
+#include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/lcp.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/simulator.h"
@@ -335,9 +336,26 @@ struct Workspace {
                                         // energy slot unused)
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
+  // Large-deflection teeth: the configuration of each at the q it was last computed for, and
+  // every tooth's inverse mass at the state ld_minv_z (identity for modal teeth).
+  std::vector<LdConfig> ld_cfg;  // per tooth
+  std::vector<VecX> ld_cfg_q;    // the q of each [rad]
+  std::vector<MatX> ld_minv;     // per tooth, M^-1 [1/(kg m^2)] or identity
+  VecX ld_minv_z;                // the state ld_minv holds for
+  bool ld_minv_valid = false;    // ld_minv is that of ld_minv_z
 };
 
 namespace internal {
+
+// --- large-deflection teeth (large_deflection.cc) -----------------------------------------
+// The configuration of large-deflection tooth k at z (recomputed only when its q changed).
+const LdConfig& ldConfigOf(const Model& m, int tooth, const VecX& z, Workspace* ws);
+// Every tooth's inverse mass at z for applyInverseMass / weightedDot: nullptr (the identity
+// of the mass-normalised modes) when the model has no large-deflection tooth.
+const std::vector<MatX>* toothInverseMass(const Model& m, const VecX& z, Workspace* ws);
+// Time stepping: the iteration matrix M(q) + h theta D + h^2 theta^2 K of every
+// large-deflection tooth at the midpoint z_mid, into ws->iteration_inverse.
+void updateLdIterationMatrices(const Model& m, const VecX& z_mid, double h_s, Workspace* ws);
 
 // --- kinematics ----------------------------------------------------------------------------
 // Deformed centreline of every tooth at its stations, in world, for configuration z (with the
@@ -411,9 +429,10 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
                       const SmallVec& v, double scale, VecX* out);
 
 // The free accelerations a = Minv f of the whole system (mass-normalised tooth modes: the
-// identity; kernels diag(1/m, 1/m, 1/J)), computed as applyInverseMass on a zero vector would,
-// so that the two agree bit for bit.
-void freeAcceleration(const Model& m, const VecX& f, VecX* a);
+// identity; a large-deflection tooth: its tooth_minv block; kernels diag(1/m, 1/m, 1/J)),
+// computed as applyInverseMass on a zero vector would, so that the two agree bit for bit.
+void freeAcceleration(const Model& m, const std::vector<MatX>* tooth_minv, const VecX& f,
+                      VecX* a);
 // w1^T Minv_body w2 for two Jacobian rows of the same body (Minv as in applyInverseMass).
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2);

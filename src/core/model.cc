@@ -110,6 +110,7 @@ void compileModel(Model* model) {
   // Teeth: modal data, and their modal coordinates first in the generalised vector.
   // Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff: use modes: 0.
   int offset = 0;
+  m.has_large_deflection = false;
   for (size_t k = 0; k < m.teeth.size(); ++k) {
     if (m.teeth[k].n_stations > 65)
       fail("teeth." + std::to_string(k) + ".stations", "must be <= 65", m.teeth[k].n_stations);
@@ -126,6 +127,16 @@ void compileModel(Model* model) {
     }
     m.teeth[k].dof_offset = offset;
     offset += m.teeth[k].n_modes;
+    if (m.teeth[k].beam_model == ToothBeamModel::kLargeDeflection) m.has_large_deflection = true;
+  }
+  // The island-local scheme advances free teeth by their exact linear modal solution and
+  // bounds their sweep by the modal deflection: it has no large-deflection rod.
+  for (size_t k = 0; k < m.teeth.size() && m.integrator.islands; ++k) {
+    if (m.teeth[k].beam_model != ToothBeamModel::kLargeDeflection) continue;
+    throw std::invalid_argument(
+        "integrator.islands: true is not supported with teeth." + std::to_string(k) +
+        ".model: large_deflection (the island scheme has modal teeth only); set "
+        "integrator.islands: false");
   }
 
   // Kernels: uniform elliptic disc inertia, then (c_x, c_y, psi) each.

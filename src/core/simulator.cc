@@ -230,18 +230,23 @@ void checkToothDeflection(const Model& m, Data* d) {
   for (size_t k = 0; k < m.teeth.size(); ++k) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
-    // The last station is the tip, x = L.
-    const double w_tip_m =
-        tm.phi_s.row(tm.n_stations - 1).transpose().dot(d->z.segment(tm.dof_offset, tm.n_modes));
+    // The last station is the tip, x = L. A large-deflection rod is valid at any deflection:
+    // only tracked.
+    const bool rod = tm.beam_model == ToothBeamModel::kLargeDeflection;
+    const double w_tip_m = rod ? toothDeflection(m, *d, static_cast<int>(k), tm.length_m)
+                               : tm.phi_s.row(tm.n_stations - 1)
+                                     .transpose()
+                                     .dot(d->z.segment(tm.dof_offset, tm.n_modes));
     const double ratio = std::abs(w_tip_m) / tm.length_m;
     st.max_tip_deflection_ratio = std::max(st.max_tip_deflection_ratio, ratio);
-    if (ratio > m.deflection_validity_fraction && st.deflection_warning_time_s < 0) {
+    if (!rod && ratio > m.deflection_validity_fraction && st.deflection_warning_time_s < 0) {
       st.deflection_warning_time_s = d->t_s;
-      char text[256];
+      char text[320];
       std::snprintf(text, sizeof(text),
                     "tooth %zu: tip deflection %.3g L (|w(L)| = %.3g m) at t = %.6g s is outside "
-                    "the small-deflection range of the beam model (|w(L)| <= %.3g L)",
-                    k, ratio, std::abs(w_tip_m), d->t_s, m.deflection_validity_fraction);
+                    "the small-deflection range of the beam model (|w(L)| <= %.3g L); use "
+                    "teeth.%zu.model: large_deflection",
+                    k, ratio, std::abs(w_tip_m), d->t_s, m.deflection_validity_fraction, k);
       st.warnings.push_back(text);
     }
   }
@@ -319,6 +324,9 @@ void resetData(const Model& model, Data* data) {
   data->ws->ed_h = 0;
   // The free-tooth propagators are rebuilt for this model on first use.
   for (internal::ToothPropagator& prop : data->ws->ed_prop) prop.n_modes = -1;
+  // The large-deflection caches are keyed on q and z only: forget another model's.
+  data->ws->ld_cfg_q.clear();
+  data->ws->ld_minv_valid = false;
   resetBodies(model, data);
   internal::resetAsync(data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
@@ -501,9 +509,20 @@ Vec2 toothPointWorld(const Model& model, const Data& data, int tooth, double x_m
   return Vec2(c * p_D.x() - s * p_D.y(), s * p_D.x() + c * p_D.y());
 }
 
+namespace {
+// A large-deflection rod's centreline point at x_m from its undeformed place, in the tooth's
+// axes (e1: foreshortening, e2: deflection) [m].
+Vec2 rodDisplacement(const ToothModel& tm, const Data& data, double x_m) {
+  LdConfig cfg;
+  ldConfigure(tm, data.z.data() + tm.dof_offset, &cfg);
+  return ldPoint(tm, cfg, x_m, nullptr, nullptr, nullptr) - tm.ld_root_T - Vec2(x_m, 0.0);
+}
+}  // namespace
+
 double toothDeflection(const Model& model, const Data& data, int tooth, double x_m) {
   const ToothModel& tm = model.teeth[tooth];
   if (tm.n_modes == 0) return 0.0;
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) return rodDisplacement(tm, data, x_m).y();
   VecX phi, dphi;
   evaluateModes(tm, x_m, &phi, &dphi);
   return phi.dot(data.z.segment(tm.dof_offset, tm.n_modes));
@@ -512,6 +531,7 @@ double toothDeflection(const Model& model, const Data& data, int tooth, double x
 double toothForeshortening(const Model& model, const Data& data, int tooth, double x_m) {
   const ToothModel& tm = model.teeth[tooth];
   if (tm.n_modes == 0) return 0.0;
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) return rodDisplacement(tm, data, x_m).x();
   MatX H;
   interpolateH(tm, x_m, &H);
   const auto q = data.z.segment(tm.dof_offset, tm.n_modes);

@@ -33,6 +33,14 @@ void updateIterationMatrices(const Model& m, double omega, double h, Workspace* 
     // that a drum ramp (new Omega every step) allocates nothing.
     MatX& K = ws->iteration_stiffness[k];
     K.resize(n, n);
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
+      // The rod's implicit part is its constant elastic stiffness; its mass depends on q, so
+      // updateLdIterationMatrices builds the matrix at every step's midpoint.
+      K = tm.ld_K;
+      ws->iteration_matrix[k].resize(n, n);
+      ws->iteration_inverse[k].resize(n, n);
+      continue;
+    }
     K = (omega * omega) * tm.K_G;
     K.diagonal().array() =
         (omega * omega) * (tm.K_G.diagonal().array() - 1.0) + tm.omega0_sq.array();
@@ -115,15 +123,16 @@ void keepClosedContactDepths(const Model& m, const Drive& end, double h, MemoryO
         continue;
       }
       const double excess_m = pen_m - target_m;
+      const std::vector<MatX>* minv = toothInverseMass(m, d->z, ws);
       double gnn = 0.0;
       for (const BodyJac& s : g.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
-        gnn += weightedDot(m, nullptr, s.body, s.w_n, s.w_n);
+        gnn += weightedDot(m, minv, s.body, s.w_n, s.w_n);
       }
       if (gnn <= 0.0) continue;
       for (const BodyJac& s : g.side) {
         if (s.body < 0 || s.w_n.size() == 0) continue;
-        applyInverseMass(m, nullptr, s.body, s.w_n, excess_m / gnn, &d->z);
+        applyInverseMass(m, minv, s.body, s.w_n, excess_m / gnn, &d->z);
       }
       ++d->stats.depth_corrections;
       corrected = true;
@@ -186,6 +195,7 @@ void detectContacts(TsStep* s) {
   const Data& d = *s->d;
   Workspace& ws = s->ws;
   ws.z_mid = d.z + 0.5 * s->h * d.u;
+  updateLdIterationMatrices(m, ws.z_mid, s->h, &ws);
   // Tooth stations only for the teeth that can meet a kernel (computed by the broad phase).
   layoutStations(m, &ws);
   broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * s->h * speedBound(m, d), &ws,

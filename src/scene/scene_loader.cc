@@ -74,6 +74,7 @@ const KeySpec kSchema[] = {
     {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true}},
     {"teeth.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
     {"teeth.*.stations", KeyKind::kValue, "integer", "", Bound{2.0, 65.0, false, false}},
+    {"teeth.*.model", KeyKind::kValue, "word", "", kNoRange},
     {"kernels", KeyKind::kList, "list", "", kNoRange},
     {"kernels.*.position", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
     {"kernels.*.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
@@ -455,6 +456,11 @@ ToothModel readTooth(const Section& s) {
   t.damping_ratio = s.number("damping_ratio", t.damping_ratio);
   t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio);
   t.n_stations = s.integer("stations", t.n_stations);
+  // modal: assumed modes (small deflection); large_deflection: the exact planar rod, whose
+  // `modes` are its Ritz shape functions (docs/large_deflection.md).
+  const std::string model = s.word("model", "modal", "tooth model", {"modal", "large_deflection"});
+  t.beam_model =
+      model == "large_deflection" ? ToothBeamModel::kLargeDeflection : ToothBeamModel::kModal;
   return t;
 }
 

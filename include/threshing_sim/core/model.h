@@ -24,6 +24,9 @@ enum class ContactLaw { kCompliant, kRigid };
 enum class IntegratorType { kEventDriven, kTimeStepping };
 enum class ObstacleType { kPlane, kSegment, kCircle };
 enum class PairKind { kToothKernel = 0, kKernelKernel = 1, kKernelObstacle = 2 };
+// Beam model of a tooth: assumed modes (linear, small deflection) or a geometrically exact
+// planar rod (large deflection, src/core/large_deflection.cc).
+enum class ToothBeamModel { kModal, kLargeDeflection };
 
 // Drum drive: the drum's speed follows a commanded target at a bounded acceleration.
 struct DrumModel {
@@ -45,6 +48,8 @@ struct ToothModel {
   int n_modes = 4;                 // n retained bending modes; 0 = rigid tooth
   double damping_ratio = 0.02;     // zeta, same for every mode [-]
   int n_stations = 9;              // centreline sample points used for contact (>= 2)
+  ToothBeamModel beam_model = ToothBeamModel::kModal;  // teeth.*.model; large deflection: n_modes
+                                                       // is the number of Ritz shape functions
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
@@ -66,6 +71,16 @@ struct ToothModel {
   MatX dphi_s;                      // phi_i'(x_s), n_stations x n [1/(sqrt(kg) m)]
   std::vector<MatX> H_s;            // H(x_s) = int_0^x phi' phi'^T, n x n each [1/(kg m)]
   int dof_offset = 0;               // first index of this tooth's q in the generalised vector
+  // Large-deflection tooth only (beam_model kLargeDeflection; q in rad, section angle
+  // theta(s) = sum_i q_i phi_i(s)); see large_deflection.h. N collocation nodes s_a.
+  VecX ld_node_s_m;      // node coordinates s_a [m], size N
+  VecX ld_node_mass_kg;  // node masses rho A w_a (Gauss weights w_a) [kg], size N
+  MatX ld_Phi;           // phi_i(s_a), N x n [-]
+  MatX ld_C;  // integration matrix: r(s_a) = b + sum_b C_ab (cos, sin)(theta_b), N x N [m]
+  MatX ld_B;  // C^T diag(node mass) C, N x N [kg m^2]
+  MatX ld_K;  // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
+  MatX ld_D;  // damping matrix (modal damping of the linearised tooth at rest) [N m s]
+  Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
 };
 
 // Optional pedicel: a linear spring-damper from a fixed anchor in the world to a point on the
@@ -128,9 +143,9 @@ struct IntegratorParams {
              // time stepping: dt x this is the slop of a pressed rigid contact, how far it
              // may sink below its impact depth or open before it is moved back) [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
-  bool islands = false;  // event-driven and time stepping: the asynchronous island-local scheme
-                         // (per-kernel clocks, islands of bodies that can touch, an event
-                         // calendar); false: every body advances together (the reference) [-]
+  bool islands = false;      // event-driven and time stepping: the asynchronous island-local scheme
+                             // (per-kernel clocks, islands of bodies that can touch, an event
+                             // calendar); false: every body advances together (the reference) [-]
   bool exact_free_teeth =
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
              // is advanced by the exact solution of its linear modal equations, outside the
@@ -156,6 +171,7 @@ struct Model {
 
   // --- derived ---
   int n_dof = 0;  // size of the generalised coordinate vector (tooth modes, then kernel x,y,psi)
+  bool has_large_deflection = false;  // some tooth is a large-deflection rod
   bool compiled = false;
 };
 
