@@ -898,7 +898,7 @@ inverse. Every repetition must end in the bit-identical state (checked; `determi
 ## References
 
 The event-driven reference against time stepping at a very small step (the cross-check), and
-against the same reference with more tooth modes (physics.md §9a):
+against the same reference with more tooth modes (docs/model.md §9a):
 
 {ref_table}
 

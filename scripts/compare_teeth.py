@@ -58,7 +58,7 @@ CONVERGENCE_MODES = [2, 4, 6, 8, 10]
 QUICK_STREAM = ["--set", "stream.count=2", "--set", "duration=0.003"]
 RADPS_PER_RPM = math.pi / 30.0
 
-# Physical references (physics.md sections 10 and 9a).
+# Physical references (docs/model.md §10 and §9a).
 MEASURED_FORCE_N = (43.9, 71.9)   # measured threshing force on a kernel
 HERTZ_TIME_US = (32.0, 43.0)      # Hertz contact time of a paddy kernel hit at 13-25 m/s
 HERTZ_SPEED_MPS = (13.0, 25.0)
@@ -691,8 +691,8 @@ def agreement_paragraph(a):
         f"{HERTZ_SPEED_MPS[0]:g}-{HERTZ_SPEED_MPS[1]:g} m/s the first contact lasted "
         f"{fmt(min(stiff, default=float('nan')))}-{fmt(max(stiff, default=float('nan')))} us "
         "for the rigid, steel and nylon teeth, whose contact modulus the kernel dominates, "
-        f"against the Hertz estimate {HERTZ_TIME_US[0]:g}-{HERTZ_TIME_US[1]:g} us of physics.md "
-        f"section 9a; {fmt(min(soft, default=float('nan')))}-"
+        f"against the Hertz estimate {HERTZ_TIME_US[0]:g}-{HERTZ_TIME_US[1]:g} us of docs/model.md "
+        f"§9a; {fmt(min(soft, default=float('nan')))}-"
         f"{fmt(max(soft, default=float('nan')))} us for the soft polyurethane, whose low "
         "modulus lengthens the contact and lowers its force.")
 

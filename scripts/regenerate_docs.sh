@@ -3,8 +3,8 @@
 #   default-timing   scripts/time_default_scene.py            (README, "Using the headless simulator")
 #   default-output   simulate config/default_scene.yaml        (README, same section)
 #   node-rtf         scripts/measure_node_rtf.sh               (README, ROS node section)
-#   profile          scripts/profile_core.sh [--streams]       (README, "Performance")
-#   free-teeth       scripts/compare_free_teeth.py --callgrind  (README, "Performance")
+#   profile          scripts/profile_core.sh [--streams]       (docs/performance.md)
+#   free-teeth       scripts/compare_free_teeth.py --callgrind  (docs/performance.md)
 #   stability        scripts/stability_table.py                (README + docs/stability.md)
 #   stability-full   the same, scene 10 for 10 000 revolutions (README + docs/stability_full.md;
 #                    not a default part: about 50 minutes, both integrators side by side)

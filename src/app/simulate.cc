@@ -47,7 +47,7 @@ const char kUsage[] =
 constexpr double kChunk_s = 1e-4;
 
 // Default contact sampling interval near contacts [s]: a few percent of a Hertz contact time
-// (32-43 us for a paddy kernel, physics.md section 9a).
+// (32-43 us for a paddy kernel, docs/model.md §9a).
 constexpr double kSampleInterval_s = 1e-6;
 
 // Revolutions per minute in one rad/s.

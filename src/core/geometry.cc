@@ -1,4 +1,4 @@
-// threshing_sim core: planar distance queries (see geometry.h and docs/physics.md section 5).
+// threshing_sim core: planar distance queries (see geometry.h and docs/model.md §5).
 //
 // Frames: W is world; E is an ellipse's own frame (origin at its centre, x along its a-axis).
 // All queries are allocation-free and have bounded iteration counts.

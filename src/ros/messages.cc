@@ -46,7 +46,7 @@ geometry_msgs::Quaternion yaw(double angle_rad) {
   return q;
 }
 
-// The tangent t = J n of physics.md.
+// The tangent t = J n of docs/model.md §5.
 Vec2 tangent(const Vec2& n) { return Vec2(-n.y(), n.x()); }
 
 std_msgs::ColorRGBA rgba(float r, float g, float b, float a = 1.f) {

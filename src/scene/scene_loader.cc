@@ -173,7 +173,7 @@ const std::vector<std::string> kSegmentKeys = {"type",   "point",          "poin
 // Names of the contact sections, indexed by PairKind.
 const char* const kPairKeys[3] = {"tooth_kernel", "kernel_kernel", "kernel_obstacle"};
 
-// Contact defaults from physics.md section 10: rice-nylon, rice-rice, wheat-steel.
+// Contact defaults from docs/model.md §10: rice-nylon, rice-rice, wheat-steel.
 const ContactParams kContactDefaults[3] = {
     {ContactLaw::kCompliant, 0.48, 0.53},
     {ContactLaw::kRigid, 0.34, 0.66},

@@ -305,7 +305,7 @@ TEST(EventDriven, EnergyConservedCompliantStrikeOnVibratingFlexibleTooth) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// No energy from impacts with friction (physics.md section 8: Newton's law with friction can
+// No energy from impacts with friction (docs/model.md §8: Newton's law with friction can
 // create energy; the integrator must not let it).
 
 // Oblique impacts of elongated spinning kernels on three plates and against each other,

@@ -355,7 +355,7 @@ TEST(TimeStepping, EnergyConservedCompliantStrikeOnVibratingFlexibleTooth) {
 // the box: rounding of the energy bookkeeping). Step by step, the total mechanical energy
 // may not rise either: with theta = 1/2 the flights are exact, so 1e-12 J per step.
 // Regression guard: Newton's law with Coulomb friction on the impulses can create energy
-// (physics.md section 8), and the time stepper once had no guard (with e = 1, impacts gained
+// (docs/model.md §8), and the time stepper once had no guard (with e = 1, impacts gained
 // up to 7.3e-5 J, 6-9 % of the energy in the box; with e = 0.9 every one of seeds 1-10
 // gained). timeSteppingStep() now computes the impulses' work relative to the free motion and
 // redoes a step whose impacts would gain plastically.

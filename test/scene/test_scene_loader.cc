@@ -92,7 +92,7 @@ TEST(SceneLoader, BaseSceneLoadsWithDefaults) {
   EXPECT_DOUBLE_EQ(m.broadphase_margin_m, 2e-3);
   EXPECT_DOUBLE_EQ(m.deflection_validity_fraction, 0.1);
 
-  // Contact defaults from physics.md section 10.
+  // Contact defaults from docs/model.md §10.
   const ContactParams& tk = m.contact[static_cast<int>(PairKind::kToothKernel)];
   const ContactParams& kk = m.contact[static_cast<int>(PairKind::kKernelKernel)];
   const ContactParams& ko = m.contact[static_cast<int>(PairKind::kKernelObstacle)];
