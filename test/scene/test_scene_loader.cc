@@ -445,9 +445,10 @@ TEST(SceneLoader, ShippedDefaultSceneLoads) {
   EXPECT_FALSE(m.teeth.empty());
 }
 
-// Every schema key has a row in the README's scene file reference, and every row is a key.
+// Every schema key has a row in the scene file reference (docs/scene_reference.md), and every row
+// is a key.
 TEST(SceneLoader, ReferenceDocumentsEveryKey) {
-  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) + "/README.md";
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) + "/docs/scene_reference.md";
   std::ifstream file(path);
   ASSERT_TRUE(file) << path;
   std::vector<std::string> documented;
