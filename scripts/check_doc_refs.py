@@ -130,15 +130,15 @@ class Checker:
     def check_paths(self, path, number, line):
         for m in PATH_RE.finditer(line):
             target = m.group(1).rstrip(".")
-            if line[m.end():m.end() + 1] in ("{", "*"):
+            if line[m.end():m.end() + 1] in ("{", "*", "<"):
                 continue  # a pattern or a formatted name, not a path
             self.references += 1
             if not (self.root / target).exists():
                 self.bad(path, number, f"no such file: {target}")
         for m in BARE_MD_RE.finditer(LINK_RE.sub("", line)):
             name = m.group(1)
-            if name in GENERATED_NAMES:
-                continue
+            if name in GENERATED_NAMES or (name[:-3].isupper() and name != "README.md"):
+                continue  # an output of a script, or a placeholder such as PAGE.md
             self.references += 1
             if self.page(name, path) is None:
                 self.bad(path, number, f"no such page: {name}")

@@ -2,6 +2,9 @@
 #include "threshing_sim/core/model.h"
 
 #include <cmath>
+#include <cstddef>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -51,7 +54,7 @@ double huntCrossleyRestitution(double c) {
 }
 
 // Inverts huntCrossleyRestitution by bisection: the damping factor c* = chi v_in giving e.
-double huntCrossleyFactor(double e) {
+double solveHuntCrossleyFactor(double e) {
   if (e >= 1.0) return 0.0;
   const double e_min = 0.01;  // below this the factor diverges; treat as almost plastic
   const double target = std::max(e, e_min);
@@ -62,6 +65,25 @@ double huntCrossleyFactor(double e) {
     (huntCrossleyRestitution(mid) > target ? lo : hi) = mid;
   }
   return 0.5 * (lo + hi);
+}
+
+// solveHuntCrossleyFactor, remembered per restitution (the bisection costs about 1e6 flops, paid
+// three times by every compile; sweeps, tests and fuzzing compile thousands of scenes in one
+// process). The value is the same bit for bit; the memory holds at most kMaxRemembered values.
+double huntCrossleyFactor(double e) {
+  constexpr std::size_t kMaxRemembered = 256;
+  static std::mutex mutex;
+  static std::map<double, double> remembered;
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    const auto it = remembered.find(e);
+    if (it != remembered.end()) return it->second;
+  }
+  const double factor = solveHuntCrossleyFactor(e);
+  const std::lock_guard<std::mutex> lock(mutex);
+  if (remembered.size() >= kMaxRemembered) remembered.clear();
+  remembered.emplace(e, factor);
+  return factor;
 }
 
 }  // namespace
