@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/report.h"
 #include "threshing_sim/scene/scene_loader.h"
@@ -51,7 +52,7 @@ constexpr double kChunk_s = 1e-4;
 constexpr double kSampleInterval_s = 1e-6;
 
 // Revolutions per minute in one rad/s.
-constexpr double kRpmPerRadps = 30.0 / 3.14159265358979323846;
+constexpr double kRpmPerRadps = 30.0 / kPi;
 
 // A bad option or output file (exit 2); UsageError also prints the usage line.
 class OptionError : public std::runtime_error {

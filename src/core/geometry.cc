@@ -13,10 +13,11 @@
 #include <cmath>
 #include <limits>
 
+#include "threshing_sim/core/constants.h"
+
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 constexpr double kGoldenFraction = 0.38196601125010515;  // (3 - sqrt(5)) / 2
 

@@ -7,12 +7,12 @@
 #include <string>
 
 #include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kRpm800_radps = 800 * 2 * kPi / 60;  // 83.776 rad/s
 
 // A measured value with 10 significant digits, for RecordProperty.

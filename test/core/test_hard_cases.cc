@@ -33,13 +33,13 @@
 #include <vector>
 
 #include "sim_test_util.h"
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/scene_loader.h"
 
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kG = 9.81;  // |gravity| in every hard scene [m/s^2]
 constexpr IntegratorType kED = IntegratorType::kEventDriven;
 constexpr IntegratorType kTS = IntegratorType::kTimeStepping;
