@@ -13,7 +13,8 @@ Scanned: code, tests, scripts, launch files, messages, configuration, README.md 
 - in README.md and docs/*.md, every relative markdown link `[text](path#anchor)` outside code
   fences: the path must exist and the anchor must be a heading of the target page;
 - in README.md and docs/*.md, every `<!-- name -->` marker of a regenerated section must have its
-  `<!-- name-end -->`.
+  `<!-- name-end -->`, and every section of scripts/tslib/markdown.py's SECTIONS (where the
+  scripts splice it) must be on its page.
 
 Prints one line per dangling reference (file:line: what) and exits 1 if there is any, else
 prints a count and exits 0. `--self-test` builds a small tree with one dangling reference of
@@ -186,9 +187,23 @@ class Checker:
             if f"<!-- {name}-end" not in text:
                 self.bad(path, 1, f"marker <!-- {name} --> has no <!-- {name}-end -->")
 
-    def run(self):
+    def check_section_pages(self):
+        """Each regenerated section is on the page the scripts splice it into."""
+        from tslib import markdown  # scripts/tslib
+        for name, page in markdown.SECTIONS.items():
+            self.references += 1
+            path = self.root / page
+            text = path.read_text(encoding="utf-8") if path.is_file() else ""
+            begin, end = markdown.markers(name)
+            if not (begin in text or f"<!-- {name}:" in text) or end not in text:
+                self.bad(self.root / "scripts/tslib/markdown.py", 1,
+                         f"section {name} is not on its page {page}")
+
+    def run(self, sections=False):
         for path in scanned_files(self.root):
             self.check_file(path)
+        if sections:
+            self.check_section_pages()
         return self.problems
 
 
@@ -244,7 +259,7 @@ def main():
     if args.self_test:
         return self_test()
     checker = Checker(pathlib.Path(args.root).resolve())
-    problems = checker.run()
+    problems = checker.run(sections=checker.root == ROOT)
     for p in problems:
         print(p)
     print(f"check_doc_refs: {checker.references} references, {len(problems)} dangling")
