@@ -5,6 +5,7 @@
 # A crash, sanitizer report, hang (-timeout) or out-of-memory fails the script.
 #   scripts/fuzz.sh [SECONDS_PER_TARGET]      (default 40; scripts/test.sh runs 30 s x 3 targets)
 #   FUZZ_RUNS=1000000 scripts/fuzz.sh         (a fixed number of inputs per target instead)
+#   FUZZ_TARGETS="fuzz_command_bag" ...     (some of the targets only)
 #   FUZZ_TIMEOUT=30 ...                        (hang limit per input, default 2 s; on a shared
 #                                              machine, a long run reports inputs slower than 2 s
 #                                              instead, to be re-run alone)
@@ -41,7 +42,7 @@ export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 export ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1
 export LSAN_OPTIONS=suppressions="$ROOT/test/fuzz/lsan.supp"
 status=0
-for target in fuzz_scene fuzz_simulate_cli fuzz_command_bag; do
+for target in ${FUZZ_TARGETS:-fuzz_scene fuzz_simulate_cli fuzz_command_bag}; do
   corpus="$ROOT/test/fuzz/corpus/$target"
   work="$OUT/corpus_$target"
   mkdir -p "$work"

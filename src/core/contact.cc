@@ -108,9 +108,9 @@ void stationHq(const ToothModel& tm, int s, const double* q, double* hq, double*
 
 // The stations bracketing one interval, computed directly (without the workspace's stations).
 struct StationPair {
-  int s = -1;                                       // interval [x_s, x_{s+1}] held (-1: none) [-]
+  int s = -1;               // interval [x_s, x_{s+1}] held (-1: none) [-]
   double hq0[16], hq1[16];  // H q at its two stations (SmallVec capacity) [1/sqrt(kg)]
-  double wc0 = 0, wc1 = 0;                          // w_c there [m]
+  double wc0 = 0, wc1 = 0;  // w_c there [m]
   void update(const ToothModel& tm, int s_new, const double* q) {
     if (s == s_new) return;
     s = s_new;
@@ -1085,6 +1085,18 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
     (*out)[off] += scale * v[0] / k.mass_kg;
     (*out)[off + 1] += scale * v[1] / k.mass_kg;
     (*out)[off + 2] += scale * v[2] / k.inertia_kgm2;
+  }
+}
+
+void freeAcceleration(const Model& m, const VecX& f, VecX* a) {
+  a->resize(m.n_dof);
+  for (const ToothModel& tm : m.teeth)
+    for (int i = 0; i < tm.n_modes; ++i) (*a)[tm.dof_offset + i] = 0.0 + f[tm.dof_offset + i];
+  for (const KernelModel& km : m.kernels) {
+    const int o = km.dof_offset;
+    (*a)[o] = 0.0 + f[o] / km.mass_kg;
+    (*a)[o + 1] = 0.0 + f[o + 1] / km.mass_kg;
+    (*a)[o + 2] = 0.0 + f[o + 2] / km.inertia_kgm2;
   }
 }
 

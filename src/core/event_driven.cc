@@ -332,18 +332,7 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     nc += ws.rows[i].normal_unknown ? 1 : 0;
     nc += (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) ? 1 : 0;
   }
-  // Free accelerations a = Minv f (mass-normalised modes; kernels diag(1/m, 1/m, 1/J)), with
-  // the operations of applyInverseMass on a zero vector.
-  ws.du.resize(m.n_dof);
-  for (const ToothModel& tm : m.teeth)
-    for (int i = 0; i < tm.n_modes; ++i)
-      ws.du[tm.dof_offset + i] = 0.0 + ws.forces[tm.dof_offset + i];
-  for (const KernelModel& km : m.kernels) {
-    const int o = km.dof_offset;
-    ws.du[o] = 0.0 + ws.forces[o] / km.mass_kg;
-    ws.du[o + 1] = 0.0 + ws.forces[o + 1] / km.mass_kg;
-    ws.du[o + 2] = 0.0 + ws.forces[o + 2] / km.inertia_kgm2;
-  }
+  freeAcceleration(m, ws.forces, &ws.du);
   // Known contact forces, into the free acceleration.
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
