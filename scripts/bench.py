@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Work-precision benchmark: references, error against cost, scaling, the node's budget.
 
-One command regenerates every benchmark figure and table of the README:
+One command regenerates every benchmark figure and table (docs/benchmarks.md, docs/bench.md):
 
     /usr/bin/python3 scripts/bench.py            # full run (after scripts/setup.sh)
 
@@ -22,7 +22,7 @@ and the arguments, so an interrupted run resumes and a rebuilt binary is measure
    (docs/bench/scaling.csv, docs/bench/scaling.png).
 4. The node's budget: threshing_sim_node on the stream scene at real time and its default step
    with growing kernel counts; the largest count whose measured real-time factor stays >= 0.99.
-5. docs/bench.md (all tables) and the README sections between the bench markers.
+5. docs/bench.md (all tables) and the sections of docs/benchmarks.md between the bench markers.
 
 --quick runs a tiny version into a temporary folder (CI): two knob values per integrator on the
 single strike, and asserts that the pipeline works and that the errors fall with the knob.
@@ -43,9 +43,11 @@ import tempfile
 import threading
 import time
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+from tslib import ROOT, markdown, plots
+from tslib.binaries import BIN_DIR
+from tslib.cache import file_digest
+
 BENCH_DIR = ROOT / "config" / "bench"
-BIN_DIR = ROOT / ".build" / "ws" / "devel" / "lib" / "threshing_sim"
 CACHE_DIR = ROOT / ".build" / "bench" / "cache"
 DOCS = ROOT / "docs"
 
@@ -99,6 +101,7 @@ METRIC_LABELS = {"exit_velocity": "exit velocity", "pose": "final pose",
 INTEGRATOR_STYLE = {"event_driven": ("tab:blue", "o-"), "time_stepping": ("tab:red", "s--")}
 
 PRINT_LOCK = threading.Lock()
+BENCH_CMD = "/usr/bin/python3 scripts/bench.py"
 
 
 def say(text):
@@ -239,14 +242,6 @@ def stream_override_file(count, folder, idle=False):
 # ------------------------------------------------------------------------------------------
 # Run points (cached).
 
-def file_digest(path):
-    h = hashlib.sha1()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 class Runner:
     """Runs bench_work_precision points in parallel, one CPU per worker, with a result cache."""
 
@@ -256,7 +251,7 @@ class Runner:
         self.cache_dir = pathlib.Path(cache_dir)
         self.cache_dir.mkdir(parents=True, exist_ok=True)
         self.use_cache = use_cache
-        self.bin_digest = file_digest(self.bench_bin)
+        self.bin_digest = file_digest(self.bench_bin, "sha1")
         self.cpus = sorted(os.sched_getaffinity(0))
         self.free_cpus = list(self.cpus[:max(1, jobs)])
         self.cpu_lock = threading.Lock()
@@ -267,11 +262,11 @@ class Runner:
 
     def key(self, scene, args):
         h = hashlib.sha1(self.bin_digest.encode())
-        h.update(file_digest(scene).encode())
+        h.update(file_digest(scene, "sha1").encode())
         for a in args:
             h.update(b"\0" + a.encode())
             if a.endswith(".yaml") and os.path.exists(a):
-                h.update(file_digest(a).encode())
+                h.update(file_digest(a, "sha1").encode())
         return h.hexdigest()
 
     def _run(self, label, scene, args, reps, budget_s, samples, time_limit_s):
@@ -567,9 +562,7 @@ def node_try(cfg, gen_dir, setup, port, integrator, settings, count):
 
 def plot_work_precision(rows, names, out_dir):
     """Per scene: headline error (left) and exit-velocity error (right) against cost."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = plots.pyplot()
     paths = []
     for name in names:
         fig, axes = plt.subplots(1, 2, figsize=(11, 4.4))
@@ -607,9 +600,7 @@ def plot_work_precision(rows, names, out_dir):
 
 
 def plot_scaling(rows, out_dir):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = plots.pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for integrator, (color, style) in INTEGRATOR_STYLE.items():
         for series, ls in (("kernels", "-"), ("idle kernels", ":")):
@@ -688,9 +679,8 @@ def best_at(rows, name, integrator, max_wall_per_sim):
     return min(sel, key=lambda r: r["headline"]) if sel else None
 
 
-def write_tables(refs, rows, scal, node, names, cfg, elapsed_s, runner):
-    """Markdown: the README's two sections and the full docs/bench.md."""
-    ords = orders(rows, names)
+def table_all_points(rows):
+    """docs/bench.md: every point with every metric."""
     lines = ["| scene | integrator | knob | real-time factor | headline error | exit velocity | "
              "final pose | peak normal | peak tangential | normal impulse | impacts ± | "
              "tip RMS |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -699,9 +689,11 @@ def write_tables(refs, rows, scal, node, names, cfg, elapsed_s, runner):
             f"| {r['scene']} | {r['integrator'].replace('_', '-')} | {r['knob']:g} | "
             f"{fmt(r['real_time_factor'], 3)} | **{fmt(r['headline'])}** | " +
             " | ".join(fmt(r[m]) for m in METRICS) + " |")
-    full_table = "\n".join(lines)
+    return "\n".join(lines)
 
-    # Compact table: per scene and integrator, the point of best error at >= 1x and >= 20x.
+
+def table_compact(rows, names, ords):
+    """Per scene and integrator: the fastest point and the best error at >= 1x and >= 20x."""
     compact = ["| scene | integrator | fastest point: real-time factor, headline error | "
                "best error at ≥ 1× real time | best error at ≥ 20× real time | "
                "slope of log error on log knob (headline / exit velocity) | headline set by |",
@@ -722,91 +714,109 @@ def write_tables(refs, rows, scal, node, names, cfg, elapsed_s, runner):
                 f"| {name} | {integrator.replace('_', '-')} | {fmt(fastest['real_time_factor'], 3)}×, "
                 f"{fmt(fastest['headline'])} (knob {fastest['knob']:g}) | {cells[0]} | {cells[1]} | "
                 f"{fmt(o['headline'])} / {fmt(o['exit_velocity'])} | {dominant(sel)} |")
+    return "\n".join(compact)
 
-    ref_lines = ["| scene | modes | reference | cross-check | agreement: exit velocity | "
-                 "pose | peak normal | peak tangential | impulse | impacts ± | tip RMS | "
-                 "change with more modes (headline; exit velocity) |",
-                 "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+
+def table_references(refs, names):
+    """Each scene's reference against its cross-check and against more tooth modes."""
+    lines = ["| scene | modes | reference | cross-check | agreement: exit velocity | "
+             "pose | peak normal | peak tangential | impulse | impacts ± | tip RMS | "
+             "change with more modes (headline; exit velocity) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for name in names:
         r = refs[name]
         a = r["agreement"]
         mc = "; ".join(f"{r['modes']}→{r['modes'] + int(k[6:])}: {fmt(e['headline'])}; "
                        f"{fmt(e['exit_velocity'])}" for k, e in r["mode_change"].items()) or "rigid"
-        ref_lines.append(
+        lines.append(
             f"| {name} | {r['modes']} | event-driven {r['ed']['tolerance']:g} | time stepping "
             f"{r['ts']['dt_s']:g} | " + " | ".join(fmt(a[m]) for m in METRICS) + f" | {mc} |")
-    ref_table = "\n".join(ref_lines)
+    return "\n".join(lines)
 
-    ex = scaling_exponents(scal) if scal else {}
-    sc_lines = ["| series | n | event-driven 1e-6: wall / sim s | real-time factor | "
-                "time stepping 1e-6: wall / sim s | real-time factor | kernels struck (ED; TS) |",
-                "|---|---|---|---|---|---|---|"]
 
-    def cost_cells(r):
-        if r is None:
-            return "–", "–"
-        cut = "" if r["completed"] else f" (cut short at {r['sim_time_s'] * 1e3:.2g} ms)"
-        return fmt(r["wall_per_sim_s"], 3) + cut, fmt(r["real_time_factor"], 3)
+def _cost_cells(r):
+    if r is None:
+        return "–", "–"
+    cut = "" if r["completed"] else f" (cut short at {r['sim_time_s'] * 1e3:.2g} ms)"
+    return fmt(r["wall_per_sim_s"], 3) + cut, fmt(r["real_time_factor"], 3)
 
+
+def table_scaling(scal):
+    """Cost per simulated second against kernels, idle kernels and modes, both integrators."""
+    lines = ["| series | n | event-driven 1e-6: wall / sim s | real-time factor | "
+             "time stepping 1e-6: wall / sim s | real-time factor | kernels struck (ED; TS) |",
+             "|---|---|---|---|---|---|---|"]
     for series in ("kernels", "idle kernels", "modes"):
-        ns = sorted({r["n"] for r in scal if r["series"] == series})
-        for n in ns:
-            ed = next((r for r in scal if r["series"] == series and r["n"] == n
-                       and r["integrator"] == "event_driven"), None)
-            ts = next((r for r in scal if r["series"] == series and r["n"] == n
-                       and r["integrator"] == "time_stepping"), None)
+        for n in sorted({r["n"] for r in scal if r["series"] == series}):
+            ed, ts = (next((r for r in scal if r["series"] == series and r["n"] == n
+                            and r["integrator"] == i), None)
+                      for i in ("event_driven", "time_stepping"))
             struck = ("; ".join(str(r["kernels_with_impacts"]) if r else "–" for r in (ed, ts))
                       if series != "modes" else "–")
-            sc_lines.append(f"| {series} | {n} | " + " | ".join(cost_cells(ed)) + " | " +
-                            " | ".join(cost_cells(ts)) + f" | {struck} |")
-    exp_text = "; ".join(
+            lines.append(f"| {series} | {n} | " + " | ".join(_cost_cells(ed)) + " | " +
+                         " | ".join(_cost_cells(ts)) + f" | {struck} |")
+    return "\n".join(lines)
+
+
+def text_exponents(scal):
+    ex = scaling_exponents(scal) if scal else {}
+    return "; ".join(
         f"{i.replace('_', '-')}: cost ∝ kernels^{fmt(e['kernels'], 3)} "
         f"(10–1000: ^{fmt(e['kernels_10_up'], 3)}), idle kernels^{fmt(e['idle'], 3)} "
         f"(10–1000: ^{fmt(e['idle_10_up'], 3)}), ∝ modes^{fmt(e['modes'], 3)} (1–8 modes)"
         for i, e in ex.items())
 
-    if node:
-        parts = []  # per integrator
-        for label in NODE_SETTINGS:
-            tried = [n for n in node if n.get("setting") == label]
-            if not tried:
-                continue
-            passing = [n for n in tried if n["rtf"] >= NODE_RTF_PASS]
-            parts.append(f"{label}: real-time factor " +
-                         ", ".join(f"{n['rtf']:.3g} with {n['n']} kernel"
-                                   f"{'s' if n['n'] > 1 else ''}" for n in tried) +
-                         f"; largest count kept at ≥ {NODE_RTF_PASS}: "
-                         f"**{passing[-1]['n'] if passing else 'none (not even 1 kernel)'}**")
-        node_text = ("Node budget (`threshing_sim_node` on the stream scene at real-time factor 1, "
-                     f"wall clock, {cfg['node_duration']:g} s simulated; measured real-time "
-                     "factor from its final summary, `node_budget.csv`): " + "; ".join(parts) +
-                     ".")
-    else:
-        node_text = "Node budget: not measured in this run (node not built or --no-node)."
 
-    # Target status.
-    t = []
+def text_node(node, cfg):
+    """The node's budget: per setting, the real-time factor at each kernel count tried."""
+    if not node:
+        return "Node budget: not measured in this run (node not built or --no-node)."
+    parts = []
+    for label in NODE_SETTINGS:
+        tried = [n for n in node if n.get("setting") == label]
+        if not tried:
+            continue
+        passing = [n for n in tried if n["rtf"] >= NODE_RTF_PASS]
+        parts.append(f"{label}: real-time factor " +
+                     ", ".join(f"{n['rtf']:.3g} with {n['n']} kernel"
+                               f"{'s' if n['n'] > 1 else ''}" for n in tried) +
+                     f"; largest count kept at ≥ {NODE_RTF_PASS}: "
+                     f"**{passing[-1]['n'] if passing else 'none (not even 1 kernel)'}**")
+    return ("Node budget (`threshing_sim_node` on the stream scene at real-time factor 1, "
+            f"wall clock, {cfg['node_duration']:g} s simulated; measured real-time "
+            "factor from its final summary, `node_budget.csv`): " + "; ".join(parts) + ".")
+
+
+def targets_single_strike(rows, ords):
+    """The single strike's accuracy-at-speed targets and the measured orders."""
     ss = [r for r in rows if r["scene"] == "single_strike"]
-    if ss:
-        for integrator, goal in (("event_driven", 1e-6), ("time_stepping", 1e-2)):
-            b = best_at(rows, "single_strike", integrator, 0.05)
-            best = min((r for r in ss if r["integrator"] == integrator),
-                       key=lambda r: r["headline"], default=None)
-            fast_ok = [r for r in ss if r["integrator"] == integrator and r["headline"] <= goal]
-            fastest_ok = max(fast_ok, key=lambda r: r["real_time_factor"]) if fast_ok else None
-            t.append(f"- single strike, {integrator.replace('_', '-')}: target error ≤ {goal:g} "
-                     f"at ≥ 20× real time. Best error at ≥ 20×: "
-                     f"{fmt(b['headline']) if b else 'no point that fast'}; fastest point meeting "
-                     f"{goal:g}: " + (f"{fmt(fastest_ok['real_time_factor'], 3)}× (knob "
-                                      f"{fastest_ok['knob']:g})" if fastest_ok else "none") +
-                     (f"; smallest error overall {fmt(best['headline'])}" if best else "") +
-                     (" — **met**" if b and b["headline"] <= goal else " — **not met**"))
-        o = ords[("single_strike", "time_stepping")]
-        t.append(f"- measured order of time stepping on the single strike: "
-                 f"{fmt(o['exit_velocity'])} (exit velocity), {fmt(o['headline'])} (headline); "
-                 f"event-driven error against tolerance: {fmt(ords[('single_strike', 'event_driven')]['exit_velocity'])} "
-                 "(exit velocity)")
-    # Reference checks: cross-check agreement and mode convergence, per scene.
+    if not ss:
+        return []
+    t = []
+    for integrator, goal in (("event_driven", 1e-6), ("time_stepping", 1e-2)):
+        b = best_at(rows, "single_strike", integrator, 0.05)
+        best = min((r for r in ss if r["integrator"] == integrator),
+                   key=lambda r: r["headline"], default=None)
+        fast_ok = [r for r in ss if r["integrator"] == integrator and r["headline"] <= goal]
+        fastest_ok = max(fast_ok, key=lambda r: r["real_time_factor"]) if fast_ok else None
+        t.append(f"- single strike, {integrator.replace('_', '-')}: target error ≤ {goal:g} "
+                 f"at ≥ 20× real time. Best error at ≥ 20×: "
+                 f"{fmt(b['headline']) if b else 'no point that fast'}; fastest point meeting "
+                 f"{goal:g}: " + (f"{fmt(fastest_ok['real_time_factor'], 3)}× (knob "
+                                  f"{fastest_ok['knob']:g})" if fastest_ok else "none") +
+                 (f"; smallest error overall {fmt(best['headline'])}" if best else "") +
+                 (" — **met**" if b and b["headline"] <= goal else " — **not met**"))
+    o = ords[("single_strike", "time_stepping")]
+    t.append(f"- measured order of time stepping on the single strike: "
+             f"{fmt(o['exit_velocity'])} (exit velocity), {fmt(o['headline'])} (headline); "
+             f"event-driven error against tolerance: {fmt(ords[('single_strike', 'event_driven')]['exit_velocity'])} "
+             "(exit velocity)")
+    return t
+
+
+def targets_references(refs, names):
+    """Per scene: the cross-check's agreement and the convergence in tooth modes."""
+    t = []
     for name in names:
         r = refs[name]
         a = r["agreement"]
@@ -822,57 +832,76 @@ def write_tables(refs, rows, scal, node, names, cfg, elapsed_s, runner):
             text += (" — exit velocity converged in modes to 1 %" if worst <= 0.01 else
                      " — exit velocity **not converged in modes** at the 1 % level")
         t.append(text)
-    k1000 = [r for r in scal if r["series"] == "kernels" and r["n"] == 1000]
-    for r in k1000:
+    return t
+
+
+def targets_scale(scal, node):
+    """The 1000-kernel and the node's 100-kernel targets."""
+    t = []
+    for r in (r for r in scal if r["series"] == "kernels" and r["n"] == 1000):
         t.append(f"- 1000 kernels in `bench_work_precision` ({r['integrator'].replace('_', '-')}, "
                  f"1e-6): {fmt(r['real_time_factor'], 3)}× real time (target ≥ 0.1×) — "
                  f"**{'met' if r['real_time_factor'] >= 0.1 else 'not met'}**")
-    if node:
-        for label in NODE_SETTINGS:
-            n100 = next((n for n in node if n["n"] == 100 and n.get("setting") == label), None)
-            t.append(f"- 100-kernel stream in the node ({label}): " +
-                     (f"real-time factor {n100['rtf']:.3g} (target ≥ 1) — "
-                      f"**{'met' if n100['rtf'] >= NODE_RTF_PASS else 'not met'}**" if n100 else
-                      "not tried: a smaller count already fell behind real time — **not met**"))
-    targets = "\n".join(t)
+    for label in NODE_SETTINGS if node else ():
+        n100 = next((n for n in node if n["n"] == 100 and n.get("setting") == label), None)
+        t.append(f"- 100-kernel stream in the node ({label}): " +
+                 (f"real-time factor {n100['rtf']:.3g} (target ≥ 1) — "
+                  f"**{'met' if n100['rtf'] >= NODE_RTF_PASS else 'not met'}**" if n100 else
+                  "not tried: a smaller count already fell behind real time — **not met**"))
+    return t
 
-    cmd = "/usr/bin/python3 scripts/bench.py"
-    took = (f"the points' processes take {runner.process_wall_s / 60:.1f} min of wall time in all "
+
+def text_took(runner, elapsed_s):
+    return (f"the points' processes take {runner.process_wall_s / 60:.1f} min of wall time in all "
             f"(run {runner.jobs} at a time on a shared 2-core machine); this invocation took "
             f"{elapsed_s / 60:.1f} min, running {runner.ran} points and taking {runner.cached} "
             "from the cache")
-    bench_section = f"""The sweep covers the event-driven tolerance and the time-stepping step on
+
+
+def section_bench(compact, targets, cfg, took, page):
+    """The bench-table section of page (docs/benchmarks.md), links relative to it."""
+    doc = markdown.link(DOCS / "bench.md", page)
+    figures = markdown.link(DOCS / "bench", page)
+    return f"""The sweep covers the event-driven tolerance and the time-stepping step on
 every scene; each point is the median of several repetitions in one process pinned to one core
 (Release), and its errors are measured against the event-driven reference at tolerance
 {cfg['ref_tol']:g} (cross-checked by time stepping at a very small step, and with more tooth modes:
-[`docs/bench.md`](docs/bench.md), "References"). The headline error is the largest relative error
+[`{doc}`]({doc}), "References"). The headline error is the largest relative error
 of the kernel exit velocity, final pose, peak normal force and peak tangential force; the right
-panel shows the exit velocity alone. Generated by `{cmd}`: {took}. All points and metrics:
-[`docs/bench.md`](docs/bench.md) and `docs/bench/work_precision.csv`.
+panel shows the exit velocity alone. Generated by `{BENCH_CMD}`: {took}. All points and metrics:
+[`{doc}`]({doc}) and `docs/bench/work_precision.csv`.
 
-![work-precision, single strike](docs/bench/wp_single_strike.png)
+![work-precision, single strike]({figures}/wp_single_strike.png)
 
-{chr(10).join(compact)}
+{compact}
 
 Targets:
 
 {targets}
 """
-    scaling_section = f"""Cost per simulated second against the number of kernels (stream scene,
+
+
+def section_scaling(scal, node, cfg, figures):
+    """The scaling-table section; figures: the link to docs/bench/ from its page."""
+    return f"""Cost per simulated second against the number of kernels (stream scene,
 `--stream-kernels N`) and of tooth modes (single strike), from the same command
 (`docs/bench/scaling.csv`):
 
-![scaling](docs/bench/scaling.png)
+![scaling]({figures}/scaling.png)
 
-{chr(10).join(sc_lines)}
+{table_scaling(scal)}
 
-Fitted log-log exponents: {exp_text}.
+Fitted log-log exponents: {text_exponents(scal)}.
 
-{node_text}
+{text_node(node, cfg)}
 """
-    doc = f"""# Work-precision benchmark
 
-Generated by `{cmd}`; do not edit by hand. Cost of the run: {took}.
+
+def page_bench_md(refs, rows, names, cfg, compact, scaling_section, targets, took):
+    """docs/bench.md: definitions, references, every point, scaling and targets."""
+    return f"""# Work-precision benchmark
+
+Generated by `{BENCH_CMD}`; do not edit by hand. Cost of the run: {took}.
 
 ## Definitions
 
@@ -898,9 +927,9 @@ inverse. Every repetition must end in the bit-identical state (checked; `determi
 ## References
 
 The event-driven reference against time stepping at a very small step (the cross-check), and
-against the same reference with more tooth modes (physics.md §9a):
+against the same reference with more tooth modes (docs/model.md §9a):
 
-{ref_table}
+{table_references(refs, names)}
 
 ## Work precision
 
@@ -909,11 +938,11 @@ against the same reference with more tooth modes (physics.md §9a):
 ![knead](bench/wp_knead_polyurethane.png)
 ![stream](bench/wp_stream.png)
 
-{chr(10).join(compact)}
+{compact}
 
 All points:
 
-{full_table}
+{table_all_points(rows)}
 
 ## Scaling
 
@@ -923,22 +952,22 @@ All points:
 
 {targets}
 """
-    return bench_section, scaling_section, doc.replace("](docs/bench/", "](bench/")
 
 
-def replace_between(text, start, end, body):
-    i = text.index(start) + len(start)
-    j = text.index(end)
-    return text[:i] + "\n" + body.rstrip() + "\n" + text[j:]
-
-
-def update_readme(bench_section, scaling_section):
-    path = ROOT / "README.md"
-    text = path.read_text()
-    text = replace_between(text, "<!-- bench-table -->", "<!-- bench-table-end -->", bench_section)
-    text = replace_between(text, "<!-- scaling-table -->", "<!-- scaling-table-end -->",
-                           scaling_section)
-    path.write_text(text)
+def write_tables(refs, rows, scal, node, names, cfg, elapsed_s, runner, page=None):
+    """Markdown: the bench-table and scaling-table sections of page (default: their page,
+    docs/benchmarks.md) and the full docs/bench.md."""
+    page = page or markdown.page_of("bench-table")
+    ords = orders(rows, names)
+    compact = table_compact(rows, names, ords)
+    targets = "\n".join(targets_single_strike(rows, ords) + targets_references(refs, names) +
+                        targets_scale(scal, node))
+    took = text_took(runner, elapsed_s)
+    bench_section = section_bench(compact, targets, cfg, took, page)
+    scaling_section = section_scaling(scal, node, cfg, markdown.link(DOCS / "bench", page))
+    doc = page_bench_md(refs, rows, names, cfg, compact,
+                        section_scaling(scal, node, cfg, "bench"), targets, took)
+    return bench_section, scaling_section, doc
 
 
 def write_csv(path, rows):
@@ -964,7 +993,7 @@ def main():
     ap.add_argument("--reps", type=int, default=5, help="timed repetitions per point")
     ap.add_argument("--no-cache", action="store_true", help="rerun every point")
     ap.add_argument("--no-node", action="store_true", help="skip the node budget")
-    ap.add_argument("--no-readme", action="store_true", help="leave README.md alone")
+    ap.add_argument("--no-readme", action="store_true", help="leave docs/benchmarks.md and docs/architecture.md alone")
     ap.add_argument("--part", choices=["all", "islands"], default="all",
                     help="islands: only the island-local scheme's part (scripts/bench_islands.py:"
                          " scaling to 10 000 kernels, events by kind, instructions per event, "
@@ -1039,7 +1068,8 @@ def main():
                                                        elapsed, runner)
     (out / "bench.md").write_text(doc)
     if not args.quick and not args.no_readme and not args.out:
-        update_readme(bench_section, scaling_section)
+        markdown.splice("bench-table", bench_section)
+        markdown.splice("scaling-table", scaling_section)
     say(f"bench: wrote {out / 'bench.md'}, {fig_dir} in {elapsed / 60:.1f} min")
 
     # Checks: every point ran, deterministically, and the errors fall with the knob.

@@ -13,11 +13,10 @@ Measures, with the same pinned, cached bench_work_precision points as the rest o
 4. The node's real-time factor on the stream at 1, 10, 100 and 1000 kernels.
 5. The issue's targets, each with its measured figure.
 
-Writes docs/bench_islands.md, docs/bench/islands_*.csv and .png, and the README section between
-<!-- islands-table --> markers.
+Writes docs/bench_islands.md, docs/bench/islands_*.csv and .png, and the section of
+docs/architecture.md between the islands-table markers.
 """
 import json
-import math
 import os
 import pathlib
 import re
@@ -25,32 +24,23 @@ import shutil
 import subprocess
 import tempfile
 
-import bench  # scripts/bench.py: Runner, stream files, node runs, CSV and README helpers
+import bench  # scripts/bench.py: Runner, stream files, node runs, CSV helpers
+from tslib import markdown, plots
 
 STREAM = bench.BENCH_DIR / "stream.yaml"
 STRIKE = bench.BENCH_DIR / "single_strike.yaml"
 COUNTS = [0, 1, 10, 100, 1000, 10000]
 GLOBAL_MAX = 1000  # the global scheme is run up to this count (it costs kernels x events)
-SCHEMES = {
-    ("islands", "event_driven"): ["--set", "integrator.islands=true",
-                                  "--set", "integrator.type=event_driven",
-                                  "--set", "integrator.tolerance=1e-6"],
-    ("islands", "time_stepping"): ["--set", "integrator.islands=true",
-                                   "--set", "integrator.type=time_stepping",
-                                   "--set", "integrator.dt=1e-6"],
-    ("global", "event_driven"): ["--set", "integrator.islands=false",
-                                 "--set", "integrator.type=event_driven",
-                                 "--set", "integrator.tolerance=1e-6"],
-    ("global", "time_stepping"): ["--set", "integrator.islands=false",
-                                  "--set", "integrator.type=time_stepping",
-                                  "--set", "integrator.dt=1e-6"],
-}
+KNOBS = {"event_driven": "integrator.tolerance=1e-6", "time_stepping": "integrator.dt=1e-6"}
+# (scheme, integrator) -> the overrides of a run: islands/event-driven first, global last.
+SCHEMES = {(scheme, integrator): ["--set", f"integrator.islands={str(scheme == 'islands').lower()}",
+                                  "--set", f"integrator.type={integrator}", "--set", knob]
+           for scheme in ("islands", "global") for integrator, knob in KNOBS.items()}
 LAYOUTS = {"stream": False, "idle at rest": "rest", "idle swinging": "swinging",
            "sparse (10 in reach)": ("sparse", 10)}
 EVENT_KINDS = ["island_steps", "islands_built", "tooth_wakes", "kernel_wakes", "predictions",
                "shrinks", "pedicel_steps", "sleeps", "free_advances", "tooth_advances",
                "windows"]
-MARK = ("<!-- islands-table -->", "<!-- islands-table-end -->")
 
 
 def kernel_file(count, layout, gen_dir):
@@ -127,7 +117,7 @@ def instruction_cases(gen_dir, quick):
              ("stream, 1000 idle at rest", STREAM,
               ["--set-file", str(kernel_file(1000, "rest", gen_dir))], "event_driven")]
     for integrator in ("event_driven", "time_stepping"):
-        cases.append((f"stream, 1000 kernels, 10 in reach", STREAM,
+        cases.append(("stream, 1000 kernels, 10 in reach", STREAM,
                       ["--set-file", str(kernel_file(1000, ("sparse", 10), gen_dir))], integrator))
     for n in (100, 1000):
         for integrator in ("event_driven", "time_stepping"):
@@ -189,9 +179,7 @@ def fmt(x, digits=3):
 
 
 def plot(rows, out_dir):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = plots.pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, integrator in zip(axes, ("event_driven", "time_stepping")):
         for (layout, scheme), style in {("stream", "islands"): "o-", ("stream", "global"): "o--",
@@ -344,9 +332,6 @@ def run(args, runner, gen_dir, out, fig_dir):
     doc, table = write_doc(scal, instr, node, tgt, out, "bench/")
     (out / "bench_islands.md").write_text(doc)
     if not quick and not args.no_readme and not args.out:
-        path = bench.ROOT / "README.md"
-        text = path.read_text()
-        if MARK[0] in text:
-            path.write_text(bench.replace_between(text, MARK[0], MARK[1], table))
+        markdown.splice("islands-table", table)
     bench.say(f"islands bench: wrote {out / 'bench_islands.md'}")
     return scal

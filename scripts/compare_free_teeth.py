@@ -23,6 +23,8 @@ import subprocess
 import sys
 import tempfile
 
+from tslib.binaries import BIN_DIR
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -94,8 +96,7 @@ def main():
     ap.add_argument("--callgrind", action="store_true")
     ap.add_argument("--contact-start", type=float, default=2.8e-4)
     ap.add_argument("--contact-end", type=float, default=5e-4)
-    ap.add_argument("--bench", default=os.path.join(
-        ROOT, ".build", "ws", "devel", "lib", "threshing_sim", "bench_work_precision"))
+    ap.add_argument("--bench", default=str(BIN_DIR / "bench_work_precision"))
     args = ap.parse_args()
 
     ref = run(args.bench, args.scene, "integrated", args.ref_tolerance, 1, args.samples, args.cpu)

@@ -13,8 +13,8 @@ force, damage, detachment and sub-collisions against drum speed, and a Campbell 
 teeth's frequencies (simulate --modes).
 
 With --findings, docs/findings.md (the full report: the paper's three claims judged from these
-numbers) and its plots in docs/findings/ are regenerated too, and so is the README's "Threshing
-findings" section, between the lines `<!-- findings -->` and `<!-- findings-end -->`: the three
+numbers) and its plots in docs/findings/ are regenerated too, and so is the findings section of docs/threshing_findings.md
+(between its findings markers): the three
 verdicts with their key numbers, the key plots, and the agreement with the measured threshing
 force and the Hertz contact time. --quick runs a tiny sweep (for the CI test).
 
@@ -34,11 +34,12 @@ import subprocess
 import sys
 import time
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (the backend is chosen first)
-import numpy as np  # noqa: E402
+from tslib import markdown, plots
+from tslib.binaries import find_binary
+
+plt = plots.pyplot()
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SCENE_DIR = ROOT / "config/scenes"
@@ -58,7 +59,7 @@ CONVERGENCE_MODES = [2, 4, 6, 8, 10]
 QUICK_STREAM = ["--set", "stream.count=2", "--set", "duration=0.003"]
 RADPS_PER_RPM = math.pi / 30.0
 
-# Physical references (physics.md sections 10 and 9a).
+# Physical references (docs/model.md §10 and §9a).
 MEASURED_FORCE_N = (43.9, 71.9)   # measured threshing force on a kernel
 HERTZ_TIME_US = (32.0, 43.0)      # Hertz contact time of a paddy kernel hit at 13-25 m/s
 HERTZ_SPEED_MPS = (13.0, 25.0)
@@ -691,8 +692,8 @@ def agreement_paragraph(a):
         f"{HERTZ_SPEED_MPS[0]:g}-{HERTZ_SPEED_MPS[1]:g} m/s the first contact lasted "
         f"{fmt(min(stiff, default=float('nan')))}-{fmt(max(stiff, default=float('nan')))} us "
         "for the rigid, steel and nylon teeth, whose contact modulus the kernel dominates, "
-        f"against the Hertz estimate {HERTZ_TIME_US[0]:g}-{HERTZ_TIME_US[1]:g} us of physics.md "
-        f"section 9a; {fmt(min(soft, default=float('nan')))}-"
+        f"against the Hertz estimate {HERTZ_TIME_US[0]:g}-{HERTZ_TIME_US[1]:g} us of docs/model.md "
+        f"§9a; {fmt(min(soft, default=float('nan')))}-"
         f"{fmt(max(soft, default=float('nan')))} us for the soft polyurethane, whose low "
         "modulus lengthens the contact and lowers its force.")
 
@@ -745,11 +746,9 @@ def write_findings(path, a, plots, rpms, history_rpm):
 
 
 # ------------------------------------------------------------------------------------------
-# The README's findings section.
+# The findings section (docs/threshing_findings.md, between the findings markers).
 
-README_BEGIN = "<!-- findings -->"
-README_END = "<!-- findings-end -->"
-# Key plots in the README: (file name, what it shows there).
+# Key plots of the section: (file name, what it shows there).
 README_PLOTS = [
     ("force_history_knead.png", "Claim 1: normal (blue) and tangential (red) tooth force on the "
      "kernel kneaded against the bar, each contact episode shaded"),
@@ -765,8 +764,14 @@ def duration(seconds):
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
 
 
+def rel(folder, name):
+    """name inside folder, as a link ("findings.md" where folder is ".")."""
+    return name if folder == "." else f"{folder}/{name}"
+
+
 def readme_section(a, rpms, docs_rel, n_runs, jobs, wall_s):
-    """Markdown of the README's findings section (between the markers)."""
+    """Markdown of the findings section (between the markers); docs_rel: the folder of
+    findings.md relative to the section's page."""
     verdicts = [("1. The peaks of the normal and the tangential force are not simultaneous",
                  claim_peaks(a)[0]),
                 ("2. One macro-collision holds many sub-collisions, caused by the tooth's "
@@ -842,7 +847,8 @@ def readme_section(a, rpms, docs_rel, n_runs, jobs, wall_s):
         "times are the core's (every accepted step, the located maxima of compliant normal "
         "forces, and both sides of every located event). "
         f"This run took {duration(wall_s)} on {jobs} workers. The full report, with every "
-        f"table and plot, is [`docs/findings.md`]({docs_rel}/findings.md).", "",
+        f"table and plot, is [`{rel(docs_rel, 'findings.md')}`]({rel(docs_rel, 'findings.md')}).",
+        "",
         "```bash",
         "bash scripts/setup.sh                              # build",
         "/usr/bin/python3 scripts/compare_teeth.py --findings  "
@@ -853,28 +859,20 @@ def readme_section(a, rpms, docs_rel, n_runs, jobs, wall_s):
     lines += ["", claim1, "", claim2, "", claim3, "",
               "**Threshing force and contact time.** " + agreement_paragraph(a), ""]
     for name, caption in README_PLOTS:
-        lines += [f"![{name}]({docs_rel}/findings/{name})", "", f"*{caption}.*", ""]
+        lines += [f"![{name}]({rel(docs_rel, 'findings/' + name)})", "", f"*{caption}.*", ""]
     return "\n".join(lines).rstrip("\n")
 
 
-def update_readme(path, section):
-    """Replaces the text between the findings markers of the README with section."""
-    text = path.read_text()
-    begin, end = text.find(README_BEGIN), text.find(README_END)
-    if begin < 0 or end < begin:
-        raise SystemExit(f"{path}: no '{README_BEGIN}' ... '{README_END}' markers")
-    begin += len(README_BEGIN)
-    path.write_text(text[:begin] + "\n" + section + "\n" + text[end:])
+def write_summary(page, docs, a, rpms, n_runs, jobs, wall_s):
+    """Rewrites the findings section of page (default: its page, docs/threshing_findings.md),
+    with links to docs (the folder of findings.md) relative to the page; returns the page."""
+    page = pathlib.Path(page) if page else markdown.page_of("findings")
+    docs_rel = os.path.relpath(pathlib.Path(docs).resolve(), page.resolve().parent)
+    return markdown.splice("findings", readme_section(a, rpms, docs_rel, n_runs, jobs, wall_s),
+                           page)
 
 
 # ------------------------------------------------------------------------------------------
-
-def find_simulate(path):
-    candidate = pathlib.Path(path) if path else ROOT / ".build/ws/devel/lib/threshing_sim/simulate"
-    if not (candidate.is_file() and os.access(candidate, os.X_OK)):
-        raise SystemExit(f"simulate not found at {candidate}; build it (scripts/setup.sh) or "
-                         "pass --simulate PATH")
-    return candidate
 
 
 def main():
@@ -893,18 +891,18 @@ def main():
                         "two-kernel stream, no convergence check")
     parser.add_argument("--findings", action="store_true",
                         help="also write docs/findings.md, docs/findings/*.png and the "
-                        "README's findings section")
+                        "findings section of docs/threshing_findings.md")
     parser.add_argument("--docs", default=str(ROOT / "docs"),
                         help="folder of findings.md and findings/ (default: docs)")
-    parser.add_argument("--readme", default=str(ROOT / "README.md"),
-                        help="README whose findings section --findings rewrites "
-                        "(default: README.md)")
+    parser.add_argument("--summary", "--readme", dest="summary",
+                        help="page whose findings section --findings rewrites "
+                        "(default: docs/threshing_findings.md)")
     parser.add_argument("--reuse", action="store_true",
                         help="keep the runs already in OUT/runs and run only the missing ones "
                         "(to redo the report; the default reruns everything)")
     args = parser.parse_args()
 
-    simulate = find_simulate(args.simulate)
+    simulate = find_binary("simulate", args.simulate)
     out = pathlib.Path(args.out)
     rpms = sorted(args.rpm or (RPM_QUICK if args.quick else RPM_FULL))
     variants = ["rigid", "polyurethane"] if args.quick else VARIANTS
@@ -940,11 +938,9 @@ def main():
         for name, _ in plots:
             shutil.copy(out / name, figures / name)
         write_findings(docs / "findings.md", a, plots, rpms, history_rpm)
-        readme = pathlib.Path(args.readme)
-        docs_rel = os.path.relpath(docs.resolve(), readme.resolve().parent)
-        update_readme(readme, readme_section(a, rpms, docs_rel, len(runs), args.jobs, wall_s))
+        page = write_summary(args.summary, docs, a, rpms, len(runs), args.jobs, wall_s)
         print(f"compare_teeth: wrote {docs / 'findings.md'}, {figures}/ and the findings "
-              f"section of {readme}")
+              f"section of {page}")
     return 0
 
 

@@ -9,15 +9,8 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 SCENE=$(realpath "${1:-$ROOT/config/default_scene.yaml}")
 bash "$ROOT/scripts/setup.sh"
 
-export PATH="/usr/bin:$PATH"
-# A fresh system may have no /etc/hosts (not even "localhost"): use the numeric loopback address
-# unless the user chose an address.
-if [ -z "${ROS_IP:-}" ] && [ -z "${ROS_HOSTNAME:-}" ]; then export ROS_IP=127.0.0.1; fi
-export ROS_MASTER_URI="${ROS_MASTER_URI:-http://127.0.0.1:11311}"
-set +u
-# shellcheck disable=SC1091
-source "$ROOT/.build/ws/devel/setup.bash"
-set -u
+# shellcheck source=scripts/ros_env.sh
+source "$ROOT/scripts/ros_env.sh"
 
 echo "== simulate $SCENE"
 "$ROOT/.build/ws/devel/lib/threshing_sim/simulate" "$SCENE"

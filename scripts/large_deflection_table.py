@@ -42,7 +42,7 @@ def render(out):
              "",
              "Static tip deflection under a tip force at right angles to the undeformed rod, "
              "alpha = PL^2/EI, against the elastica (shooting, in the test; it matches the "
-             "Bisshopp-Drucker values of physics.md to 6e-6):",
+             "Bisshopp-Drucker values of docs/model.md §9b to 6e-6):",
              "",
              "| shape functions | alpha | deflection along P / L | elastica | error / L | "
              "shortening / L | elastica | error / L |",
@@ -71,7 +71,7 @@ def render(out):
     for m in ENERGY.finditer(out):
         lines.append("| %s | %s | %s | %s |" % m.groups())
     lines += ["",
-              "First natural frequency of the soft rubber tooth of physics.md section 3 (8 shape "
+              "First natural frequency of the soft rubber tooth of docs/model.md §3 (8 shape "
               "functions, the rod linearised about its straight shape) against the modal tooth "
               "(8 modes, with centrifugal stiffening K_G):",
               "",

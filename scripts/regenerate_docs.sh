@@ -1,16 +1,21 @@
 #!/usr/bin/env bash
-# Regenerates every measured figure and table of README.md and docs/ from a Release build:
-#   default-timing   scripts/time_default_scene.py            (README, "Using the headless simulator")
-#   default-output   simulate config/default_scene.yaml        (README, same section)
-#   node-rtf         scripts/measure_node_rtf.sh               (README, ROS node section)
-#   profile          scripts/profile_core.sh [--streams]       (README, "Performance")
-#   free-teeth       scripts/compare_free_teeth.py --callgrind  (README, "Performance")
-#   stability        scripts/stability_table.py                (README + docs/stability.md)
-#   stability-full   the same, scene 10 for 10 000 revolutions (README + docs/stability_full.md;
-#                    not a default part: about 50 minutes, both integrators side by side)
-#   findings         scripts/compare_teeth.py --findings       (README + docs/findings*)
-#   bench            scripts/bench.py                          (README + docs/bench*)
-#   islands          scripts/bench.py --part islands           (README + docs/bench_islands.md)
+# Regenerates every measured figure and table of README.md and docs/ from a Release build. Each
+# section's page is in scripts/tslib/markdown.py (SECTIONS):
+#   default-timing   scripts/time_default_scene.py            (README, "Headline figures")
+#   default-output   simulate config/default_scene.yaml        (README, "Headline figures")
+#   node-rtf         scripts/measure_node_rtf.sh               (docs/ros_interface.md)
+#   profile          scripts/profile_core.sh [--streams]       (docs/performance.md)
+#   free-teeth       scripts/compare_free_teeth.py --callgrind  (docs/performance.md)
+#   stability        scripts/stability_table.py                (docs/numerical_stability.md +
+#                                                               docs/stability.md)
+#   stability-full   the same, scene 10 for 10 000 revolutions (docs/numerical_stability.md +
+#                    docs/stability_full.md; not a default part: about 50 minutes, both
+#                    integrators side by side)
+#   findings         scripts/compare_teeth.py --findings       (docs/threshing_findings.md +
+#                                                               docs/findings*)
+#   bench            scripts/bench.py                          (docs/benchmarks.md + docs/bench*)
+#   islands          scripts/bench.py --part islands           (docs/architecture.md +
+#                                                               docs/bench_islands.md)
 #   sweeps           scripts/sweep_overhead.py --workers 2 1 --cluster --docs (README +
 #                    docs/sweeps*; not a default part: its ratio needs an otherwise idle machine)
 # Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
@@ -43,7 +48,7 @@ for part in "${parts[@]}"; do
     free-teeth) $PY scripts/compare_free_teeth.py --callgrind |
                   $PY scripts/readme_section.py "$part" --fence "" ;;
     stability) $PY scripts/stability_table.py --simulate "$BIN/simulate" \
-                 --output docs/stability.md --readme README.md ;;
+                 --output docs/stability.md --summary docs/numerical_stability.md ;;
     stability-full)
       # One run per integrator, side by side (one core each), then one table from both.
       tmp=$(mktemp -d)
@@ -55,7 +60,7 @@ for part in "${parts[@]}"; do
       done
       for pid in "${pids[@]}"; do wait "$pid" || true; done  # a failed property is in the table
       $PY scripts/stability_table.py --render "$tmp/event_driven.json" "$tmp/time_stepping.json" \
-        --output docs/stability_full.md --readme README.md --marker stability-full
+        --output docs/stability_full.md --summary docs/numerical_stability.md --marker stability-full
       rm -rf "$tmp" ;;
     findings) $PY scripts/compare_teeth.py --findings ;;
     bench) $PY scripts/bench.py ;;

@@ -13,7 +13,7 @@ SIM="$ROOT/.build/ws/devel/lib/threshing_sim/simulate"
   echo "--print-schema\`, the table \`kSchema\` in src/scene/scene_loader.cc, which every reader of"
   echo "a number takes its range from). Every range is finite: a value outside it is a scene error"
   echo "naming the key, never a run that cannot finish. A pair \`[x, y]\` has the range on each"
-  echo "number. Defaults and meanings: README.md, \"Scene file reference\"."
+  echo "number. Defaults and meanings: docs/scene_reference.md."
   echo
   "$SIM" --print-schema
 } > "$ROOT/docs/scene_ranges.md"

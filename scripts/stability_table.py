@@ -13,7 +13,7 @@ slowly, contacts that creep or sink, memory that grows with the run.
 
 Usage:
   scripts/stability_table.py --simulate .build/ws/devel/lib/threshing_sim/simulate \\
-      --output docs/stability.md --readme README.md    # the table in docs and README
+      --output docs/stability.md --summary docs/numerical_stability.md   # both pages
   scripts/stability_table.py --scenes 01 03 --integrators time_stepping   # a subset, to stdout
   scripts/stability_table.py --scale 0.01                                 # 1 % of each run
   scripts/stability_table.py --full ...     # scene 10 over 10 000 revolutions (hours)
@@ -27,13 +27,15 @@ import argparse
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
 import time
 
 import yaml
+
+from tslib import markdown as md
+from tslib.binaries import find_binary
 
 PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE_DIR = os.path.join(PACKAGE_DIR, "config", "hard")
@@ -193,23 +195,6 @@ def hertz_indentation(tooth, kernel, v):
 
 # ---------------------------------------------------------------------------------------------
 # Running simulate.
-
-def find_simulate(given):
-    """The simulate binary: --simulate, $THRESHING_SIM_SIMULATE, PATH, or catkin_find."""
-    candidates = [given, os.environ.get("THRESHING_SIM_SIMULATE"), shutil.which("simulate")]
-    if shutil.which("catkin_find"):
-        try:
-            found = subprocess.run(["catkin_find", "--first-only", "threshing_sim", "simulate"],
-                                   capture_output=True, text=True, check=False).stdout.strip()
-            candidates.append(found)
-        except OSError:
-            pass
-    for path in candidates:
-        if path and os.path.isfile(path) and os.access(path, os.X_OK):
-            return path
-    sys.exit("stability_table.py: cannot find the simulate binary; build the package and pass "
-             "--simulate WORKSPACE/devel/lib/threshing_sim/simulate")
-
 
 def resident_kb(pid):
     """VmRSS of a running process [kB], or None once it has gone."""
@@ -474,11 +459,12 @@ def main():
     parser.add_argument("--output", help="write the markdown document here (default: stdout)")
     parser.add_argument("--save", metavar="FILE.json",
                         help="also write the results (rows, notes, command) as JSON")
-    parser.add_argument("--readme", metavar="README.md",
+    parser.add_argument("--summary", "--readme", dest="readme", metavar="PAGE.md",
                         help="also replace the table between the <!-- MARKER --> and "
-                        "<!-- MARKER-end --> lines of this file")
+                        "<!-- MARKER-end --> lines of this page "
+                        "(docs/numerical_stability.md)")
     parser.add_argument("--marker", default="stability-table",
-                        help="the README markers' name (default: stability-table)")
+                        help="the markers' name (default: stability-table)")
     parser.add_argument("--render", metavar="FILE.json", nargs="+",
                         help="run nothing: write the document from results saved by --save "
                         "(several files, e.g. two integrators run in parallel, are joined in "
@@ -499,7 +485,7 @@ def main():
         write_document("\n    ".join(commands), rows, notes, args.output, wall_s, args.readme,
                        args.marker)
         return 0 if all_ok else 1
-    simulate = find_simulate(args.simulate)
+    simulate = str(find_binary("simulate", args.simulate, search=True))
     scenes = [s for s in SCENES if not args.scenes or s.key in args.scenes]
     if not scenes:
         parser.error("no scene matches %s" % args.scenes)
@@ -583,29 +569,20 @@ def write_document(command, rows, notes, output, wall_s, readme=None, marker="st
     else:
         sys.stdout.write(text)
     if readme:
-        replace_in_readme(readme, rows, command, wall_s, marker)
+        md.splice(marker, summary_table(rows, command, wall_s), readme)
 
 
-def replace_in_readme(path, rows, command, wall_s, marker):
-    """Rewrites the text between the README's <!-- marker --> and <!-- marker-end --> lines: the
-    table (without the wall-time column) and the command or commands that made it."""
-    begin_line, end_line = "<!-- %s -->" % marker, "<!-- %s-end -->" % marker
-    with open(path) as f:
-        text = f.read()
-    begin, end = text.find(begin_line), text.find(end_line)
-    if begin < 0 or end < begin:
-        sys.exit("stability_table.py: %s has no %s ... %s markers" % (path, begin_line, end_line))
+def summary_table(rows, command, wall_s):
+    """The section between the summary page's markers: the table (without the wall-time column)
+    and the command or commands that made it."""
     lines = ["| scene | integrator | duration | passed properties | worst energy error (J) | "
              "worst penetration (m) | steps per simulated s |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append("| %s | %s | %s | %s | %s | %s | %s |" % tuple(r[:7]))
     made_by = " and ".join("`%s`" % c.strip() for c in command.split("\n    "))
-    block = (begin_line + "\n" + "\n".join(lines) + "\n\nMade by " + made_by +
-             " in %.1f minutes of wall time.\n" % (wall_s / 60.0))
-    text = text[:begin] + block + text[end:]
-    with open(path, "w") as f:
-        f.write(text)
+    return ("\n".join(lines) + "\n\nMade by " + made_by +
+            " in %.1f minutes of wall time." % (wall_s / 60.0))
 
 
 if __name__ == "__main__":

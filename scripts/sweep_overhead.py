@@ -29,6 +29,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 from sweeplib import cluster as cluster_module  # noqa: E402
 from sweeplib import runner  # noqa: E402
+from tslib import markdown  # noqa: E402
 
 
 def timed_sweep(args, out, extra):
@@ -75,16 +76,6 @@ def report(label, workers, wall, tree_cpu, n, run_cpu):
 
 def load():
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
-
-
-def replace_section(path, name, body):
-    """Puts body between <!-- name --> and <!-- name-end --> in the file."""
-    text = path.read_text()
-    begin, end = f"<!-- {name} -->", f"<!-- {name}-end -->"
-    i, j = text.find(begin), text.find(end)
-    if i < 0 or j < i:
-        raise SystemExit(f"{path}: no {begin} ... {end} markers")
-    path.write_text(text[:i + len(begin)] + "\n" + body.rstrip("\n") + "\n" + text[j:])
 
 
 def main():
@@ -146,9 +137,8 @@ def main():
         figures.mkdir(parents=True, exist_ok=True)
         plot = sorted(first.glob("plot_0_*.png"))[0]
         shutil.copy(plot, figures / "peak_normal_force.png")
-        replace_section(ROOT / "docs/sweeps.md", "sweep-overhead",
-                        "```\n" + "\n".join(text) + "\n```")
-        replace_section(ROOT / "README.md", "sweep-overhead-readme", readme_text(summary))
+        markdown.splice("sweep-overhead", "```\n" + "\n".join(text) + "\n```")
+        markdown.splice("sweep-overhead-readme", readme_text(summary))
     return 1 if args.cluster and not summary[-1][1] else 0
 
 

@@ -12,6 +12,8 @@ import statistics
 import subprocess
 import tempfile
 
+from tslib.binaries import BIN_DIR
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -25,8 +27,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--scene", default=os.path.join(ROOT, "config", "default_scene.yaml"))
     ap.add_argument("--repeat", type=int, default=7)
-    ap.add_argument("--simulate",
-                    default=os.path.join(ROOT, ".build/ws/devel/lib/threshing_sim/simulate"))
+    ap.add_argument("--simulate", default=str(BIN_DIR / "simulate"))
     args = ap.parse_args()
     settings = [("event_driven, tolerance 1e-6", ["--integrator", "event_driven", "--tolerance", "1e-6"]),
                 ("time_stepping, dt 1e-6", ["--integrator", "time_stepping", "--dt", "1e-6"])]

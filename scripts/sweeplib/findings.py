@@ -6,7 +6,6 @@ OUT/files/KEY/. compare_teeth.py's own analysis, plots, report and findings page
 them, so the verdicts and figures are those of `compare_teeth.py --findings`.
 """
 import json
-import os
 import pathlib
 import shutil
 import sys
@@ -44,7 +43,7 @@ def sweep_runs(out, rows, ct):
 
 def write(out, sweep, rows, simulate, findings=False, docs=None, readme=None):
     """OUT/report.md and its plots; with findings, also docs/findings.md, docs/findings/*.png
-    and the README's findings section (as compare_teeth.py --findings)."""
+    and the findings section of docs/threshing_findings.md (as compare_teeth.py --findings)."""
     ct = _compare_teeth()
     runs = sweep_runs(out, rows, ct)
     rpms = sorted({r.rpm for r in runs if r.group == "sweep"})
@@ -62,14 +61,11 @@ def write(out, sweep, rows, simulate, findings=False, docs=None, readme=None):
         for name, _ in plots:
             shutil.copy(out / name, figures / name)
         ct.write_findings(docs / "findings.md", a, plots, rpms, history_rpm)
-        readme = pathlib.Path(readme or ROOT / "README.md")
-        docs_rel = os.path.relpath(docs.resolve(), readme.resolve().parent)
         # The last `scripts/sweep run`'s workers and wall time (run_stats.json).
         stats = json.loads((out / "run_stats.json").read_text()) \
             if (out / "run_stats.json").is_file() else {}
         workers = stats.get("workers") or len({r["worker"] for r in rows})
         wall_s = stats.get("wall_s", sum(float(r["wall_s"]) for r in rows) / workers)
-        ct.update_readme(readme, ct.readme_section(a, rpms, docs_rel, len(runs), workers,
-                                                   wall_s))
+        ct.write_summary(readme, docs, a, rpms, len(runs), workers, wall_s)
     return out / "report.md"
 

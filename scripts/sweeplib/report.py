@@ -11,12 +11,11 @@ import csv
 import math
 import pathlib
 
-import matplotlib
+from tslib import plots
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402  (the backend is chosen first)
+from . import spec as spec_module
 
-from . import spec as spec_module  # noqa: E402
+plt = plots.pyplot()
 
 COLORS = plt.rcParams["axes.prop_cycle"].by_key()["color"]
 MARKERS = "osv^D<>phX*"

@@ -11,12 +11,13 @@ import io
 import json
 import math
 import os
-import pathlib
 import sqlite3
 import sys
 import time
 
-from . import spec as spec_module
+from tslib.binaries import find_binary
+from tslib.cache import file_digest
+
 from . import task as task_module
 
 META_COLUMNS = ["run", "status", "message"]
@@ -390,12 +391,9 @@ def compare_tables(a_path, b_path):
 
 
 def binary_sha(simulate):
-    return spec_module.file_sha256(simulate)
+    return file_digest(simulate)
 
 
-def resolve_simulate(path, root):
-    candidate = pathlib.Path(path) if path else root / ".build/ws/devel/lib/threshing_sim/simulate"
-    if not (candidate.is_file() and os.access(candidate, os.X_OK)):
-        raise SystemExit(f"simulate not found at {candidate}; build it (scripts/setup.sh) or "
-                         "pass --simulate PATH")
-    return candidate.resolve()
+def resolve_simulate(path, root=None):
+    """The simulate binary (--simulate, else the workspace's), as an absolute path."""
+    return find_binary("simulate", path).resolve()

@@ -455,14 +455,6 @@ class Group:
         self.keep = keep
 
 
-def file_sha256(path):
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def _check_batch(simulate, runs, timeout_s):
     """Lines of `simulate --check-batch` for the runs (one process)."""
     text = "".join("\t".join(r.arguments) + "\n" for r in runs)

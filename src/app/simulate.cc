@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/report.h"
 #include "threshing_sim/scene/scene_loader.h"
@@ -47,11 +48,11 @@ const char kUsage[] =
 constexpr double kChunk_s = 1e-4;
 
 // Default contact sampling interval near contacts [s]: a few percent of a Hertz contact time
-// (32-43 us for a paddy kernel, physics.md section 9a).
+// (32-43 us for a paddy kernel, docs/model.md §9a).
 constexpr double kSampleInterval_s = 1e-6;
 
 // Revolutions per minute in one rad/s.
-constexpr double kRpmPerRadps = 30.0 / 3.14159265358979323846;
+constexpr double kRpmPerRadps = 30.0 / kPi;
 
 // A bad option or output file (exit 2); UsageError also prints the usage line.
 class OptionError : public std::runtime_error {

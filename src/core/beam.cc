@@ -26,14 +26,12 @@
 
 #include "internal.h"
 #include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/simulator.h"
 
 namespace threshing_sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr int kMaxModes = 12;
 
 // 8-point Gauss-Legendre rule on [-1, 1] (exact for polynomials of degree 15).
 constexpr int kGaussPoints = 8;

@@ -6,6 +6,7 @@
 
 #include "internal.h"
 #include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/constants.h"
 
 namespace threshing_sim {
 namespace internal {
@@ -271,7 +272,7 @@ void updateToothStations(const Model& m, const VecX& z, double theta_rad, int to
     return;
   }
   const auto q = z.segment(tm.dof_offset, n);
-  double hq[16];  // H(x_s) q (at most 12 modes)
+  double hq[kMaxModes];  // H(x_s) q
   for (int s = 0; s < tm.n_stations; ++s) {
     double w = 0.0, qHq = 0.0;
     // H q column by column (contiguous in memory), each entry summed over j in order.

@@ -1,4 +1,4 @@
-// Energy and angular momentum of the reduced model (physics.md sections 3-4).
+// Energy and angular momentum of the reduced model (docs/model.md §3-4).
 //
 // With mass-normalised modes the teeth's kinetic energy in the inertial frame is
 //   T = 1/2 Omega^2 [I0 + q^T (I - K_G) q] + Omega p^T qdot + 1/2 qdot^T qdot,

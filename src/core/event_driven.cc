@@ -1,4 +1,4 @@
-// Event-driven integration (physics.md sections 7-9, the paper's method).
+// Event-driven integration (docs/model.md §7-9, the paper's method).
 //
 // Between events the index sets are fixed: each pair is separated, in compliant contact, or
 // closed under the rigid law, and each contact sticks or slips one way. The smooth phase is

@@ -1,4 +1,4 @@
-// threshing_sim core: planar distance queries (see geometry.h and docs/physics.md section 5).
+// threshing_sim core: planar distance queries (see geometry.h and docs/model.md §5).
 //
 // Frames: W is world; E is an ellipse's own frame (origin at its centre, x along its a-axis).
 // All queries are allocation-free and have bounded iteration counts.
@@ -13,10 +13,11 @@
 #include <cmath>
 #include <limits>
 
+#include "threshing_sim/core/constants.h"
+
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kEpsilon = std::numeric_limits<double>::epsilon();
 constexpr double kGoldenFraction = 0.38196601125010515;  // (3 - sqrt(5)) / 2
 

@@ -222,7 +222,7 @@ void updatePedicels(const Model& m, Data* d) {
 namespace internal {
 
 // Model validity after a step: the beam model is linear in the deflection (small-deflection
-// Euler-Bernoulli with first-order foreshortening, physics.md section 2), so a tooth whose tip
+// Euler-Bernoulli with first-order foreshortening, docs/model.md §2), so a tooth whose tip
 // deflection |w(L)| exceeds model.deflection_validity_fraction x L has left the range the model
 // is valid in. Tracks the largest |w(L)| / L and warns once per run (no allocation otherwise).
 void checkToothDeflection(const Model& m, Data* d) {

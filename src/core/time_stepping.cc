@@ -1,4 +1,4 @@
-// Moreau-Jean time stepping (physics.md section 9): fixed step h, theta-method for the smooth
+// Moreau-Jean time stepping (docs/model.md §9): fixed step h, theta-method for the smooth
 // linear part, contact detection at the midpoint, one velocity-level complementarity problem
 // per island with Newton's impact law (rigid) or the Hertz force as a fixed normal (compliant).
 #include <Eigen/LU>

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/core/state_overlap.h"
 #include "threshing_sim/ros/threshing_sim_node.h"
@@ -157,7 +158,7 @@ StepStatus ThreshingSimNode::advanceSampled(long k) {
 
 bool ThreshingSimNode::loopDue() {
   if (params_.loop_revolutions <= 0) return false;
-  const double period_rad = 2 * M_PI * params_.loop_revolutions;
+  const double period_rad = 2 * kPi * params_.loop_revolutions;
   const long index =
       static_cast<long>(std::floor((data_.theta_rad - loop_anchor_rad_) / period_rad));
   if (index == loop_index_) return false;

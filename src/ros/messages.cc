@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 
 namespace threshing_sim {
@@ -46,7 +47,7 @@ geometry_msgs::Quaternion yaw(double angle_rad) {
   return q;
 }
 
-// The tangent t = J n of physics.md.
+// The tangent t = J n of docs/model.md §5.
 Vec2 tangent(const Vec2& n) { return Vec2(-n.y(), n.x()); }
 
 std_msgs::ColorRGBA rgba(float r, float g, float b, float a = 1.f) {
@@ -147,7 +148,7 @@ void addStaticGeometry(const Snapshot& s, visualization_msgs::MarkerArray* out) 
   constexpr int kRimPoints = 721;
   visualization_msgs::Marker drum = marker(s, "drum", 0, visualization_msgs::Marker::LINE_STRIP);
   for (int j = 0; j < kRimPoints; ++j) {
-    const double angle_rad = 2 * M_PI * j / (kRimPoints - 1);
+    const double angle_rad = 2 * kPi * j / (kRimPoints - 1);
     drum.points.push_back(
         point(model.drum.radius_m * Vec2(std::cos(angle_rad), std::sin(angle_rad))));
   }
@@ -487,7 +488,7 @@ void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArra
   std::snprintf(line, sizeof(line),
                 "t = %.6f s   drum %.2f rad/s = %.0f rpm (target %.2f)\n"
                 "real-time factor %.3g (target %.3g)   last strike peak %s",
-                s.t_s, s.omega_radps, s.omega_radps * 30 / M_PI, s.omega_target_radps,
+                s.t_s, s.omega_radps, s.omega_radps * 30 / kPi, s.omega_target_radps,
                 s.measured_rtf, s.target_rtf, peak);
   const double h_m = extent_.size().y();
   out->markers.push_back(text(s, "overlay", 0,

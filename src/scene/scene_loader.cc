@@ -15,6 +15,7 @@
 #include <random>
 #include <utility>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/geometry.h"
 #include "threshing_sim/core/overlap.h"
 
@@ -70,7 +71,7 @@ const KeySpec kSchema[] = {
     {"teeth.*.diameter", KeyKind::kValue, "number", "m", Bound{1e-5, 1.0, false, false}},
     {"teeth.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
     {"teeth.*.density", KeyKind::kValue, "number", "kg/m^3", Bound{1.0, 1e5, false, false}},
-    {"teeth.*.modes", KeyKind::kValue, "integer", "", Bound{0.0, 12.0, false, false}},
+    {"teeth.*.modes", KeyKind::kValue, "integer", "", Bound{0.0, kMaxModes, false, false}},
     {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true}},
     {"teeth.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
     {"teeth.*.stations", KeyKind::kValue, "integer", "", Bound{2.0, 65.0, false, false}},
@@ -161,8 +162,6 @@ const KeySpec kSchema[] = {
     {"damage.fracture_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false}},
 };
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Keys allowed on each obstacle type.
 const std::vector<std::string> kPlaneKeys = {"type", "point", "normal", "youngs_modulus",
                                              "poisson_ratio"};
@@ -174,7 +173,7 @@ const std::vector<std::string> kSegmentKeys = {"type",   "point",          "poin
 // Names of the contact sections, indexed by PairKind.
 const char* const kPairKeys[3] = {"tooth_kernel", "kernel_kernel", "kernel_obstacle"};
 
-// Contact defaults from physics.md section 10: rice-nylon, rice-rice, wheat-steel.
+// Contact defaults from docs/model.md §10: rice-nylon, rice-rice, wheat-steel.
 const ContactParams kContactDefaults[3] = {
     {ContactLaw::kCompliant, 0.48, 0.53},
     {ContactLaw::kRigid, 0.34, 0.66},

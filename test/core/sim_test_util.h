@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/simulator.h"
@@ -21,7 +22,7 @@
 namespace threshing_sim {
 namespace testutil {
 
-constexpr double kPi = 3.14159265358979323846;
+using threshing_sim::kPi;
 constexpr double kG = 9.81;  // |gravity| used by every scene here [m/s^2]
 
 // The stepping scheme the models below use: the island-local one (the default), or with

@@ -7,12 +7,12 @@
 #include <string>
 
 #include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kRpm800_radps = 800 * 2 * kPi / 60;  // 83.776 rad/s
 
 // A measured value with 10 significant digits, for RecordProperty.
@@ -274,7 +274,7 @@ TEST(BeamTest, FrequenciesAtRestMatchClosedForm) {
 }
 
 TEST(BeamTest, FrequenciesMatchPhysicsMdIllustrations) {
-  // physics.md section 3, L = 60 mm, R = 200 mm, 800 rpm; the stated values have 3 digits,
+  // docs/model.md §3, L = 60 mm, R = 200 mm, 800 rpm; the stated values have 3 digits,
   // so they are checked within 1 %. Four modes: the coupling through K_G to modes 5-12 lowers
   // the rotating rubber frequency by only 3e-4 (34.446 -> 34.435 Hz).
   const ToothModel rubber = makeTooth(0.010, 1.5e6, 950, 4);

@@ -119,7 +119,7 @@ TEST(EventDriven, ZenoBouncingComesToRestInFiniteSteps) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// No energy from impacts with friction (physics.md section 8: Newton's law with friction can
+// No energy from impacts with friction (docs/model.md §8: Newton's law with friction can
 // create energy; the integrator must not let it).
 
 // The pile of test_integrators.cc (ImpactsWithFrictionNeverCreateEnergy), seed 8, to 31 ms,

@@ -9,12 +9,12 @@
 #include <cmath>
 #include <random>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/geometry.h"
 
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kBruteSamples = 20000;
 
 Ellipse makeEllipse(double cx_m, double cy_m, double angle_rad, double a_m, double b_m) {

@@ -33,13 +33,13 @@
 #include <vector>
 
 #include "sim_test_util.h"
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/scene_loader.h"
 
 namespace threshing_sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kG = 9.81;  // |gravity| in every hard scene [m/s^2]
 constexpr IntegratorType kED = IntegratorType::kEventDriven;
 constexpr IntegratorType kTS = IntegratorType::kTimeStepping;
@@ -936,7 +936,7 @@ constexpr double kPainleveEnd = 0.02;  // s
 Vec2 lowestPoint(double a, double b, double psi) { return -centreAboveContact(a, b, psi); }
 
 // m A: the normal acceleration of the sliding contact per unit normal force, times the mass
-// (physics.md section 7; the scene's header): A = w_N^T M^-1 (w_N - s mu w_T), with
+// (docs/model.md §7; the scene's header): A = w_N^T M^-1 (w_N - s mu w_T), with
 // w = (n or t, r x (n or t)), n = (0, 1), t = J n = (-1, 0), J = m (a^2 + b^2) / 4.
 double painleveMA(double a, double b, double psi, double mu, int slip_sign) {
   const Vec2 r = lowestPoint(a, b, psi);
@@ -1251,7 +1251,7 @@ TEST_P(HardCase, Scene08WedgedKernelStrike) {
   // Persistent multiple contacts: tooth-kernel and kernel-bar closed together for 0.6 ms of
   // the squeeze (measured ~0.75 ms), with a peak force of tens of newtons (Hertz at 0.6 mm of
   // interference through a nylon tooth that bends: 84 N measured), below the 139 N damage
-  // threshold of rice (physics.md section 10) -- the tooth yields, nothing jams.
+  // threshold of rice (docs/model.md §10) -- the tooth yields, nothing jams.
   EXPECT_GE(r.multi_contact_s, 0.6e-3);
   EXPECT_GT(r.d.stats.peak_normal_force_N, 40.0);
   EXPECT_LT(r.d.stats.peak_normal_force_N, 139.0);

@@ -79,7 +79,7 @@ ToothModel ldTooth(int shapes) {
 }
 
 TEST(LargeDeflection, ElasticaReferenceMatchesPublishedTable) {
-  // physics.md section 9b (Bisshopp & Drucker 1945, 5 digits).
+  // docs/model.md §9b (Bisshopp & Drucker 1945, 5 digits).
   const double table[5][4] = {{0.5, 0.16214, 0.01592, 0.24453},
                               {1.0, 0.30172, 0.05643, 0.46135},
                               {2.0, 0.49346, 0.16064, 0.78175},
@@ -155,7 +155,7 @@ TEST(LargeDeflection, JacobianAndMassMatchTheirDefinitions) {
 }
 
 // Centrifugal stiffening, exactly: the rod linearised about its straight (radial) shape on a
-// turning drum has the modal tooth's frequencies. Soft rubber tooth of physics.md section 3
+// turning drum has the modal tooth's frequencies. Soft rubber tooth of docs/model.md §3
 // (d 10 mm, E 1.5 MPa, rho 950, L 60 mm, R 200 mm): 15.4 Hz at rest, 34.4 Hz at 800 rpm.
 TEST(LargeDeflection, LinearisedRodHasTheRotatingModalFrequencies) {
   for (double omega : {0.0, 83.78}) {

@@ -27,7 +27,7 @@ TEST(CompileModel, KernelInertiaIsUniformEllipticDisc) {
   m.kernels = {makeKernel(5.0e-3, 1.3e-3, Vec2(0, 0.3), Vec2::Zero(), 0.0, 2.8e-5),
                makeKernel(2.0e-3, 2.0e-3, Vec2(0, 0.4), Vec2::Zero(), 0.0, 1.0e-5)};
   compileModel(&m);
-  // J = m (a^2 + b^2) / 4, the uniform elliptic disc of physics.md section 4 (not the
+  // J = m (a^2 + b^2) / 4, the uniform elliptic disc of docs/model.md §4 (not the
   // ellipsoid's /5). Closed form evaluated here; 1e-15 relative is a few roundings.
   const double J0 = 2.8e-5 * (25e-6 + 1.69e-6) / 4;
   const double J1 = 1.0e-5 * (4e-6 + 4e-6) / 4;

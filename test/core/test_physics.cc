@@ -18,7 +18,7 @@ namespace {
 using testutil::fmt;
 using testutil::kPi;
 
-// Soft rubber tooth of physics.md section 3: L 60 mm, d 10 mm, E 1.5 MPa, rho 950, on a drum
+// Soft rubber tooth of docs/model.md §3: L 60 mm, d 10 mm, E 1.5 MPa, rho 950, on a drum
 // of radius 0.2 m; no damping; no kernel; time stepping with theta = 1/2 (the trapezoidal rule
 // on the linear modal equations: no numerical damping, and a frequency error of
 // (omega h)^2 / 12 = 4e-5 for the rotating first mode at h = 1e-4 s).
@@ -68,7 +68,7 @@ double measuredPeriod(const Model& m, Data* d, double T, int* crossings) {
 // ~(omega h)^2 / 8 of a step). This checks that the integrated equations carry the
 // centrifugal term with its sign and size: without K_G (the "zero-order" model) the rotating
 // tooth would soften to sqrt(15.4^2 - 13.3^2) = 7.8 Hz instead of stiffening to 34.4 Hz. The
-// frequencies also match physics.md's 15.4 Hz at rest and 34.4 Hz at 800 rpm (quoted to 3
+// frequencies also match docs/model.md §3's 15.4 Hz at rest and 34.4 Hz at 800 rpm (quoted to 3
 // digits: 0.5 %).
 TEST(RotatingTooth, PluckedRubberToothSwingsAtTheRotatingFrequency) {
   struct Case {

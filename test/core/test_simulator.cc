@@ -74,7 +74,7 @@ TEST(Simulator, EventDrivenAndTimeSteppingAgreeAsDtShrinks) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Convergence in the number of tooth modes (physics.md section 9a).
+// Convergence in the number of tooth modes (docs/model.md §9a).
 //
 // Measured (event-driven, tolerance 1e-9), kernel exit velocity [m/s] for n = 1, 2, 4, 6, 8:
 //   compliant: (-2.767, 28.618) (-2.793, 28.418) (-2.722, 28.340) (-2.706, 28.395)

@@ -1,7 +1,7 @@
-// rostest (recipe.test): the README's record / replay / re-simulate recipe, run verbatim as a
-// bash script (the block between <!-- record-recipe --> and <!-- record-recipe-end -->) from
-// the source directory, with rviz on an Xvfb display, against this test's master. It must exit
-// 0 (compare_bags: the re-simulation is bit-identical), the recorded bag must hold the strike
+// rostest (recipe.test): the record / replay / re-simulate recipe of docs/ros_interface.md (the
+// block between its record-recipe markers), run verbatim as a bash script from the source
+// directory, with rviz on an Xvfb display, against this test's master. It must exit 0
+// (compare_bags: the re-simulation is bit-identical), the recorded bag must hold the strike
 // history and the impact, and the replay must show the strike: rviz is sent the strike chart by
 // rosbag play, and a screenshot then shows the chart's force curve.
 #include <gtest/gtest.h>
@@ -23,9 +23,9 @@ namespace {
 
 const char* const kDisplay = ":64";
 
-// The recipe block of README.md, without its ``` fence lines.
+// The recipe block of docs/ros_interface.md, without its ``` fence lines.
 std::string recipe() {
-  std::ifstream in(std::string(THRESHING_SIM_SOURCE_DIR) + "/README.md");
+  std::ifstream in(std::string(THRESHING_SIM_SOURCE_DIR) + "/docs/ros_interface.md");
   std::stringstream text;
   text << in.rdbuf();
   const std::string s = text.str();
@@ -67,7 +67,7 @@ long orangePixels(const std::string& png) {
 
 TEST(Recipe, RecordReplayResimulateVerbatim) {
   const std::string script = recipe();
-  ASSERT_FALSE(script.empty()) << "README.md has no record-recipe block";
+  ASSERT_FALSE(script.empty()) << "docs/ros_interface.md has no record-recipe block";
   const std::string path = std::string(TEST_TMP_DIR) + "/readme_recipe.sh";
   std::ofstream(path) << "set -euo pipefail\n" << script;
   std::remove("/tmp/run.bag");

@@ -1,7 +1,7 @@
 // End-to-end test of scripts/compare_teeth.py: its tiny sweep (--quick) runs the built simulate
 // on every scene and writes the markdown report and its plots, and (--findings, redirected to
-// the output folder) the findings page and a copy of the README with its findings section
-// rewritten.
+// the output folder) the findings page and a copy of docs/threshing_findings.md with its findings
+// section rewritten.
 #include <gtest/gtest.h>
 
 #include <cstdlib>
@@ -22,14 +22,18 @@ TEST(CompareTeeth, QuickSweepWritesReportAndPlots) {
   const fs::path out = COMPARE_OUT_DIR;
   fs::remove_all(out);
   fs::create_directories(out);
-  const std::string readme_before = readFile(fs::path(THRESHING_SIM_SOURCE_DIR) / "README.md");
+  const fs::path page = out / "docs" / "threshing_findings.md";
+  const fs::path source_page =
+      fs::path(THRESHING_SIM_SOURCE_DIR) / "docs" / "threshing_findings.md";
+  const std::string readme_before = readFile(source_page);
   ASSERT_FALSE(readme_before.empty());
-  fs::copy_file(fs::path(THRESHING_SIM_SOURCE_DIR) / "README.md", out / "README.md");
-  const std::string command =
-      std::string("/usr/bin/python3 ") + THRESHING_SIM_SOURCE_DIR +
-      "/scripts/compare_teeth.py --quick --findings --simulate " + THRESHING_SIM_SIMULATE +
-      " --out " + out.string() + " --docs " + (out / "docs").string() + " --readme " +
-      (out / "README.md").string() + " > " + (out.string() + ".log") + " 2>&1";
+  fs::create_directories(out / "docs");
+  fs::copy_file(source_page, page);
+  const std::string command = std::string("/usr/bin/python3 ") + THRESHING_SIM_SOURCE_DIR +
+                              "/scripts/compare_teeth.py --quick --findings --simulate " +
+                              THRESHING_SIM_SIMULATE + " --out " + out.string() + " --docs " +
+                              (out / "docs").string() + " --summary " + page.string() + " > " +
+                              (out.string() + ".log") + " 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << command << "\n" << readFile(out.string() + ".log");
 
   // The report names every plot, and every plot is a non-empty PNG.
@@ -56,10 +60,10 @@ TEST(CompareTeeth, QuickSweepWritesReportAndPlots) {
     EXPECT_NE(findings.find(claim), std::string::npos) << claim;
   }
 
-  // The README's findings section: rewritten between the markers, the rest untouched; it holds
+  // The page's findings section: rewritten between the markers, the rest untouched; it holds
   // the three verdicts, the agreement paragraph and the command, and its plots exist.
   const std::string begin = "<!-- findings -->", end = "<!-- findings-end -->";
-  const std::string readme = readFile(out / "README.md");
+  const std::string readme = readFile(page);
   const size_t b0 = readme_before.find(begin), e0 = readme_before.find(end);
   const size_t b1 = readme.find(begin), e1 = readme.find(end);
   ASSERT_NE(b0, std::string::npos);
@@ -79,7 +83,7 @@ TEST(CompareTeeth, QuickSweepWritesReportAndPlots) {
     const std::string link = section.substr(at + 2, section.find(')', at) - at - 2);
     if (link.size() < 4 || link.substr(link.size() - 4) != ".png") continue;
     ++images;
-    EXPECT_TRUE(fs::is_regular_file(out / link)) << link;
+    EXPECT_TRUE(fs::is_regular_file(out / "docs" / link)) << link;
   }
   EXPECT_GE(images, 4u);
 }

@@ -8,12 +8,11 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/scene/scene_loader.h"
 
 namespace threshing_sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Two teeth 90 degrees apart and a stream of four kernels ahead of tooth 0.
 const char kStreamScene[] = R"(

@@ -92,7 +92,7 @@ TEST(SceneLoader, BaseSceneLoadsWithDefaults) {
   EXPECT_DOUBLE_EQ(m.broadphase_margin_m, 2e-3);
   EXPECT_DOUBLE_EQ(m.deflection_validity_fraction, 0.1);
 
-  // Contact defaults from physics.md section 10.
+  // Contact defaults from docs/model.md §10.
   const ContactParams& tk = m.contact[static_cast<int>(PairKind::kToothKernel)];
   const ContactParams& kk = m.contact[static_cast<int>(PairKind::kKernelKernel)];
   const ContactParams& ko = m.contact[static_cast<int>(PairKind::kKernelObstacle)];
@@ -445,9 +445,10 @@ TEST(SceneLoader, ShippedDefaultSceneLoads) {
   EXPECT_FALSE(m.teeth.empty());
 }
 
-// Every schema key has a row in the README's scene file reference, and every row is a key.
+// Every schema key has a row in the scene file reference (docs/scene_reference.md), and every row
+// is a key.
 TEST(SceneLoader, ReferenceDocumentsEveryKey) {
-  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) + "/README.md";
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) + "/docs/scene_reference.md";
   std::ifstream file(path);
   ASSERT_TRUE(file) << path;
   std::vector<std::string> documented;

@@ -1,7 +1,7 @@
 // threshing_sim core: assumed-mode model of a clamped-free Euler-Bernoulli tooth on a drum.
 //
 // Modes are mass-normalised, int_0^L rho A phi_i phi_j dx = delta_ij, so the modal mass matrix
-// is the identity. With drum speed Omega the bending equations are (physics.md section 3)
+// is the identity. With drum speed Omega the bending equations are (docs/model.md §3)
 //   q'' + D q' + [Lambda + Omega^2 (K_G - I)] q = -dOmega/dt p + Q.
 #pragma once
 

@@ -16,7 +16,7 @@
 
 namespace threshing_sim {
 
-// The four contact states of physics.md section 7.
+// The four contact states of docs/model.md §7.
 enum class ContactState : std::uint8_t { kSeparated = 0, kImpact = 1, kStick = 2, kSlip = 3 };
 const char* toString(ContactState s);
 const char* toString(PairKind k);

@@ -13,7 +13,7 @@
 //
 // Output schedule: at real_time_factor > 0 the publish rates count wall time (for watching);
 // at 0 they count simulated time, so that every output is a deterministic function of the
-// scene and the applied commands (see docs/ros_interface.md, "Re-simulation").
+// scene and the applied commands (see docs/ros_interface.md, "Record, replay, re-simulate").
 #pragma once
 
 #include <diagnostic_updater/diagnostic_updater.h>

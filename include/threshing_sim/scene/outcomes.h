@@ -28,7 +28,7 @@
 
 namespace threshing_sim {
 
-// Thresholds on a kernel's peak normal contact force (rice: physics.md section 10).
+// Thresholds on a kernel's peak normal contact force (rice: docs/model.md §10).
 struct DamageThresholds {
   double plastic_force_N = 139.0;   // plastic deformation at or above this force [N]
   double fracture_force_N = 146.0;  // brittle fracture at or above this force [N]

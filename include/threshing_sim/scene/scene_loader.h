@@ -1,6 +1,6 @@
 // threshing_sim scene files: YAML -> validated, compiled Model.
 //
-// Every key, its unit, default and range is documented in README.md ("Scene file reference").
+// Every key, its unit, default and range is documented in docs/scene_reference.md.
 // Errors are reported as SceneError whose message names the key path and the bad value,
 // e.g. "kernels.0.mass: must be > 0 (got -1)".
 #pragma once
@@ -37,7 +37,7 @@ std::vector<std::string> overridesFromFile(const std::string& path);
 
 // Validates the tree (unknown keys, missing keys, types, ranges, NaN/inf, semi-axes order,
 // kernels overlapping at start), expands a kernel `stream` into kernels appended after the
-// listed ones (deterministic from its seed; README.md "Scene file reference") and returns the
+// listed ones (deterministic from its seed; docs/scene_reference.md) and returns the
 // compiled model. Throws SceneError.
 Model modelFromYaml(const YAML::Node& root);
 
@@ -55,7 +55,7 @@ Model loadScene(const std::string& path, const std::vector<std::string>& overrid
 std::string sceneSchemaTable();
 
 // Every key path a scene may hold, list items written as "*" (e.g. "teeth.*.length"), in
-// document order. README.md ("Scene file reference") has one row per path.
+// document order. docs/scene_reference.md has one row per path.
 std::vector<std::string> sceneKeyPaths();
 
 }  // namespace threshing_sim

@@ -1,7 +1,7 @@
 // threshing_sim core, asynchronous island-local scheduler: the private header of the stages in
 // src/core/async/ (not installed; only the files of that folder and simulator.cc include it).
 //
-// Cost follows the events (see README "Architecture" and docs/architecture.md):
+// Cost follows the events (see docs/architecture.md):
 //   - every kernel keeps its own clock (KernelClock::t_s). A kernel that touches nothing is
 //     "lazy": a free kernel flies its parabola in closed form, a kernel on its pedicel is
 //     advanced by its own small adaptive integrator, and neither is touched until something can

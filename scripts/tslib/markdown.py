@@ -1,0 +1,59 @@
+"""Markdown splicing: the regenerated sections between `<!-- name -->` and `<!-- name-end -->`,
+and which page of the repository holds each of them."""
+import os
+import pathlib
+
+from tslib import ROOT
+
+# Every regenerated section and the page that holds it (relative to the repository root). The
+# scripts splice into these pages; scripts/check_doc_refs.py checks that each marker is there.
+SECTIONS = {
+    "default-timing": "README.md",          # scripts/time_default_scene.py
+    "default-output": "README.md",          # simulate config/default_scene.yaml
+    "sweep-overhead-readme": "README.md",   # scripts/sweep_overhead.py --docs
+    "node-rtf": "docs/ros_interface.md",    # scripts/measure_node_rtf.sh
+    "record-recipe": "docs/ros_interface.md",  # hand-written; test_recipe runs it
+    "scene-reference": "docs/scene_reference.md",  # hand-written; the loader test checks it
+    "profile": "docs/performance.md",       # scripts/profile_core.sh
+    "profile-streams": "docs/performance.md",  # scripts/profile_core.sh --streams
+    "free-teeth": "docs/performance.md",    # scripts/compare_free_teeth.py --callgrind
+    "islands-table": "docs/architecture.md",  # scripts/bench.py --part islands
+    "bench-table": "docs/benchmarks.md",    # scripts/bench.py
+    "scaling-table": "docs/benchmarks.md",  # scripts/bench.py
+    "stability-table": "docs/numerical_stability.md",  # scripts/stability_table.py
+    "stability-full": "docs/numerical_stability.md",   # scripts/stability_table.py --full
+    "findings": "docs/threshing_findings.md",  # scripts/compare_teeth.py --findings
+    "sweep-overhead": "docs/sweeps.md",     # scripts/sweep_overhead.py --docs
+}
+
+
+def page_of(name):
+    """The path of the page that holds section name."""
+    if name not in SECTIONS:
+        raise SystemExit(f"unknown section '{name}' (known: {', '.join(sorted(SECTIONS))})")
+    return ROOT / SECTIONS[name]
+
+
+def markers(name):
+    return f"<!-- {name} -->", f"<!-- {name}-end -->"
+
+
+def splice_text(text, name, body, where="the text"):
+    """text with the lines between section name's markers replaced by body."""
+    begin, end = markers(name)
+    i, j = text.find(begin), text.find(end)
+    if i < 0 or j < i:
+        raise SystemExit(f"{where}: no {begin} ... {end} markers")
+    return text[:i + len(begin)] + "\n" + body.rstrip() + "\n" + text[j:]
+
+
+def splice(name, body, path=None):
+    """Replaces section name of its page (or of path) with body; returns the page's path."""
+    path = pathlib.Path(path) if path else page_of(name)
+    path.write_text(splice_text(path.read_text(), name, body, where=str(path)))
+    return path
+
+
+def link(target, page):
+    """A link from page to target (both paths): relative to the page's folder."""
+    return os.path.relpath(pathlib.Path(target).resolve(), pathlib.Path(page).resolve().parent)
