@@ -279,6 +279,8 @@ CommandBagContents readCommandBag(const std::string& path, std::int64_t dt_ns,
       out.last_contact_step =
           std::max(out.last_contact_step, stepOf(path, c->header.stamp.toNSec(), dt_ns));
     }
+  } catch (const std::invalid_argument&) {
+    throw;  // this reader's own refusals, which name ~command_bag already
   } catch (const rosbag::BagException& e) {
     throw std::invalid_argument(where(path) + e.what());
   } catch (const ros::Exception& e) {
@@ -287,6 +289,10 @@ CommandBagContents readCommandBag(const std::string& path, std::int64_t dt_ns,
     throw std::invalid_argument(where(path) +
                                 "unreadable: a record claims more memory than "
                                 "there is (corrupt lengths)");
+  } catch (const std::exception& e) {
+    // rosbag lets other exceptions through, e.g. ros::normalizeSecNSec's std::runtime_error
+    // ("Time is out of dual 32-bit range") on a corrupt index stamp (fuzz_command_bag).
+    throw std::invalid_argument(where(path) + "unreadable: " + e.what());
   }
   return out;
 }

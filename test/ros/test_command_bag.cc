@@ -213,6 +213,17 @@ TEST(CommandBag, IndexCountBeyondItsDataIsRefused) {
       << message;
 }
 
+// Found by fuzz_command_bag: an index entry's stamp beyond 32-bit seconds made rosbag throw
+// std::runtime_error ("Time is out of dual 32-bit range"), which nothing caught: abort.
+TEST(CommandBag, StampOutOfRangeIsRefusedNotThrownOut) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/throw_index_stamp.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(message.find("~command_bag (" + path + "): unreadable: Time is out of dual 32-bit"),
+            std::string::npos)
+      << message;
+}
+
 TEST(CommandBag, MissingAndNonBagFilesAreRefused) {
   EXPECT_NE(refusal("/nonexistent/x.bag").find("~command_bag (/nonexistent/x.bag)"),
             std::string::npos);
