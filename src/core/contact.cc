@@ -108,7 +108,7 @@ void stationHq(const ToothModel& tm, int s, const double* q, double* hq, double*
 // The stations bracketing one interval, computed directly (without the workspace's stations).
 struct StationPair {
   int s = -1;                                       // interval [x_s, x_{s+1}] held (-1: none) [-]
-  double hq0[16], hq1[16];  // H q at its two stations (SmallVec capacity) [1/sqrt(kg)]
+  double hq0[kMaxToothModes], hq1[kMaxToothModes];  // H q at its two stations [1/sqrt(kg)]
   double wc0 = 0, wc1 = 0;                          // w_c there [m]
   void update(const ToothModel& tm, int s_new, const double* q) {
     if (s == s_new) return;
