@@ -42,9 +42,12 @@ struct ToothModel {
   double youngs_modulus_Pa = 3e9;  // E [Pa]
   double poisson_ratio = 0.35;     // nu, used by the Hertz law [-]
   double density_kgpm3 = 1140.0;   // rho [kg/m^3]
-  int n_modes = 4;                 // n retained bending modes; 0 = rigid tooth
+  int n_modes = 4;                 // n retained bending modes; 0 = rigid tooth; kAutoModes (-1):
+                                   // compileModel picks it (see chooseModeCount in model.cc) [-]
   double damping_ratio = 0.02;     // zeta, same for every mode [-]
   int n_stations = 9;              // centreline sample points used for contact (>= 2)
+  bool static_correction = true;   // residual flexibility of the truncated modes in series with
+                                   // the contact (physics.md 9b); false: modes only [-]
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
@@ -66,7 +69,21 @@ struct ToothModel {
   MatX dphi_s;                      // phi_i'(x_s), n_stations x n [1/(sqrt(kg) m)]
   std::vector<MatX> H_s;            // H(x_s) = int_0^x phi' phi'^T, n x n each [1/(kg m)]
   int dof_offset = 0;               // first index of this tooth's q in the generalised vector
+  bool modes_auto = false;          // n_modes was chosen by compileModel (kAutoModes) [-]
+  double contact_time_s = 0;        // Hertz contact time estimate the automatic count used [s]
+  // Residual flexibility of the truncated modes (physics.md 9b) at kResidualPoints (beam.h)
+  // equally spaced points, at drum speed residual_omega_radps; a massless spring in series
+  // with the Hertz contact (contact.cc). Reused at other drum speeds within
+  // residual_speed_window_radps2 of Omega^2 (see contact.cc residualAtSpeed).
+  double residual_omega_radps = 0;          // drum speed of the tables below [rad/s]
+  double residual_speed_window_radps2 = 0;  // |Omega^2 - residual_omega^2| the tables serve [1/s^2]
+  VecX residual_ww;                         // w under a unit force at the same point [m/N]
+  VecX residual_wt;                         // w under a unit couple (= w' under a force) [1/N]
+  VecX residual_tt;                         // w' under a unit couple [1/(N m)]
 };
+
+// ToothModel::n_modes value asking compileModel to choose the count.
+constexpr int kAutoModes = -1;
 
 // Optional pedicel: a linear spring-damper from a fixed anchor in the world to a point on the
 // kernel; it breaks for good when its tension exceeds the detachment force.
