@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
 # Soak and fault run of the node (issue 14), against its own master on a free port:
-#   soak   the default scene at real-time factor 0 for REVS drum revolutions (0.075 s each),
-#          a reset every revolution (the kernel struck afresh each time); reports the simulated
-#          time reached, the resident memory at the start and the end, and the peak force
-#          (/diagnostics; the single strike's is 63.5 N);
-#   flood  drum_speed_cmd as fast as Python publishes (~10 kHz) for FLOOD_S seconds, NaN among
-#          them (counted as rejected);
+#   flood  drum_speed_cmd at 10 kHz for FLOOD_S seconds from a C++ publisher (drum_cmd_flood),
+#          half of them NaN, inf or 1e4 rad/s; the node's count of rejected commands must
+#          equal the invalid ones sent (none lost);
 #   resets ~reset called in a loop (a reset storm) while the node runs;
-#   nan    NaN through dynamic_reconfigure (refused, the server keeps the last good values).
+#   nan    NaN through dynamic_reconfigure (refused, the server keeps the last good values);
+#   soak   the default scene at real-time factor 0 for REVS drum revolutions, the kernel
+#          re-seeded at the same drum phase every revolution (~loop_revolutions 1), so that
+#          every strike is the single strike; reports the simulated time reached, the resident
+#          memory 2 s in and at most, and the peak force (the single strike's is 63.5 N).
 # Usage: scripts/soak.sh [REVS] [FLOOD_S]   (default 100 revolutions, 3 s; the long soak:
-# scripts/soak.sh 10000). Prints one line per part; exit 1 if the node died or time stuck.
+# scripts/soak.sh 10000). Prints one line per part; exit 1 if the node died, time stuck, a
+# command was lost or the peak force differs from the single strike's by more than 1 %.
 set -uo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 REVS=${1:-100}
@@ -31,16 +33,27 @@ NODE_BIN="$WS/devel/lib/threshing_sim/threshing_sim_node"
 "$NODE_BIN" _scene:="$ROOT/config/default_scene.yaml" _status_period:=0 >"$LOG/fault_node.log" 2>&1 &
 NODE=$!
 sleep 2
-python3 "$ROOT/scripts/soak_faults.py" "$FLOOD_S" >"$LOG/faults.log" 2>&1
+"$WS/devel/lib/threshing_sim/drum_cmd_flood" 10000 "$FLOOD_S" >"$LOG/flood.log" 2>&1
 FAULTS=$?
+sleep 1.5  # the node's counters catch up
+python3 "$ROOT/scripts/soak_faults.py" >"$LOG/faults.log" 2>&1 || FAULTS=1
 kill -0 "$NODE" 2>/dev/null || { echo "soak: the node died under the faults"; FAULTS=1; }
 kill -INT "$NODE"; wait "$NODE"; FAULT_RC=$?
-cat "$LOG/faults.log"
-grep "threshing_sim_node: simulated" "$LOG/fault_node.log" | tail -1 | sed 's/^/faults: /'
+cat "$LOG/flood.log" "$LOG/faults.log"
+FAULT_SUMMARY=$(grep "threshing_sim_node: simulated" "$LOG/fault_node.log" | tail -1)
+echo "faults: $FAULT_SUMMARY"
 echo "faults: node exit after SIGINT $FAULT_RC"
-# Soak: factor 0, a reset every revolution, to the end time.
+INVALID=$(sed -n 's/.*, \([0-9]*\) invalid.*/\1/p' "$LOG/flood.log")
+REJECTED=$(echo "$FAULT_SUMMARY" | sed -n 's/.*, \([0-9]*\) rejected commands.*/\1/p')
+if [ -z "$INVALID" ] || [ "$INVALID" != "$REJECTED" ]; then
+  echo "faults: the node counted ${REJECTED:-?} rejected commands of ${INVALID:-?} invalid sent"
+  FAULTS=1
+else
+  echo "faults: the node counted all $REJECTED invalid commands as rejected (none lost)"
+fi
+# Soak: factor 0, the kernel re-seeded every revolution at the same drum phase, to the end time.
 "$NODE_BIN" _scene:="$ROOT/config/default_scene.yaml" \
-  _real_time_factor:=0.0 _clock_mode:=sim _reset_period:=0.075 _end_time:="$END" \
+  _real_time_factor:=0.0 _clock_mode:=sim _loop_revolutions:=1 _end_time:="$END" \
   _status_period:=0 >"$LOG/node.log" 2>&1 &
 NODE=$!
 sleep 2
@@ -58,4 +71,15 @@ echo "soak: $SUMMARY"
 echo "soak: logs in $LOG"
 SIM=$(echo "$SUMMARY" | sed -n 's/.*simulated \([0-9.]*\) s.*/\1/p')
 python3 -c "import sys; sys.exit(0 if float('${SIM:-0}') >= $END - 1e-6 else 1)" || { echo "soak: time stuck"; exit 1; }
+# The peak force against the single strike's (simulate on the same scene).
+"$WS/devel/lib/threshing_sim/simulate" "$ROOT/config/default_scene.yaml" --quiet \
+  --summary "$LOG/single.json" >/dev/null 2>&1
+PEAK=$(echo "$SUMMARY" | sed -n 's/.*peak normal force \([0-9.]*\) N.*/\1/p')
+python3 - "$LOG/single.json" "${PEAK:-0}" <<'PY' || FAULTS=1
+import json, sys
+single = json.load(open(sys.argv[1]))["peak_normal_force_N"]
+peak = float(sys.argv[2])
+print(f"soak: peak normal force {peak} N, single strike {single:.4f} N ({peak / single - 1:+.2%})")
+sys.exit(0 if abs(peak / single - 1) <= 0.01 else 1)
+PY
 [ "$RC" -eq 0 ] && [ "$FAULTS" -eq 0 ] && [ "$FAULT_RC" -eq 0 ]

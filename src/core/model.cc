@@ -3,7 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <limits>
+#include <map>
+#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -53,7 +56,7 @@ double huntCrossleyRestitution(double c) {
 }
 
 // Inverts huntCrossleyRestitution by bisection: the damping factor c* = chi v_in giving e.
-double huntCrossleyFactor(double e) {
+double solveHuntCrossleyFactor(double e) {
   if (e >= 1.0) return 0.0;
   const double e_min = 0.01;  // below this the factor diverges; treat as almost plastic
   const double target = std::max(e, e_min);
@@ -109,6 +112,25 @@ int chooseModeCount(const Model& m, const ToothModel& t, double t_c) {
   while (n < kMaxToothModes && std::pow(cantileverBetaL(n), 2) * scale < omega_needed) ++n;
   return n;
 }
+// solveHuntCrossleyFactor, remembered per restitution (the bisection costs about 1e6 flops, paid
+// three times by every compile; sweeps, tests and fuzzing compile thousands of scenes in one
+// process). The value is the same bit for bit; the memory holds at most kMaxRemembered values.
+double huntCrossleyFactor(double e) {
+  constexpr std::size_t kMaxRemembered = 256;
+  static std::mutex mutex;
+  static std::map<double, double> remembered;
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    const auto it = remembered.find(e);
+    if (it != remembered.end()) return it->second;
+  }
+  const double factor = solveHuntCrossleyFactor(e);
+  const std::lock_guard<std::mutex> lock(mutex);
+  if (remembered.size() >= kMaxRemembered) remembered.clear();
+  remembered.emplace(e, factor);
+  return factor;
+}
+
 }  // namespace
 
 void compileModel(Model* model) {

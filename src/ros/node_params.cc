@@ -42,6 +42,7 @@ const std::set<std::string> kNodeKeys = {"scene",
                                          "kernel_obstacle_restitution",
                                          "kernel_obstacle_friction",
                                          "diagnostic_period",
+                                         "watchdog_timeout",
                                          "scene_base_dir",
                                          "command_schedule",
                                          "loop_revolutions",
@@ -142,6 +143,8 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh) {
   readRate(pnh, "state_rate", 1000.0, &p.state_rate_hz);
   readRate(pnh, "marker_rate", 200.0, &p.marker_rate_hz);
   readNumber(pnh, "status_period", 0.0, 3600.0, &p.status_period_s);
+  readNumber(pnh, "diagnostic_period", 0.01, 60.0, &p.diagnostic_period_s);
+  readNumber(pnh, "watchdog_timeout", 0.01, 3600.0, &p.watchdog_timeout_s);
   readNumber(pnh, "end_time", 0.0, 1e6, &p.end_time_s);
   readNumber(pnh, "reset_period", 0.0, 1e6, &p.reset_period_s);
   read(pnh, "command_bag", &p.command_bag);

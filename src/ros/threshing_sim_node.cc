@@ -24,8 +24,6 @@ constexpr size_t kMaxQueuedSnapshots = 64;
 constexpr double kClockPeriod_s = 1.0 / 200.0;
 // Static geometry (drum, obstacles) is republished this often, for late subscribers [s].
 constexpr double kStaticMarkerPeriod_s = 1.0;
-// Diagnostics period, wall time (diagnostic_updater's own timer would run on /clock) [s].
-constexpr double kDiagnosticsPeriod_s = 1.0;
 // After the last message of a bounded run the node waits this long before shutting down, so
 // that recorders receive everything [s].
 constexpr double kLinger_s = 1.0;
@@ -33,9 +31,6 @@ constexpr double kLinger_s = 1.0;
 constexpr double kServiceTimeout_s = 30.0;
 // A measured real-time factor below this fraction of the target is a warning [-].
 constexpr double kSlowFraction = 0.9;
-// Watchdog: a physics step (one advanceTo call) running longer than this is an error [wall s].
-// The core's work budget ends a call that cannot progress within about a second.
-constexpr double kWatchdog_s = 5.0;
 // A reset whose start poses overlap a body (the tooth passing the kernel's start) waits for
 // the drum to turn on, at most this much simulated time, then is skipped [s].
 constexpr double kMaxResetWait_s = 0.1;
@@ -333,6 +328,7 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
     {
       std::lock_guard<std::mutex> lock(staged_mutex_);
       failure_text_ = text;
+      failure_t_s_ = data_.t_s;
     }
     failed_ = true;
     paused_ = true;
@@ -600,7 +596,7 @@ void ThreshingSimNode::outputLoop() {
     }
     if (now_s >= next_diagnostics_s) {
       diagnostics_.force_update();
-      next_diagnostics_s = now_s + kDiagnosticsPeriod_s;
+      next_diagnostics_s = now_s + params_.diagnostic_period_s;
     }
     // A bounded run: once the last snapshot is out, linger for the recorders, then shut down.
     if (finished_) {
@@ -673,11 +669,13 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   const double started_s = advance_started_s_;
   const double busy_s = started_s >= 0 ? clock_.nowSeconds() - started_s : 0.0;
   std::string failure;
+  double failure_t_s = 0;
   {
     std::lock_guard<std::mutex> lock(staged_mutex_);
     failure = failure_text_;
+    failure_t_s = failure_t_s_;
   }
-  if (busy_s > kWatchdog_s) {
+  if (busy_s > params_.watchdog_timeout_s) {
     ROS_ERROR_THROTTLE(5.0, "watchdog: the physics thread has not returned for %.1f s (t = %g s)",
                        busy_s, step_ * dt_s_);
     stat.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
@@ -699,7 +697,8 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
     stat.summary(diagnostic_msgs::DiagnosticStatus::OK, finished_ ? "finished"
                                                         : paused_ ? "paused"
                                                                   : "running");
-  stat.add("simulation time [s]", step_ * dt_s_);
+  // After a failure the state is the last good one, inside the failed physics step.
+  stat.add("simulation time [s]", failed_ ? failure_t_s : step_ * dt_s_);
   stat.add("physics step [s]", dt_s_);
   stat.add("step rate [Hz]", step_rate_hz_.load());
   stat.add("measured real-time factor", rtf);

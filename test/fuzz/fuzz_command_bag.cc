@@ -12,7 +12,9 @@
 #include "threshing_sim/ros/command_bag.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  static const std::string path = "/tmp/fuzz_command_bag." + std::to_string(getpid()) + ".bag";
+  // In memory (/dev/shm) where there is one: a disk file's write-back cost a fifth of the time.
+  static const std::string dir = access("/dev/shm", W_OK) == 0 ? "/dev/shm" : "/tmp";
+  static const std::string path = dir + "/fuzz_command_bag." + std::to_string(getpid()) + ".bag";
   std::FILE* f = std::fopen(path.c_str(), "wb");
   if (f == nullptr) return 0;
   std::fwrite(data, 1, size, f);

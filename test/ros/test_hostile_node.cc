@@ -4,18 +4,29 @@
 //    reaches its end time 0.1 s, /diagnostics counts the deferred reset and no failure;
 //  - nan/threshing_sim_node: NaN rates and a NaN contact value through dynamic_reconfigure are
 //    refused, the server keeps the last good values (so a later good request succeeds), and
-//    contact_state keeps its rate (it was published on every physics step).
+//    contact_state keeps its rate (it was published on every physics step);
+//  - failing_node: a scene beyond the work budget; the watchdog flags the busy physics step,
+//    /diagnostics reports ERROR with the typed cause, and the node answers ~reset and SIGINT.
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <dynamic_reconfigure/Reconfigure.h>
 #include <gtest/gtest.h>
+#include <ros/master.h>
+#include <ros/network.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
+#include <signal.h>
 #include <std_srvs/SetBool.h>
+#include <std_srvs/Trigger.h>
+#include <sys/types.h>
+#include <xmlrpcpp/XmlRpcClient.h>
+#include <xmlrpcpp/XmlRpcValue.h>
 
 #include <atomic>
 #include <cmath>
+#include <fstream>
 #include <map>
 #include <mutex>
+#include <set>
 #include <string>
 
 #include "threshing_sim/ContactStateArray.h"
@@ -25,6 +36,7 @@ namespace {
 std::mutex g_mutex;
 std::map<std::string, std::map<std::string, std::string>> g_diag;  // status name -> key -> value
 std::map<std::string, int> g_level;                                // status name -> level
+std::map<std::string, std::set<std::string>> g_messages;           // status name -> messages heard
 double g_clock_s = 0;
 std::atomic<long> g_contact_messages{0};
 
@@ -107,10 +119,75 @@ TEST(HostileNode, NanReconfigureIsRefusedAndTheServerKeepsTheLastGoodValues) {
       << diag("nan/threshing_sim_node", "refused reconfigure requests");
 }
 
+// ERROR summaries heard from a node, cut before their first ':' or '(' ("watchdog",
+// "integrator failed ").
+std::set<std::string> errorsOf(const std::string& node) {
+  std::set<std::string> out;
+  for (const auto& status : g_messages)
+    if (status.first.find(node) != std::string::npos)
+      out.insert(status.second.begin(), status.second.end());
+  return out;
+}
+
+// The process id of a ROS node, asked over its XML-RPC API (getPid); -1 if it does not answer.
+int pidOf(const std::string& node) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return -1;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue pid_args, pid_result;
+  pid_args[0] = ros::this_node::getName();
+  if (!client.execute("getPid", pid_args, pid_result) || pid_result.size() < 3) return -1;
+  return static_cast<int>(pid_result[2]);
+}
+
+// A process gone (or a zombie waiting for roslaunch to reap it).
+bool processEnded(int pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string pid_field, comm, state;
+  if (!(stat >> pid_field >> comm >> state)) return true;
+  return state == "Z" || state == "X";
+}
+
+TEST(HostileNode, NumericalFailureIsAnErrorWithItsCauseAndTheNodeStillAnswers) {
+  // The watchdog flags the physics step while it runs, then the typed cause is reported.
+  ASSERT_TRUE(waitFor([] { return errorsOf("failing_node").count("watchdog") > 0; }, 30.0));
+  ASSERT_TRUE(waitFor(
+      [] { return diag("failing_node", "failure").find("[work_budget]") != std::string::npos; },
+      30.0))
+      << diag("failing_node", "failure");
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    EXPECT_EQ(errorsOf("failing_node").count("integrator failed "), 1u);
+    EXPECT_EQ(diag("failing_node", "paused"), "True");
+    // The time of the state kept (inside the failed step), not the end of the failed step.
+    EXPECT_LT(std::stod(diag("failing_node", "simulation time [s]")), 1e-3);
+  }
+  // ~reset is answered (the run restarts and fails again at its first step, reported again).
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(ros::service::waitForService("/failing_node/reset", 10.0));
+  const ros::WallTime asked = ros::WallTime::now();
+  ASSERT_TRUE(ros::service::call("/failing_node/reset", reset));
+  EXPECT_LT((ros::WallTime::now() - asked).toSec(), 10.0);
+  // SIGINT ends it within seconds (before the work budget, it could only be killed).
+  const int pid = pidOf("/failing_node");
+  ASSERT_GT(pid, 0);
+  ASSERT_EQ(kill(pid, SIGINT), 0);
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(10.0);
+  while (!processEnded(pid) && ros::WallTime::now() < end) ros::WallDuration(0.05).sleep();
+  EXPECT_TRUE(processEnded(pid)) << "failing_node (pid " << pid << ") ignored SIGINT for 10 s";
+}
+
 void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
   std::lock_guard<std::mutex> lock(g_mutex);
   for (const auto& s : m->status) {
     g_level[s.name] = s.level;
+    if (s.level == diagnostic_msgs::DiagnosticStatus::ERROR)
+      g_messages[s.name].insert(s.message.substr(0, s.message.find_first_of(":(")));
     for (const auto& kv : s.values) g_diag[s.name][kv.key] = kv.value;
   }
 }

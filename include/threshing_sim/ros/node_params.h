@@ -26,6 +26,8 @@ struct NodeParams {
   double state_rate_hz = 50.0;           // kernel_states, beam_shape, tf [Hz]
   double marker_rate_hz = 30.0;          // markers [Hz]
   double status_period_s = 1.0;          // status line period, 0 = off [wall s]
+  double diagnostic_period_s = 1.0;      // /diagnostics period [wall s]
+  double watchdog_timeout_s = 5.0;       // a physics step running longer is an ERROR [wall s]
   double end_time_s = 0;                 // stop at this simulation time, 0 = never [s]
   double reset_period_s = 0;             // reset the bodies every ..., 0 = never [s]
   std::string command_bag;               // re-simulate the commands applied in this bag
