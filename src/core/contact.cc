@@ -1095,6 +1095,19 @@ double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, dou
   return h.force(seriesIndentation(h, delta), &d_x, &d_rate);
 }
 
+double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
+                                  double v_floor_mps) {
+  const double delta = std::max(-g.gap_m, 0.0);
+  const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
+  if (g.residual_mpN <= 0.0 || delta <= 0.0)
+    return K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
+  // Where the damping would pull, the series spring carries no force: x = delta.
+  const SeriesHertz h{K, chi, g.residual_mpN, -g.vn};
+  const double x = seriesIndentation(h, delta);
+  const double sq = std::sqrt(x);
+  return K * x * sq * (1.0 + chi * h.rate / (1.0 + h.r * 1.5 * K * sq));
+}
+
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
                                 double acc_n_mps2) {
   const double delta = -g.gap_m;

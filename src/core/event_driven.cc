@@ -482,7 +482,9 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
       if (rates) (*rates)[4 * i] = -g.vn;
       const double delta = std::max(-g.gap_m, 0.0);
       v[1] = g.residual_mpN > 0.0
-                 ? compliantNormalForce(g, mem.hertz_K, mem.v_in_mps, m.hc_min_impact_speed_mps)
+                 ? compliantNormalForceSigned(g, mem.hertz_K, mem.v_in_mps,
+                                              m.hc_min_impact_speed_mps) /
+                       std::max(1.0, mem.hertz_K * 1e-9)
                  : mem.hertz_K * delta * std::sqrt(delta) *
                        (1.0 - g.params->hc_damping_factor /
                                   std::max(mem.v_in_mps, m.hc_min_impact_speed_mps) * g.vn) /

@@ -452,6 +452,10 @@ bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Wo
 // (the quasi-static split of the approach between the two springs, F_e = K delta_e^{3/2}):
 //   F = K delta_e^{3/2} (1 + chi delta_e'),  solved for delta_e by a bracketed Newton iteration.
 double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps);
+// The same force before the no-adhesion clamp: negative where the damping would pull (the
+// event function of a compliant contact's release) [N].
+double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
+                                  double v_floor_mps);
 // Its time derivative [N/s] given the normal relative acceleration g_N'' [m/s^2] (implicit
 // differentiation of the relation above).
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,

@@ -346,6 +346,9 @@ void resetData(const Model& model, Data* data) {
   data->ws->ed_h = 0;
   // The free-tooth propagators are rebuilt for this model on first use.
   for (internal::ToothPropagator& prop : data->ws->ed_prop) prop.n_modes = -1;
+  // So are the residual tables of other drum speeds (an island slot reuses its workspace for
+  // other teeth: a table is valid only for the tooth it was built for).
+  data->ws->tooth_residual.clear();
   resetBodies(model, data);
   internal::resetAsync(data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
