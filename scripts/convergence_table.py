@@ -93,10 +93,13 @@ def run(simulate, args, extra, out_json):
             out_json.unlink(missing_ok=True)
             marker.write_text(f"ran past {TIME_LIMIT_S:.0f} s\n")
             return None
-        if proc.returncode != 0:
+        if proc.returncode == 2 or not out_json.is_file():
             raise RuntimeError(" ".join(cmd) + "\n" + proc.stderr)
     with open(out_json) as f:
-        return json.load(f)
+        summary = json.load(f)
+    if summary["status"] != "ok":
+        return {"failed": summary["status"].split(" [")[0].split(" at t =")[0]}
+    return summary
 
 
 def metrics(summary, kernel=None):
@@ -106,10 +109,46 @@ def metrics(summary, kernel=None):
     if kernel is None:
         kernel = max(range(len(per)), key=lambda i: per[i]["peak_normal_force_N"])
     v = summary["kernels"][kernel]["velocity_mps"]
+    speeds = [math.hypot(*k["velocity_mps"]) for k in summary["kernels"]]
     return {"fn": max(k["peak_normal_force_N"] for k in per),
             "ft": max(k["peak_tangential_force_N"] for k in per),
             "v": math.hypot(v[0], v[1]), "impacts": summary["impacts"],
-            "tip": summary["max_tip_deflection_ratio"], "kernel": kernel}
+            "tip": summary["max_tip_deflection_ratio"], "kernel": kernel,
+            "n_kernels": len(per), "stats": {"fn": mean_se([k["peak_normal_force_N"] for k in per]),
+                      "ft": mean_se([k["peak_tangential_force_N"] for k in per]),
+                      "v": mean_se(speeds)}}
+
+
+def mean_se(values):
+    """Mean and its standard error over the kernels."""
+    n = len(values)
+    mean = sum(values) / n
+    if n < 2:
+        return mean, 0.0
+    var = sum((x - mean) ** 2 for x in values) / (n - 1)
+    return mean, math.sqrt(var / n)
+
+
+CHAOTIC_KERNELS = 3  # scenes with more kernels are streams: judged by their kernel statistics
+
+
+def chaotic(rows):
+    return rows[0][1] is not None and "stats" in rows[0][1] and \
+        len_kernels(rows[0][1]) > CHAOTIC_KERNELS
+
+
+def len_kernels(m):
+    return m.get("n_kernels", 0)
+
+
+def stats_agree(a, b):
+    """Whether two levels' kernel means of peak normal, peak tangential force and exit speed
+    agree within twice their combined standard error; the largest such ratio."""
+    worst = 0.0
+    for k in ("fn", "ft", "v"):
+        (ma, sa), (mb, sb) = a["stats"][k], b["stats"][k]
+        worst = max(worst, abs(mb - ma) / max(math.hypot(sa, sb), 1e-12))
+    return worst <= 2.0, worst
 
 
 def rel(a, b):
@@ -131,8 +170,8 @@ def study(simulate, name, args, work):
     for level in levels_of(n):
         s = run(simulate, args, ["--set", f"teeth.*.modes={level}"] if level else [],
                 work / f"{name.replace('/', '_')}_{level}.json")
-        if s is None:
-            rows.append((level, None))
+        if s is None or "failed" in s:
+            rows.append((level, None if s is None else s))
             break
         m = metrics(s, kernel)
         kernel = m["kernel"]
@@ -160,52 +199,71 @@ def knead_before_after(simulate, work):
     return before, after
 
 
+def usable(m):
+    return m is not None and "failed" not in m
+
+
+def not_run_text(m):
+    return f"timed out (> {TIME_LIMIT_S:.0f} s)" if m is None else m["failed"]
+
+
 def change_cells(rows, i):
-    if i + 1 >= len(rows) or rows[i + 1][1] is None:
+    if i + 1 >= len(rows) or not usable(rows[i + 1][1]):
         return ["-", "-", "-"]
     a, b = rows[i][1], rows[i + 1][1]
     return [f"{100 * rel(a[k], b[k]):.2f} %" for k in ("fn", "ft", "v")]
 
 
 def verdict(rows):
-    if len(rows) >= 2 and rows[1][1] is None:
-        return f"timed out (> {TIME_LIMIT_S:.0f} s at {rows[1][0]} modes)"
+    """(short verdict, detail) of a scene: its first level against the next finer one."""
+    if not usable(rows[0][1]):
+        return "not run", not_run_text(rows[0][1])
     if len(rows) < 2:
-        return "rigid" if rows[0][0] == 0 else "at cap"
+        return ("rigid" if rows[0][0] == 0 else "at cap"), ""
+    if not usable(rows[1][1]):
+        return "finer level not run", f"{not_run_text(rows[1][1])} at {rows[1][0]} modes"
     a, b = rows[0][1], rows[1][1]
     worst = max(rel(a[k], b[k]) for k in ("fn", "ft", "v"))
-    return ("yes" if worst <= TARGET else "no") + f" ({100 * worst:.2f} %)"
+    if chaotic(rows):
+        agree, ratio = stats_agree(a, b)
+        return (("chaotic: means agree" if agree else "chaotic: means differ"),
+                f"largest change {ratio:.1f} standard errors; run maxima {100 * worst:.2f} %")
+    return ("yes" if worst <= TARGET else "no"), f"{100 * worst:.2f} %"
+
+
+def stats_cell(m):
+    return ", ".join(f"{m['stats'][k][0]:.3g} ± {m['stats'][k][1]:.2g}" for k in ("fn", "ft", "v"))
 
 
 def full_table(results):
     lines = ["| scene | modes | peak normal [N] | peak tangential [N] | exit speed [m/s] | "
-             "impacts | tip deflection / L | change to next level (N, T, v) |",
-             "|---|---|---|---|---|---|---|---|"]
+             "impacts | tip deflection / L | change to next level (N, T, v) | "
+             "kernel means ± s.e. (N, T, v) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for name, rows in results:
         for i, (level, m) in enumerate(rows):
-            if m is None:
-                lines.append(f"| | {level} | timed out (> {TIME_LIMIT_S:.0f} s) | | | | | |")
+            label = f"| {name if i == 0 else ''} | {level}{' (auto)' if i == 0 else ''} |"
+            if not usable(m):
+                lines.append(f"{label} {not_run_text(m)} | | | | | | |")
                 continue
             cells = change_cells(rows, i)
-            lines.append(f"| {name if i == 0 else ''} | {level}{' (auto)' if i == 0 else ''} | "
-                         f"{m['fn']:.4g} | {m['ft']:.4g} | {m['v']:.4g} | {m['impacts']} | "
-                         f"{m['tip']:.3f} | {', '.join(cells)} |")
+            stats = stats_cell(m) if chaotic(rows) else ""
+            lines.append(f"{label} {m['fn']:.4g} | {m['ft']:.4g} | {m['v']:.4g} | "
+                         f"{m['impacts']} | {m['tip']:.3f} | {', '.join(cells)} | {stats} |")
     return "\n".join(lines)
 
 
 def short_table(results):
-    lines = ["| scene | auto modes | peak N / T [N] | exit speed [m/s] | largest change to "
-             "next level | within 1 % | tip / L |", "|---|---|---|---|---|---|---|"]
+    lines = ["| scene | auto modes | peak N / T [N] | exit speed [m/s] | change to next level | "
+             "within 1 % | tip / L |", "|---|---|---|---|---|---|---|"]
     for name, rows in results:
         level, m = rows[0]
-        if len(rows) > 1 and rows[1][1] is not None:
-            b = rows[1][1]
-            worst = f"{100 * max(rel(m[k], b[k]) for k in ('fn', 'ft', 'v')):.2f} %"
-        else:
-            worst = "-"
-        ok = verdict(rows).split(" (")[0]
+        short, detail = verdict(rows)
+        if not usable(m):
+            lines.append(f"| {name} | {level} | - | - | {detail} | {short} | - |")
+            continue
         lines.append(f"| {name} | {level} | {m['fn']:.3g} / {m['ft']:.3g} | {m['v']:.3g} | "
-                     f"{worst} | {ok} | {m['tip']:.3f} |")
+                     f"{detail or '-'} | {short} | {m['tip']:.3f} |")
     return "\n".join(lines)
 
 
@@ -220,13 +278,22 @@ def knead_text(before, after):
             f"finer levels): {a}; change from the chosen level to the next: {change}.")
 
 
-def write_docs(results, before, after, out_md, readme):
+def summary_text(results):
     flexible = [rows for _, rows in results if rows[0][0] > 0]
-    n_ok = sum(1 for rows in flexible if verdict(rows).startswith("yes"))
-    summary = (f"{n_ok} of {len(flexible)} scenes with flexible teeth meet it (rigid teeth have "
-               "no modes to converge).")
+    single = [rows for rows in flexible if not chaotic(rows)]
+    streams = [rows for rows in flexible if chaotic(rows)]
+    n_ok = sum(1 for rows in single if verdict(rows)[0] == "yes")
+    n_agree = sum(1 for rows in streams if verdict(rows)[0] == "chaotic: means agree")
+    return (f"{n_ok} of {len(single)} scenes with flexible teeth and at most "
+            f"{CHAOTIC_KERNELS} kernels meet the 1 % target (rigid teeth have no modes to "
+            f"converge). Of the {len(streams)} streams (chaotic, judged by their kernel means), "
+            f"{n_agree} agree between the levels within two standard errors.")
+
+
+def write_docs(results, before, after, out_md, readme):
+    summary = summary_text(results)
     limit = (f" A level whose run took longer than {TIME_LIMIT_S:.0f} s is reported as timed out "
-             "(`--time-limit`).")
+             "(`--time-limit`); one that failed (the work budget) is reported with its status.")
     body = [
         "# Mode convergence of the tooth forces",
         "",
@@ -242,13 +309,29 @@ def write_docs(results, before, after, out_md, readme):
         "",
         summary,
         "",
-        "Where it is missed: the tangential peaks of the nylon and polyurethane strikes, which "
-        "fall at a stick-slip transition and depend on the tooth's slope compliance; the static "
-        "correction covers only the normal direction (README \"Converged tooth forces\"), so "
-        "the slope part converges like 1/n through the modes alone. The streams (many kernels "
-        "meeting several teeth) are chaotic: a small change early on (a kernel caught a little "
-        "earlier) leads to different later collisions, so their peaks need not converge "
-        "run by run; their statistics do not enter this table.",
+        "**What a converged stream is.** A stream (more than "
+        f"{CHAOTIC_KERNELS} kernels meeting several teeth) is chaotic: a change in the last "
+        "digits early on (a kernel caught a microsecond earlier) leads to other later "
+        "collisions, so the largest force of one run is a sample, not a converged number, at "
+        "any mode count or tolerance. What a designer can rely on is the distribution over "
+        "kernels: the table gives, for the streams, the mean over the run's kernels of the "
+        "peak normal and tangential tooth force and of the exit speed, with its standard "
+        "error, and a stream counts as converged in modes when the means of two levels differ "
+        "by at most two standard errors. That is a statistical statement at the run's sample "
+        "size (10 kernels), much weaker than the 1 % of the single strikes; the run maxima and "
+        "their changes are listed too, and are not converged.",
+        "",
+        "**Where the 1 % is missed.** The normal forces and exit speeds converge in every "
+        "single-kernel scene: the static correction puts the truncated modes' normal "
+        "compliance in series with the contact. The tangential peaks that miss it are stick "
+        "forces: while the kernel sticks, the friction force is a multiplier set by the "
+        "tooth surface point's tangential motion, which the friction couple (d/2) F_T drives "
+        "through the slope w'. An Euler-Bernoulli tooth has no rotary inertia, so each added "
+        "mode makes the surface point more mobile tangentially and the stick force moves "
+        "slowly with n (about 1/n). The static correction of the slope (the tabulated w' terms) "
+        "would need a spring in series with the sticking contact, i.e. a tangential elastic "
+        "state per contact in both integrators; it is not implemented (README \"Converged tooth "
+        "forces\"), so these rows stay unconverged and are shown as such.",
         "",
         knead_text(before, after),
         "",
@@ -262,8 +345,8 @@ def write_docs(results, before, after, out_md, readme):
     start, end = "<!-- convergence -->", "<!-- convergence-end -->"
     if start not in text or end not in text:
         raise SystemExit(f"README has no {start} ... {end} section")
-    section = "\n".join([start, "", summary + " Details, all levels and why the others miss "
-                         "it: [docs/convergence.md](docs/convergence.md). " +
+    section = "\n".join([start, "", summary + " Details, all levels and why some miss it: "
+                         "[docs/convergence.md](docs/convergence.md). " +
                          knead_text(before, after), "", short_table(results), "", end])
     head, rest = text.split(start, 1)
     readme.write_text(head + section + rest.split(end, 1)[1])
@@ -292,9 +375,9 @@ def main():
         results = [f.result() for f in futures]
         before, after = knead.result()
     for name, rows in results:
-        print(f"{name}: {verdict(rows)}  " +
+        print(f"{name}: {' '.join(verdict(rows))}  " +
               "  ".join(f"{n}: N {m['fn']:.4g} T {m['ft']:.4g} v {m['v']:.4g}" for n, m in rows
-                        if m is not None))
+                        if usable(m)))
     print(knead_text(before, after))
     write_docs(results, before, after, a.out, None if a.quick else ROOT / "README.md")
 
