@@ -355,9 +355,9 @@ def write_docs(results, before, after, out_md, readme):
         "size (10 kernels), much weaker than the 1 % of the single strikes; the run maxima and "
         "their changes are listed too, and are not converged.",
         "",
-        "**Where the 1 % is missed.** The normal forces and exit speeds converge in every "
-        "single-kernel scene: the static correction puts the truncated modes' normal "
-        "compliance in series with the contact. The tangential peaks that miss it are stick "
+        "**Where the 1 % is missed.** The normal forces and exit speeds of the single strikes "
+        "converge: the static correction puts the truncated modes' normal compliance in "
+        "series with the contact (a knead row that changes branch is explained below). The tangential peaks that miss it are stick "
         "forces: while the kernel sticks, the friction force is a multiplier set by the "
         "tooth surface point's tangential motion, which the friction couple (d/2) F_T drives "
         "through the slope w'. An Euler-Bernoulli tooth has no rotary inertia, so each added "

@@ -690,7 +690,11 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
             xb = xn;
             hb = slopeAt(xb, &pb);
           }
-          if (!converged) continue;
+          // A warm point that says the bodies are apart is checked by the polyline search,
+          // which decides for separated pairs: the secant can settle on another stationary
+          // point of the distance than the closest one (a kernel near the round tip), and a
+          // pair that separates there would touch again at once (an endless impact chatter).
+          if (!converged || pb.distance_m > r_t) continue;
           from_warm = true;
           g->tooth_x_m = xb;
           best = pb;
