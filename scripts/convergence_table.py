@@ -357,7 +357,7 @@ def write_docs(results, before, after, out_md, readme):
         "",
         "**Where the 1 % is missed.** The normal forces and exit speeds of the single strikes "
         "converge: the static correction puts the truncated modes' normal compliance in "
-        "series with the contact (a knead row that changes branch is explained below). The tangential peaks that miss it are stick "
+        "series with the contact. The tangential peaks that miss it are stick "
         "forces: while the kernel sticks, the friction force is a multiplier set by the "
         "tooth surface point's tangential motion, which the friction couple (d/2) F_T drives "
         "through the slope w'. An Euler-Bernoulli tooth has no rotary inertia, so each added "
@@ -366,14 +366,6 @@ def write_docs(results, before, after, out_md, readme):
         "would need a spring in series with the sticking contact, i.e. a tangential elastic "
         "state per contact in both integrators; it is not implemented (README \"Converged tooth "
         "forces\"), so these rows stay unconverged and are shown as such.",
-        "",
-        "**The knead scenes branch.** In `config/scenes/knead.yaml` the tooth, after squeezing "
-        "the kernel over the bar, springs back and grazes it again (about 1.2 ms, approach "
-        "speeds from 0.3 m/s down to 1 mm/s). Whether that grazing contact catches the kernel "
-        "(a second, harder squeeze) or misses it changes with any perturbation: the mode "
-        "count, the tolerance, the island scheme, with or without the static correction. A "
-        "row whose levels fall on different branches (a jump of tens of percent in the peak "
-        "normal force) shows that bifurcation, not a slow convergence in modes.",
         "",
         knead_text(before, after),
         "",

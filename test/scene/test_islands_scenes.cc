@@ -64,16 +64,7 @@ const Case kCases[] = {
     {"bench/stream.yaml", ""},
     {"default_scene.yaml", ""},
     {"scenes/single_strike.yaml", ""},
-    // The nylon knead to the end of the squeeze over the bar (1.2 ms): at 1.23 ms the tooth
-    // springs back and grazes the kernel again (approach speeds of 0.3 m/s down to 1 mm/s, a
-    // chatter of impacts), a grazing bifurcation whose branch (202 N or 282 N) and impact count
-    // change with any perturbation, the mode count and the tolerance included
-    // (docs/convergence.md).
-    // At the scene's tolerance (1e-6) the island scheme's kernel spin differs from the global
-    // one by 2.5e-5 (relative, twice the bound), with or without the static correction; at
-    // 1e-7 and 1e-8 the two agree to 2e-6 and 2e-8: an accuracy that follows the tolerance
-    // (compared at 1e-8).
-    {"scenes/knead.yaml", "0.0012", "integrator.tolerance=1e-8"},
+    {"scenes/knead.yaml", ""},
 };
 
 std::vector<std::string> settings(const Case& c, const char* integrator, bool islands,
