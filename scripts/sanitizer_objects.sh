@@ -21,7 +21,8 @@ for p in clang-14 libclang-rt-14-dev; do
 done
 [ -d "$ROOT/.build/ws/devel/include/threshing_sim" ] || bash "$ROOT/scripts/setup.sh"
 san_stale() {  # object source: true if the object must be rebuilt
-  [ ! -f "$1" ] || [ -n "$(find "$2" "$ROOT/include" "$ROOT/src/core/internal.h" "$ROOT/src/core/async" -newer "$1" | head -1)" ]
+  [ ! -f "$1" ] || [ -n "$(find "$2" -newer "$1")" ] ||
+    [ -n "$(find "$ROOT/include" "$ROOT/src/core" -name '*.h' -newer "$1" | head -1)" ]
 }
 san_jobs=()
 SAN_LIB_OBJS=()

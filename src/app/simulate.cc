@@ -85,11 +85,95 @@ struct Options {
 // ---------------------------------------------------------------------------------------------
 // Command line.
 
+// --sample-interval: a number > 0 [s].
+double parseSampleInterval(const std::string& text) {
+  size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::logic_error&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size() || !(value > 0) || !std::isfinite(value))
+    throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
+  return value;
+}
+
+// --trace-every: an integer >= 1.
+int parseTraceEvery(const std::string& text) {
+  size_t used = 0;
+  int value = 0;
+  try {
+    value = std::stoi(text, &used);
+  } catch (const std::logic_error&) {
+    used = 0;
+  }
+  if (text.empty() || used != text.size() || value < 1)
+    throw UsageError("--trace-every expects an integer >= 1 (got '" + text + "')");
+  return value;
+}
+
+// The sugar options, turned into overrides after every --set.
+struct Sugar {
+  std::optional<std::string> duration, integrator, dt, tolerance;
+};
+
+// One command-line option: its name, whether it takes a value, and what it sets.
+struct OptionSpec {
+  const char* name;
+  bool takes_value;
+  void (*apply)(const std::string& value, Options* options, Sugar* sugar);
+};
+
+const OptionSpec kOptionSpecs[] = {
+    {"--duration", true, [](const std::string& v, Options*, Sugar* s) { s->duration = v; }},
+    {"--integrator", true, [](const std::string& v, Options*, Sugar* s) { s->integrator = v; }},
+    {"--dt", true, [](const std::string& v, Options*, Sugar* s) { s->dt = v; }},
+    {"--tolerance", true, [](const std::string& v, Options*, Sugar* s) { s->tolerance = v; }},
+    {"--set", true, [](const std::string& v, Options* o, Sugar*) { o->overrides.push_back(v); }},
+    {"--set-file", true,
+     [](const std::string& v, Options* o, Sugar*) { o->set_files.push_back(v); }},
+    {"--summary", true, [](const std::string& v, Options* o, Sugar*) { o->summary_path = v; }},
+    {"--trace", true, [](const std::string& v, Options* o, Sugar*) { o->trace_path = v; }},
+    {"--events", true, [](const std::string& v, Options* o, Sugar*) { o->events_path = v; }},
+    {"--outcomes", true, [](const std::string& v, Options* o, Sugar*) { o->outcomes_path = v; }},
+    {"--forces", true, [](const std::string& v, Options* o, Sugar*) { o->forces_path = v; }},
+    {"--sample-interval", true,
+     [](const std::string& v, Options* o, Sugar*) {
+       o->sample_interval_s = parseSampleInterval(v);
+     }},
+    {"--trace-every", true,
+     [](const std::string& v, Options* o, Sugar*) { o->trace_every = parseTraceEvery(v); }},
+    {"--modes", false, [](const std::string&, Options* o, Sugar*) { o->modes = true; }},
+    {"--check", false, [](const std::string&, Options* o, Sugar*) { o->check = true; }},
+    {"--check-batch", true,
+     [](const std::string& v, Options* o, Sugar*) { o->check_batch_path = v; }},
+    {"--quiet", false, [](const std::string&, Options* o, Sugar*) { o->quiet = true; }},
+    {"--print-schema", false,
+     [](const std::string&, Options* o, Sugar*) { o->print_schema = true; }},
+    {"--help", false, [](const std::string&, Options* o, Sugar*) { o->help = true; }},
+    {"-h", false, [](const std::string&, Options* o, Sugar*) { o->help = true; }},
+};
+
+const OptionSpec* findOption(const std::string& name) {
+  for (const OptionSpec& spec : kOptionSpecs)
+    if (name == spec.name) return &spec;
+  return nullptr;
+}
+
+// A scene path: the first argument that is not an option.
+void takeScenePath(const std::string& arg, Options* options) {
+  if (arg.rfind("-", 0) == 0) throw UsageError("unknown option '" + arg + "'");
+  if (!options->scene_path.empty())
+    throw UsageError("more than one scene file ('" + options->scene_path + "', '" + arg + "')");
+  options->scene_path = arg;
+}
+
 // Accepts "--name value" and "--name=value"; the sugar options become overrides applied after
 // every --set.
 Options parseOptions(int argc, char** argv) {
   Options options;
-  std::optional<std::string> duration, integrator, dt, tolerance;
+  Sugar sugar;
   for (int i = 1; i < argc; ++i) {
     std::string arg = argv[i];
     std::optional<std::string> inline_value;
@@ -98,91 +182,27 @@ Options parseOptions(int argc, char** argv) {
       inline_value = arg.substr(equals + 1);
       arg = arg.substr(0, equals);
     }
-    const auto value = [&]() -> std::string {
-      if (inline_value) return *inline_value;
-      if (i + 1 >= argc) throw UsageError("option " + arg + " needs a value");
-      return argv[++i];
-    };
-    const auto flag = [&]() {
-      if (inline_value) throw UsageError("option " + arg + " takes no value");
-      return true;
-    };
-
-    if (arg == "--duration") {
-      duration = value();
-    } else if (arg == "--integrator") {
-      integrator = value();
-    } else if (arg == "--dt") {
-      dt = value();
-    } else if (arg == "--tolerance") {
-      tolerance = value();
-    } else if (arg == "--set") {
-      options.overrides.push_back(value());
-    } else if (arg == "--set-file") {
-      options.set_files.push_back(value());
-    } else if (arg == "--summary") {
-      options.summary_path = value();
-    } else if (arg == "--trace") {
-      options.trace_path = value();
-    } else if (arg == "--events") {
-      options.events_path = value();
-    } else if (arg == "--outcomes") {
-      options.outcomes_path = value();
-    } else if (arg == "--forces") {
-      options.forces_path = value();
-    } else if (arg == "--sample-interval") {
-      const std::string text = value();
-      size_t used = 0;
-      try {
-        options.sample_interval_s = std::stod(text, &used);
-      } catch (const std::logic_error&) {
-        used = 0;
-      }
-      if (text.empty() || used != text.size() || !(options.sample_interval_s > 0) ||
-          !std::isfinite(options.sample_interval_s)) {
-        throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
-      }
-    } else if (arg == "--trace-every") {
-      const std::string text = value();
-      size_t used = 0;
-      try {
-        options.trace_every = std::stoi(text, &used);
-      } catch (const std::logic_error&) {
-        used = 0;
-      }
-      if (text.empty() || used != text.size() || options.trace_every < 1) {
-        throw UsageError("--trace-every expects an integer >= 1 (got '" + text + "')");
-      }
-    } else if (arg == "--modes") {
-      options.modes = flag();
-    } else if (arg == "--check") {
-      options.check = flag();
-    } else if (arg == "--check-batch") {
-      options.check_batch_path = value();
-    } else if (arg == "--quiet") {
-      options.quiet = flag();
-    } else if (arg == "--print-schema") {
-      options.print_schema = flag();
-    } else if (arg == "--help" || arg == "-h") {
-      options.help = flag();
-    } else if (arg.rfind("-", 0) == 0) {
-      throw UsageError("unknown option '" + arg + "'");
-    } else if (options.scene_path.empty()) {
-      options.scene_path = arg;
-    } else {
-      throw UsageError("more than one scene file ('" + options.scene_path + "', '" + arg + "')");
+    const OptionSpec* spec = findOption(arg);
+    if (spec == nullptr) {
+      takeScenePath(arg, &options);
+      continue;
     }
+    if (!spec->takes_value && inline_value) throw UsageError("option " + arg + " takes no value");
+    if (spec->takes_value && !inline_value && i + 1 >= argc)
+      throw UsageError("option " + arg + " needs a value");
+    spec->apply(!spec->takes_value ? std::string()
+                : inline_value     ? *inline_value
+                                   : argv[++i],
+                &options, &sugar);
   }
   if (options.scene_path.empty() && !options.help && !options.print_schema &&
       options.check_batch_path.empty()) {
     throw UsageError("no scene file given");
   }
-
-  // Sugar options, after the --set ones.
-  if (duration) options.overrides.push_back("duration=" + *duration);
-  if (integrator) options.overrides.push_back("integrator.type=" + *integrator);
-  if (dt) options.overrides.push_back("integrator.dt=" + *dt);
-  if (tolerance) options.overrides.push_back("integrator.tolerance=" + *tolerance);
+  if (sugar.duration) options.overrides.push_back("duration=" + *sugar.duration);
+  if (sugar.integrator) options.overrides.push_back("integrator.type=" + *sugar.integrator);
+  if (sugar.dt) options.overrides.push_back("integrator.dt=" + *sugar.dt);
+  if (sugar.tolerance) options.overrides.push_back("integrator.tolerance=" + *sugar.tolerance);
   return options;
 }
 
@@ -317,91 +337,112 @@ std::string checkResult(const Model& model, const Data& data, double energy_fina
 
 // Steps to the duration chunk by chunk, writing trace rows, draining events and sampling
 // contacts as it goes. Returns the exit status.
-int run(const Model& model, const DamageThresholds& damage, const Options& options) {
-  // Outputs first, so that a bad path fails before the run.
-  std::ofstream summary, trace, events, outcomes_csv, forces;
-  openOutput(options.summary_path, "--summary", &summary);
-  openOutput(options.trace_path, "--trace", &trace);
-  openOutput(options.events_path, "--events", &events);
-  openOutput(options.outcomes_path, "--outcomes", &outcomes_csv);
-  openOutput(options.forces_path, "--forces", &forces);
-
-  // Initial state and file headers.
-  Data data;
-  resetData(model, &data);
-  if (trace.is_open()) {
-    writeTraceHeader(trace, model);
-    writeTraceRow(trace, model, data);
+// The run's output files, opened before the run so that a bad path fails first.
+struct RunFiles {
+  std::ofstream summary, trace, events, outcomes, forces;
+  explicit RunFiles(const Options& o) {
+    openOutput(o.summary_path, "--summary", &summary);
+    openOutput(o.trace_path, "--trace", &trace);
+    openOutput(o.events_path, "--events", &events);
+    openOutput(o.outcomes_path, "--outcomes", &outcomes);
+    openOutput(o.forces_path, "--forces", &forces);
   }
-  if (events.is_open()) writeEventsHeader(events);
-  if (forces.is_open()) writeForcesHeader(forces);
-  OutcomeTracker tracker(model, damage);
-  // Time stepping lands on whole steps: never sample more finely than one step.
-  const double min_interval_s =
-      model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s : 0.0;
-  const double sample_interval_s = std::max(options.sample_interval_s, min_interval_s);
+  void checkAllWritten(const Options& o) {
+    checkWritten(o.summary_path, "--summary", &summary);
+    checkWritten(o.trace_path, "--trace", &trace);
+    checkWritten(o.events_path, "--events", &events);
+    checkWritten(o.outcomes_path, "--outcomes", &outcomes);
+    checkWritten(o.forces_path, "--forces", &forces);
+  }
+};
 
-  // Chunks of kChunk_s; the last one lands exactly on the duration. Wall time counts only the
-  // time spent inside advanceTo.
-  const long n_chunks = std::max(1L, std::lround(std::ceil(model.duration_s / kChunk_s - 1e-9)));
-  std::chrono::steady_clock::duration stepping_time{0};
-  Progress progress(options.quiet);
+// A run between its chunks.
+struct Run {
+  Data data;
+  OutcomeTracker tracker;
+  double min_interval_s = 0;     // time stepping never samples below one step [s]
+  double sample_interval_s = 0;  // force sampling near contacts [s]
+  std::chrono::steady_clock::duration stepping_time{0};  // wall time inside advanceTo
   std::string status = "ok";
   bool failed = false;
-  for (long chunk = 1; chunk <= n_chunks && !failed; ++chunk) {
-    const double t_chunk_s = chunk == n_chunks ? model.duration_s : chunk * kChunk_s;
-    // Sampling intervals within the chunk; the last one lands on the chunk's end.
-    for (bool last = false; !last && !failed;) {
-      const double interval_s = forces.is_open() && nearContact(data)
-                                    ? sample_interval_s
-                                    : std::max(coarseInterval(model, data), min_interval_s);
-      const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
-      last = t_next_s >= t_chunk_s;
-      const auto started = std::chrono::steady_clock::now();
-      const StepStatus step_status = advanceTo(model, &data, t_next_s);
-      stepping_time += std::chrono::steady_clock::now() - started;
+  Run(const Model& model, const DamageThresholds& damage) : tracker(model, damage) {}
+};
 
-      // Events and contact samples of this interval.
-      if (events.is_open()) writeEventRows(events, data.events);
-      tracker.addEvents(data.events);
-      data.events.clear();
-      if (step_status == StepStatus::kFailed) {
-        status = "failed: " + describe(data.stats.failure);
-        failed = true;
-        break;
-      }
-      tracker.sample(data);
-      if (forces.is_open()) writeForceRows(forces, data);
+// Advances the run to t_chunk_s in sampling intervals (the last one lands on t_chunk_s),
+// writing events and force samples; stops on a failure.
+void advanceChunk(const Model& model, double t_chunk_s, RunFiles* files, Run* run) {
+  Data& data = run->data;
+  for (bool last = false; !last;) {
+    const double interval_s = files->forces.is_open() && nearContact(data)
+                                  ? run->sample_interval_s
+                                  : std::max(coarseInterval(model, data), run->min_interval_s);
+    const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
+    last = t_next_s >= t_chunk_s;
+    const auto started = std::chrono::steady_clock::now();
+    const StepStatus step_status = advanceTo(model, &data, t_next_s);
+    run->stepping_time += std::chrono::steady_clock::now() - started;
+    // Events and contact samples of this interval.
+    if (files->events.is_open()) writeEventRows(files->events, data.events);
+    run->tracker.addEvents(data.events);
+    data.events.clear();
+    if (step_status == StepStatus::kFailed) {
+      run->status = "failed: " + describe(data.stats.failure);
+      run->failed = true;
+      return;
     }
-    if (failed) break;
-    if (trace.is_open() && (chunk % options.trace_every == 0 || chunk == n_chunks)) {
-      writeTraceRow(trace, model, data);
-    }
-    progress.update(data, model.duration_s);
+    run->tracker.sample(data);
+    if (files->forces.is_open()) writeForceRows(files->forces, data);
+  }
+}
+
+// The summary, the outcomes and the printed report of a finished (or failed) run.
+void reportRun(const Model& model, const DamageThresholds& damage, const Options& options,
+               RunFiles* files, Run* run) {
+  const double wall_time_s = std::chrono::duration<double>(run->stepping_time).count();
+  const double energy_final_J = mechanicalEnergy(model, run->data);
+  if (!run->failed) run->status = checkResult(model, run->data, energy_final_J, &run->failed);
+  OutcomeReport report;
+  report.kernels = run->tracker.outcomes(run->data);
+  report.thresholds = damage;
+  report.sample_interval_s = run->sample_interval_s;
+  if (files->summary.is_open()) {
+    writeSummaryJson(files->summary, model, run->data, run->status, wall_time_s, energy_final_J,
+                     &report);
+  }
+  if (files->outcomes.is_open()) writeOutcomesCsv(files->outcomes, report.kernels);
+  if (!options.quiet) {
+    printSummary(std::cout, model, run->data, run->status, wall_time_s, energy_final_J, &report);
+  }
+}
+
+int run(const Model& model, const DamageThresholds& damage, const Options& options) {
+  RunFiles files(options);
+  // Initial state and file headers.
+  Run run(model, damage);
+  resetData(model, &run.data);
+  if (files.trace.is_open()) {
+    writeTraceHeader(files.trace, model);
+    writeTraceRow(files.trace, model, run.data);
+  }
+  if (files.events.is_open()) writeEventsHeader(files.events);
+  if (files.forces.is_open()) writeForcesHeader(files.forces);
+  run.min_interval_s =
+      model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s : 0.0;
+  run.sample_interval_s = std::max(options.sample_interval_s, run.min_interval_s);
+  // Chunks of kChunk_s; the last one lands exactly on the duration.
+  const long n_chunks = std::max(1L, std::lround(std::ceil(model.duration_s / kChunk_s - 1e-9)));
+  Progress progress(options.quiet);
+  for (long chunk = 1; chunk <= n_chunks && !run.failed; ++chunk) {
+    advanceChunk(model, chunk == n_chunks ? model.duration_s : chunk * kChunk_s, &files, &run);
+    if (run.failed) break;
+    if (files.trace.is_open() && (chunk % options.trace_every == 0 || chunk == n_chunks))
+      writeTraceRow(files.trace, model, run.data);
+    progress.update(run.data, model.duration_s);
   }
   progress.finish();
-
-  // Summary and outcomes.
-  const double wall_time_s = std::chrono::duration<double>(stepping_time).count();
-  const double energy_final_J = mechanicalEnergy(model, data);
-  if (!failed) status = checkResult(model, data, energy_final_J, &failed);
-  OutcomeReport report;
-  report.kernels = tracker.outcomes(data);
-  report.thresholds = damage;
-  report.sample_interval_s = sample_interval_s;
-  if (summary.is_open()) {
-    writeSummaryJson(summary, model, data, status, wall_time_s, energy_final_J, &report);
-  }
-  if (outcomes_csv.is_open()) writeOutcomesCsv(outcomes_csv, report.kernels);
-  if (!options.quiet) {
-    printSummary(std::cout, model, data, status, wall_time_s, energy_final_J, &report);
-  }
-  checkWritten(options.summary_path, "--summary", &summary);
-  checkWritten(options.trace_path, "--trace", &trace);
-  checkWritten(options.events_path, "--events", &events);
-  checkWritten(options.outcomes_path, "--outcomes", &outcomes_csv);
-  checkWritten(options.forces_path, "--forces", &forces);
-  return failed ? 1 : 0;
+  reportRun(model, damage, options, &files, &run);
+  files.checkAllWritten(options);
+  return run.failed ? 1 : 0;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1196,6 +1196,18 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
   }
 }
 
+void freeAcceleration(const Model& m, const VecX& f, VecX* a) {
+  a->resize(m.n_dof);
+  for (const ToothModel& tm : m.teeth)
+    for (int i = 0; i < tm.n_modes; ++i) (*a)[tm.dof_offset + i] = 0.0 + f[tm.dof_offset + i];
+  for (const KernelModel& km : m.kernels) {
+    const int o = km.dof_offset;
+    (*a)[o] = 0.0 + f[o] / km.mass_kg;
+    (*a)[o + 1] = 0.0 + f[o + 1] / km.mass_kg;
+    (*a)[o + 2] = 0.0 + f[o + 2] / km.inertia_kgm2;
+  }
+}
+
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2) {
   const int T = static_cast<int>(m.teeth.size());

@@ -332,18 +332,7 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
     nc += ws.rows[i].normal_unknown ? 1 : 0;
     nc += (ws.rows[i].slip_sign == 0 && ws.rows[i].mu > 0) ? 1 : 0;
   }
-  // Free accelerations a = Minv f (mass-normalised modes; kernels diag(1/m, 1/m, 1/J)), with
-  // the operations of applyInverseMass on a zero vector.
-  ws.du.resize(m.n_dof);
-  for (const ToothModel& tm : m.teeth)
-    for (int i = 0; i < tm.n_modes; ++i)
-      ws.du[tm.dof_offset + i] = 0.0 + ws.forces[tm.dof_offset + i];
-  for (const KernelModel& km : m.kernels) {
-    const int o = km.dof_offset;
-    ws.du[o] = 0.0 + ws.forces[o] / km.mass_kg;
-    ws.du[o + 1] = 0.0 + ws.forces[o + 1] / km.mass_kg;
-    ws.du[o + 2] = 0.0 + ws.forces[o + 2] / km.inertia_kgm2;
-  }
+  freeAcceleration(m, ws.forces, &ws.du);
   // Known contact forces, into the free acceleration.
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
@@ -1178,24 +1167,50 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
   *h_take = hi;
   return at_hi;
 }
-}  // namespace
+// ---------------------------------------------------------------------------------------------
+// The step's stages (eventDrivenStep below calls them in order).
 
-StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
-  Workspace& ws = *d->ws;
-  Ctx c{m, *d, ws};
-  const int n = m.n_dof;
+// What one event-driven step carries from stage to stage.
+struct StepPlan {
+  double t_end_s = 0;         // the advanceTo call's target time [s]
+  double margin_m = 0;        // broad-phase margin: the step cannot outrun it [m]
+  double h_s = 0;             // trial step length, then the accepted one [s]
+  double h_wanted_s = 0;      // the step-size proposal before truncation at t_end [s]
+  bool truncated = false;     // h_s was cut short to land on t_end_s
+  bool rejected = false;      // some trial step was rejected
+  double h_next_s = 0;        // the step-size law's proposal for the next step [s]
+  bool peaks_on = false;      // compliant force peaks are located over this step
+  bool event = false;         // an event function fired over the step
+  double h_take_s = 0;        // the step taken: h_s, or the located event [s]
+  double h_fired_s = 0;       // a step length at whose end an event is known to have fired [s]
+  bool end_evaluated = true;  // the last rhs() call was at the step's end state
+};
+
+// Whether any armed function fired at values b (ws.ed_arm, start values ws.ed_ev0); function
+// `deep` (if given) only counts when it went below -depth.
+bool anyFired(const Workspace& ws, const std::vector<double>& b, size_t deep = SIZE_MAX,
+              double depth = 0) {
+  if (b.size() != ws.ed_ev0.size()) return false;
+  for (size_t i = 0; i < b.size(); ++i)
+    if (armFires(static_cast<Arm>(ws.ed_arm[i]), i == deep ? b[i] + depth : b[i], ws.ed_ev0[i]))
+      return true;
+  return false;
+}
+
+// Stage 1: the candidate pairs for this step, by the broad phase with a margin the step cannot
+// outrun; contacts that left the candidate set are separated (their episodes end).
+void prepareCandidates(const Ctx& c, StepPlan* plan) {
+  const Model& m = c.m;
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
   // A time step since the last event-driven one rewrote the geometry and forces.
   if (ws.ts_in_contact_step != -2) ws.ed_memo.valid = false;
   ws.ts_in_contact_step = -2;  // time stepping's list of pairs in contact is stale from here
-
-  // Candidate pairs for this step: broad phase with a margin the step cannot outrun.
-  const double v_bound = motionBound(c);
-  const double margin = std::max(m.broadphase_margin_m, 1e-6);
+  plan->margin_m = std::max(m.broadphase_margin_m, 1e-6);
   // (Stations only of the teeth that a kernel can reach: evaluateAll computes what it needs.)
   layoutStations(m, &ws);
-  broadPhase(m, d->z, 2.0 * margin, &ws, &d->theta_rad);
+  broadPhase(m, d->z, 2.0 * plan->margin_m, &ws, &d->theta_rad);
   for (const PairId& p : ws.candidates) ws.memory[pairKey(p)];
-  // Contacts that left the candidate set are separated.
   for (auto& kv : ws.memory) kv.second.seen = false;
   for (const PairId& p : ws.candidates) ws.memory[pairKey(p)].seen = true;
   for (auto& kv : ws.memory) {
@@ -1208,208 +1223,245 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
     g.params = &m.contact[static_cast<int>(g.pair.kind)];
     endEpisode(m, d, &mem, g, d->t_s, mechanicalEnergy(m, *d) - d->stats.drive_work_J);
   }
+}
 
-  // Pairs that are touching at the start of the step without being in contact (a scene that
-  // starts at rest on a plate, a reset, a contact closed by the previous event): an initial
-  // contact now, unless they are separating.
-  {
-    const Drive dr0 = driveAtTime(c, d->t_s);
-    // (The last step's end, evaluated by its statistics, is this state.)
-    if (!rhsMemoHit(c, dr0, d->z, d->u, SeparatedPairs::kNear, 0.0))
-      evaluateAll(c, d->z, d->u, dr0);
-    bool rigid_touch = false, any_touch = false;
-    double e_net = kInf;  // energy minus drive work, computed when a contact begins
-    for (size_t i = 0; i < ws.geoms.size(); ++i) {
-      const ContactGeom& g = ws.geoms[i];
-      PairMemory& mem = ws.memory[pairKey(g.pair)];
-      if (isActive(mem) || g.far || g.gap_m > 0.0 || g.vn > 0.0) continue;
-      any_touch = true;
-      if (g.params->law == ContactLaw::kRigid) {
-        rigid_touch = true;
-      } else {
-        if (e_net == kInf) e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
-        mem.v_in_mps = -g.vn;
-        mem.hertz_K = g.hertz_K;
-        beginEpisode(m, d, &mem, g, d->t_s, e_net);
-        mem.state = ContactState::kImpact;
-        mem.slip_sign = 0;
-        emitTransition(d, g.pair, ContactState::kSeparated, ContactState::kImpact, d->t_s, g);
-      }
-    }
-    if (rigid_touch) solveImpact(c, d->t_s, false);
-    if (any_touch && !updateModes(c, d->t_s, {})) {
-      solveImpact(c, d->t_s, true);
-      if (!updateModes(c, d->t_s, {})) ++d->stats.numerical_recoveries;
+// Stage 2: pairs touching at the start of the step without being in contact (a scene that
+// starts at rest on a plate, a reset, a contact closed by the previous event) begin a contact
+// now, unless they are separating.
+void openTouchingContacts(const Ctx& c) {
+  const Model& m = c.m;
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
+  const Drive dr0 = driveAtTime(c, d->t_s);
+  // (The last step's end, evaluated by its statistics, is this state.)
+  if (!rhsMemoHit(c, dr0, d->z, d->u, SeparatedPairs::kNear, 0.0)) evaluateAll(c, d->z, d->u, dr0);
+  bool rigid_touch = false, any_touch = false;
+  double e_net = kInf;  // energy minus drive work, computed when a contact begins
+  for (size_t i = 0; i < ws.geoms.size(); ++i) {
+    const ContactGeom& g = ws.geoms[i];
+    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    if (isActive(mem) || g.far || g.gap_m > 0.0 || g.vn > 0.0) continue;
+    any_touch = true;
+    if (g.params->law == ContactLaw::kRigid) {
+      rigid_touch = true;
+    } else {
+      if (e_net == kInf) e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
+      mem.v_in_mps = -g.vn;
+      mem.hertz_K = g.hertz_K;
+      beginEpisode(m, d, &mem, g, d->t_s, e_net);
+      mem.state = ContactState::kImpact;
+      mem.slip_sign = 0;
+      emitTransition(d, g.pair, ContactState::kSeparated, ContactState::kImpact, d->t_s, g);
     }
   }
+  if (rigid_touch) solveImpact(c, d->t_s, false);
+  if (any_touch && !updateModes(c, d->t_s, {})) {
+    solveImpact(c, d->t_s, true);
+    if (!updateModes(c, d->t_s, {})) ++d->stats.numerical_recoveries;
+  }
+}
 
-  // Trial step size.
-  double h = ws.ed_h > 0 ? ws.ed_h : std::min(m.integrator.max_step_s, 1e-6);
-  h = std::min({h, m.integrator.max_step_s, margin / v_bound});
+// Stage 3: the trial step length: the last proposal, within max_step and the broad-phase
+// margin over the motion bound, cut short to land on t_end or on the end of a drum ramp.
+void planStep(const Ctx& c, double v_bound_mps, StepPlan* plan) {
+  const Model& m = c.m;
+  const Data& d = c.d;
+  double h = c.ws.ed_h > 0 ? c.ws.ed_h : std::min(m.integrator.max_step_s, 1e-6);
+  h = std::min({h, m.integrator.max_step_s, plan->margin_m / v_bound_mps});
   // A step cut short to land on t_end (or on the end of a drum ramp) must not shrink the
   // step-size proposal for the steps after it.
-  const double h_wanted = h;
-  h = std::min(h, t_end_s - d->t_s);
-  const bool truncated = h < h_wanted;
-  const double ramp = timeToTarget(m, *d);
+  plan->h_wanted_s = h;
+  h = std::min(h, plan->t_end_s - d.t_s);
+  plan->truncated = h < plan->h_wanted_s;
+  const double ramp = timeToTarget(m, d);
   if (ramp > 1e-15 && ramp < h) h = ramp;
-  if (!(h > 0)) h = t_end_s - d->t_s;
+  if (!(h > 0)) h = plan->t_end_s - d.t_s;
+  plan->h_s = h;
+}
 
-  // Event values at the start of the step, and which of them are armed over it. A function
-  // positive at the start fires when it reaches zero. A gap function at or below zero whose
-  // rate points to positive (a pair that just bounced apart, a compliant contact that just
-  // closed) is armed as well: it fires when it falls below its start value again, so that a
-  // flight shorter than the step is not seen one step late, inside the plate.
-  std::vector<double>& ev0 = ws.ed_ev0;
-  std::vector<double>& ev1 = ws.ed_ev1;
-  std::vector<double>& rate0 = ws.ed_rate0;
-  std::vector<double>& rate1 = ws.ed_rate1;
-  eventValues(c, d->t_s, d->z, d->u, &ev0, &rate0, h);
+// Stage 4: event values at the start of the step, and which of them are armed over it. A
+// function positive at the start fires when it reaches zero. A gap function at or below zero
+// whose rate points to positive (a pair that just bounced apart, a compliant contact that just
+// closed) is armed as well: it fires when it falls below its start value again, so that a
+// flight shorter than the step is not seen one step late, inside the plate.
+void armEvents(const Ctx& c, StepPlan* plan) {
+  Workspace& ws = c.ws;
+  const Data& d = c.d;
+  eventValues(c, d.t_s, d.z, d.u, &ws.ed_ev0, &ws.ed_rate0, plan->h_s);
   // Compliant normal forces and their rates at the start, for the located peaks.
-  const bool peaks_on = compliantForceSnapshot(c, d->t_s, d->z, d->u, ws.ed_udot_ev, &ws.ed_pk_f0,
-                                               &ws.ed_pk_r0, &ws.ed_pk_on);
-  std::vector<std::uint8_t>& arm = ws.ed_arm;  // Arm per event function
-  arm.assign(ev0.size(), static_cast<std::uint8_t>(Arm::kOff));
+  plan->peaks_on = compliantForceSnapshot(c, d.t_s, d.z, d.u, ws.ed_udot_ev, &ws.ed_pk_f0,
+                                          &ws.ed_pk_r0, &ws.ed_pk_on);
+  const std::vector<double>& ev0 = ws.ed_ev0;
+  ws.ed_arm.assign(ev0.size(), static_cast<std::uint8_t>(Arm::kOff));
   for (size_t i = 0; i < ev0.size(); ++i) {
     if (ev0[i] > 0) {
-      arm[i] = static_cast<std::uint8_t>(Arm::kAtZero);
-    } else if (rate0[i] > 0) {  // NaN (rate unknown) stays off
-      arm[i] = static_cast<std::uint8_t>(Arm::kBelowStart);
+      ws.ed_arm[i] = static_cast<std::uint8_t>(Arm::kAtZero);
+    } else if (ws.ed_rate0[i] > 0) {  // NaN (rate unknown) stays off
+      ws.ed_arm[i] = static_cast<std::uint8_t>(Arm::kBelowStart);
     }
   }
-  auto armOf = [&](size_t i) { return static_cast<Arm>(arm[i]); };
-  auto fires = [&](size_t i, double value) {
-    return armOf(i) == Arm::kAtZero ? value <= 0 : armOf(i) == Arm::kBelowStart && value < ev0[i];
-  };
-  // Whether any armed function fired at values b; function `deep` (if given) only counts
-  // when it went below -depth.
-  auto triggered = [&](const std::vector<double>& b, size_t deep = SIZE_MAX, double depth = 0) {
-    if (b.size() != ev0.size()) return false;
-    for (size_t i = 0; i < b.size(); ++i)
-      if (i == deep ? fires(i, b[i] + depth) : fires(i, b[i])) return true;
-    return false;
-  };
-  VecX& udot0 = ws.ed_udot_end;
-  udot0.resize(n);
+}
 
-  // Adaptive step until the error is within tolerance.
-  VecX& z1 = ws.ed_z1;
-  VecX& u1 = ws.ed_u1;
-  z1.resize(n);
-  u1.resize(n);
+// The step-size law: the factor by which a step with error norm err (1 = the tolerance) is
+// scaled, for a retry (err > 1) or for the next step (err <= 1).
+double retryFactor(double err) {
+  return std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
+}
+double growthFactor(double err) {
+  return std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2));
+}
+
+// Stage 5: adaptive Dormand-Prince steps from the step start until the error is within the
+// tolerance; the end state in ws.ed_z1, ws.ed_u1. False after too many rejections.
+bool integrateAdaptive(const Ctx& c, StepPlan* plan) {
+  Workspace& ws = c.ws;
+  Data* d = &c.d;
+  const int n = c.m.n_dof;
+  ws.ed_udot_end.resize(n);
+  ws.ed_z1.resize(n);
+  ws.ed_u1.resize(n);
   double err = 0, torque1 = 0;
-  bool rejected = false;
+  double& h = plan->h_s;
   for (int attempt = 0;; ++attempt) {
-    if (!dopriStep(c, d->t_s, h, d->z, d->u, &z1, &u1, &err, &torque1)) err = kInf;
+    if (!dopriStep(c, d->t_s, h, d->z, d->u, &ws.ed_z1, &ws.ed_u1, &err, &torque1)) err = kInf;
     if (err <= 1.0) break;
-    rejected = true;
+    plan->rejected = true;
     ++d->stats.rejected_steps;
-    h *= std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
-    if (h < 1e-15 || attempt > 200) return StepStatus::kFailed;
+    h *= retryFactor(err);
+    if (h < 1e-15 || attempt > 200) return false;
   }
-  const double h_next = h * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2));
+  plan->h_next_s = h * growthFactor(err);
+  return true;
+}
 
-  // Events: did any function change sign over the step?
-  eventValues(c, d->t_s + h, z1, u1, &ev1, &rate1, h);
-  double h_take = h;
-  double h_fired = h;  // a step length at whose end an event function is known to have fired
-  bool event = triggered(ev1);
-  VecX& zt = ws.ed_zt;
-  VecX& ut = ws.ed_ut;
-  zt.resize(n);
-  ut.resize(n);
+// Stage 6a: grazes. A separated pair whose gap falls and rises again within the step shows no
+// sign change at the ends. The cubic Hermite interpolant of the gap (values and rates at both
+// ends) predicts the interior minimum; where it comes near zero the state there is computed (a
+// step from the start) and the gap checked. A dip counts once it is deeper than the position
+// error scale of the integrator (tolerance x 1e-2 m): shallower ones are below what the step
+// resolves, and a path that exactly touches gives no contact.
+void detectGrazes(const Ctx& c, StepPlan* plan) {
+  Workspace& ws = c.ws;
+  const Data& d = c.d;
+  const std::vector<double>& ev0 = ws.ed_ev0;
+  const std::vector<double>& ev1 = ws.ed_ev1;
+  const double h = plan->h_s;
+  const double depth_m = c.m.integrator.tolerance * 1e-2;
   double et, tq;
-  std::vector<double>& evm = ws.ed_evm;
-  bool end_evaluated = true;  // the last rhs() call was at the step end (z1, u1)
-  if (!event && ev1.size() == ev0.size()) {
-    // Grazes: a separated pair whose gap falls and rises again within the step shows no sign
-    // change at the ends. The cubic Hermite interpolant of the gap (values and rates at both
-    // ends) predicts the interior minimum; where it comes near zero the state there is
-    // computed (a step from the start) and the gap checked. A dip counts once it is deeper than
-    // the position error scale of the integrator (tolerance x 1e-2 m): shallower ones are
-    // below what the step resolves, and a path that exactly touches gives no contact.
-    const double depth_m = m.integrator.tolerance * 1e-2;
-    for (size_t i = 0; i < ws.geoms.size() && !event; ++i) {
-      const size_t j = 4 * i;
-      if (armOf(j) != Arm::kAtZero || isActive(ws.memory[pairKey(ws.geoms[i].pair)])) continue;
-      if (!(rate0[j] < 0 && rate1[j] > 0)) continue;  // no interior minimum (or rate unknown)
-      double s_min = 0;
-      const double g_min = hermiteMinimum(ev0[j], rate0[j], ev1[j], rate1[j], h, &s_min);
-      if (!(g_min < std::max(depth_m, 1e-3 * (ev0[j] + ev1[j])))) continue;
-      // The probe step overwrites the step's contact impulses and drum torque impulse; they
-      // are restored unless the event is confirmed (then the located step recomputes them).
-      ws.ed_imp_n_saved = ws.ed_imp_n;
-      ws.ed_imp_t_saved = ws.ed_imp_t;
-      const double torque_impulse_saved = ws.ed_torque_impulse;
-      end_evaluated = false;
-      dopriStep(c, d->t_s, s_min * h, d->z, d->u, &zt, &ut, &et, &tq);
-      eventValues(c, d->t_s + s_min * h, zt, ut, &evm);
-      if (triggered(evm, j, depth_m)) {
-        event = true;
-        h_fired = s_min * h;
-      } else {
-        ws.ed_imp_n = ws.ed_imp_n_saved;
-        ws.ed_imp_t = ws.ed_imp_t_saved;
-        ws.ed_torque_impulse = torque_impulse_saved;
-      }
-    }
-  }
-  if (event) {
-    // The first crossing (re-stepping from the start each time) to the tolerance, from the
-    // values at the fired end: ev1, or the graze probe's.
-    const double t_tol = std::max(1e-15, 1e-3 * m.integrator.tolerance * 1e-3);
-    ws.ed_z_hi = h_fired == h ? z1 : zt;
-    ws.ed_u_hi = h_fired == h ? u1 : ut;
-    ws.ed_imp_n_hi = ws.ed_imp_n;  // the step's, or the confirmed graze probe's
-    ws.ed_imp_t_hi = ws.ed_imp_t;
-    ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
-    const bool at_hi = locateEvent(c, h_fired, h_fired == h ? ev1 : evm, t_tol, &h_take);
-    // The state at the located end, and its values (geometry and forces) unless the last
-    // evaluation was there.
-    z1 = ws.ed_z_hi;
-    u1 = ws.ed_u_hi;
-    ws.ed_imp_n = ws.ed_imp_n_hi;
-    ws.ed_imp_t = ws.ed_imp_t_hi;
-    ws.ed_torque_impulse = ws.ed_torque_impulse_hi;
-    if (at_hi) {
-      ev1 = ws.ed_ev_hi;
+  for (size_t i = 0; i < ws.geoms.size() && !plan->event; ++i) {
+    const size_t j = 4 * i;
+    if (static_cast<Arm>(ws.ed_arm[j]) != Arm::kAtZero ||
+        isActive(ws.memory[pairKey(ws.geoms[i].pair)]))
+      continue;
+    if (!(ws.ed_rate0[j] < 0 && ws.ed_rate1[j] > 0)) continue;  // no interior minimum
+    double s_min = 0;
+    const double g_min = hermiteMinimum(ev0[j], ws.ed_rate0[j], ev1[j], ws.ed_rate1[j], h, &s_min);
+    if (!(g_min < std::max(depth_m, 1e-3 * (ev0[j] + ev1[j])))) continue;
+    // The probe step overwrites the step's contact impulses and drum torque impulse; they are
+    // restored unless the event is confirmed (then the located step recomputes them).
+    ws.ed_imp_n_saved = ws.ed_imp_n;
+    ws.ed_imp_t_saved = ws.ed_imp_t;
+    const double torque_impulse_saved = ws.ed_torque_impulse;
+    plan->end_evaluated = false;
+    dopriStep(c, d.t_s, s_min * h, d.z, d.u, &ws.ed_zt, &ws.ed_ut, &et, &tq);
+    eventValues(c, d.t_s + s_min * h, ws.ed_zt, ws.ed_ut, &ws.ed_evm);
+    if (anyFired(ws, ws.ed_evm, j, depth_m)) {
+      plan->event = true;
+      plan->h_fired_s = s_min * h;
     } else {
-      eventValues(c, d->t_s + h_take, z1, u1, &ev1);
+      ws.ed_imp_n = ws.ed_imp_n_saved;
+      ws.ed_imp_t = ws.ed_imp_t_saved;
+      ws.ed_torque_impulse = torque_impulse_saved;
     }
-    end_evaluated = true;
   }
-  // Located maxima of the compliant forces over the step, under the step's index sets.
-  if (peaks_on) locateForcePeaks(c, d->t_s, h_take, d->z, d->u, z1, u1, end_evaluated);
+}
 
-  // Accept: drive work, then move the state and the drum.
-  const Drive mid = driveAt(m, *d, 0.5 * h_take);
-  const Drive end = driveAt(m, *d, h_take);
+// Stage 6: did any event function fire over the step (a sign change at the end, or a graze
+// inside)?
+void detectEvents(const Ctx& c, StepPlan* plan) {
+  Workspace& ws = c.ws;
+  const int n = c.m.n_dof;
+  eventValues(c, c.d.t_s + plan->h_s, ws.ed_z1, ws.ed_u1, &ws.ed_ev1, &ws.ed_rate1, plan->h_s);
+  plan->h_take_s = plan->h_s;
+  plan->h_fired_s = plan->h_s;
+  plan->event = anyFired(ws, ws.ed_ev1);
+  ws.ed_zt.resize(n);
+  ws.ed_ut.resize(n);
+  plan->end_evaluated = true;
+  if (!plan->event && ws.ed_ev1.size() == ws.ed_ev0.size()) detectGrazes(c, plan);
+}
+
+// Stage 7: the first crossing (re-stepping from the start each time) to the tolerance, from
+// the values at the fired end (ws.ed_ev1, or the graze probe's); the step's end state, impulses
+// and end values become the located ones.
+void locateFirstEvent(const Ctx& c, StepPlan* plan) {
+  Workspace& ws = c.ws;
+  const double t_tol = std::max(1e-15, 1e-3 * c.m.integrator.tolerance * 1e-3);
+  const bool at_end = plan->h_fired_s == plan->h_s;
+  ws.ed_z_hi = at_end ? ws.ed_z1 : ws.ed_zt;
+  ws.ed_u_hi = at_end ? ws.ed_u1 : ws.ed_ut;
+  ws.ed_imp_n_hi = ws.ed_imp_n;  // the step's, or the confirmed graze probe's
+  ws.ed_imp_t_hi = ws.ed_imp_t;
+  ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
+  const bool at_hi =
+      locateEvent(c, plan->h_fired_s, at_end ? ws.ed_ev1 : ws.ed_evm, t_tol, &plan->h_take_s);
+  // The state at the located end, and its values (geometry and forces) unless the last
+  // evaluation was there.
+  ws.ed_z1 = ws.ed_z_hi;
+  ws.ed_u1 = ws.ed_u_hi;
+  ws.ed_imp_n = ws.ed_imp_n_hi;
+  ws.ed_imp_t = ws.ed_imp_t_hi;
+  ws.ed_torque_impulse = ws.ed_torque_impulse_hi;
+  if (at_hi) {
+    ws.ed_ev1 = ws.ed_ev_hi;
+  } else {
+    eventValues(c, c.d.t_s + plan->h_take_s, ws.ed_z1, ws.ed_u1, &ws.ed_ev1);
+  }
+  plan->end_evaluated = true;
+}
+
+// Stage 8: accept the step: the drive's work, then the state and the drum move to its end.
+void acceptStep(const Ctx& c, const StepPlan& plan) {
+  const Model& m = c.m;
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
+  const Drive mid = driveAt(m, *d, 0.5 * plan.h_take_s);
+  const Drive end = driveAt(m, *d, plan.h_take_s);
   // (The start's momentum is the last step's end value unless something moved the state.)
   double H0 = 0, unused_energy = 0;
   if (!ws.ed_end_values.lookup(*d, &unused_energy, &H0))
     H0 = angularMomentumOf(m, d->z, d->u, d->omega_radps);
-  const double H1 = angularMomentumOf(m, z1, u1, end.omega_radps);
+  const double H1 = angularMomentumOf(m, ws.ed_z1, ws.ed_u1, end.omega_radps);
   d->stats.drive_work_J += mid.omega_radps * (H1 - H0 - ws.ed_torque_impulse);
   const int n_geoms = static_cast<int>(ws.candidates.size());
   growTo(&ws.ed_imp_n_step, n_geoms);
   growTo(&ws.ed_imp_t_step, n_geoms);
   ws.ed_imp_n_step.head(n_geoms) = ws.ed_imp_n.head(n_geoms);
   ws.ed_imp_t_step.head(n_geoms) = ws.ed_imp_t.head(n_geoms);
-  const VecX& imp_n = ws.ed_imp_n_step;
-  const VecX& imp_t = ws.ed_imp_t_step;
-  d->z = z1;
-  d->u = u1;
+  d->z = ws.ed_z1;
+  d->u = ws.ed_u1;
   d->t_s = end.t_s;
   d->theta_rad = end.theta_rad;
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
   ws.ed_end_values.store(*d, 0.0, H1);
-  if (!event) ws.ed_h = truncated && !rejected && h_next < h_wanted ? h_wanted : h_next;
-  const double t = d->t_s;
+  if (!plan.event)
+    ws.ed_h = plan.truncated && !plan.rejected && plan.h_next_s < plan.h_wanted_s ? plan.h_wanted_s
+                                                                                  : plan.h_next_s;
+}
 
-  // Statistics of the forces over the accepted step (end point).
-  rhs(c, t, d->z, d->u, &udot0, &torque1, true);
+// Stage 9: statistics of the forces over the accepted step (its end point), and the step's
+// impulses added to the episodes; an impact under the compliant law becomes stick or slip.
+void recordStepForces(const Ctx& c) {
+  const Model& m = c.m;
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
+  const double t = d->t_s;
+  double torque1 = 0;
+  rhs(c, t, d->z, d->u, &ws.ed_udot_end, &torque1, true);
+  const VecX& imp_n = ws.ed_imp_n_step;
+  const VecX& imp_t = ws.ed_imp_t_step;
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
     PairMemory& mem = ws.memory[pairKey(g.pair)];
@@ -1424,69 +1476,124 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
     if (mem.state == ContactState::kImpact && g.params->law == ContactLaw::kCompliant)
       mem.state = mem.slip_sign == 0 ? ContactState::kStick : ContactState::kSlip;
   }
+}
 
-  // Switch the index sets for every event function at or past zero.
-  const long attached_before = attachedCount(*d);
-  if (event) {
-    const double e_net = mechanicalEnergy(m, *d) - d->stats.drive_work_J;
-    bool rigid_impact = false;
-    std::vector<int>& forced_slip = ws.ed_forced_slip;
-    forced_slip.clear();
-    for (size_t i = 0; i < ws.geoms.size(); ++i) {
-      const size_t j = 4 * i;
-      if (armOf(j) == Arm::kOff && armOf(j + 1) == Arm::kOff && armOf(j + 2) == Arm::kOff) continue;
-      const ContactGeom& g = ws.geoms[i];
-      PairMemory& mem = ws.memory[pairKey(g.pair)];
-      const bool fired0 = fires(j, ev1[j]);
-      const bool fired1 = fires(j + 1, ev1[j + 1]);
-      const bool fired2 = fires(j + 2, ev1[j + 2]);
-      if (!isActive(mem)) {
-        if (!fired0 || g.vn >= 0) continue;
-        if (g.params->law == ContactLaw::kRigid) {
-          rigid_impact = true;
-        } else {
-          // Compliant: the contact opens with its approach speed fixing the damping.
-          mem.v_in_mps = -g.vn;
-          mem.hertz_K = g.hertz_K;
-          beginEpisode(m, d, &mem, g, t, e_net);
-          mem.state = ContactState::kImpact;
-          mem.slip_sign = 0;
-          emitTransition(d, g.pair, ContactState::kSeparated, ContactState::kImpact, t, g);
-        }
-      } else if (g.params->law == ContactLaw::kCompliant && (fired0 || fired1)) {
-        endEpisode(m, d, &mem, g, t, e_net);
-      } else if (g.params->law == ContactLaw::kRigid && fired0) {
-        endEpisode(m, d, &mem, g, t, e_net);
-      } else if (fired2) {
-        if (mem.slip_sign == 0) {
-          // Stick -> slip against the friction force.
-          mem.slip_sign = mem.tangential_force_N > 0 ? -1 : 1;
-          forced_slip.push_back(static_cast<int>(i));
-          emitTransition(d, g.pair, mem.state, ContactState::kSlip, t, g);
-          mem.state = ContactState::kSlip;
-        } else {
-          // Slip velocity reached zero: stick or reverse, decided below.
-          mem.slip_sign = 0;
-        }
-      }
+// Stage 10 for one pair: the transition of its index sets for the event functions that fired
+// (gap j, normal force j + 1, friction limit or slip velocity j + 2). Sets *rigid_impact for a
+// rigid pair that closed; adds a pair that starts to slip to forced_slip.
+void switchPair(const Ctx& c, size_t i, double e_net, bool* rigid_impact,
+                std::vector<int>* forced_slip) {
+  const Model& m = c.m;
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
+  const double t = d->t_s;
+  const size_t j = 4 * i;
+  auto fired = [&](size_t k) {
+    return armFires(static_cast<Arm>(ws.ed_arm[k]), ws.ed_ev1[k], ws.ed_ev0[k]);
+  };
+  const ContactGeom& g = ws.geoms[i];
+  PairMemory& mem = ws.memory[pairKey(g.pair)];
+  const bool fired0 = fired(j), fired1 = fired(j + 1), fired2 = fired(j + 2);
+  if (!isActive(mem)) {
+    if (!fired0 || g.vn >= 0) return;
+    if (g.params->law == ContactLaw::kRigid) {
+      *rigid_impact = true;
+    } else {
+      // Compliant: the contact opens with its approach speed fixing the damping.
+      mem.v_in_mps = -g.vn;
+      mem.hertz_K = g.hertz_K;
+      beginEpisode(m, d, &mem, g, t, e_net);
+      mem.state = ContactState::kImpact;
+      mem.slip_sign = 0;
+      emitTransition(d, g.pair, ContactState::kSeparated, ContactState::kImpact, t, g);
     }
-    if (rigid_impact) solveImpact(c, t, false);
-    // Pedicels that reached their detachment force break.
-    updatePedicels(m, d);
-    if (!updateModes(c, t, forced_slip)) {
-      // Painleve: no consistent accelerations; a tangential (plastic) impact resolves it.
-      solveImpact(c, t, true);
-      if (!updateModes(c, t, forced_slip)) ++d->stats.numerical_recoveries;
+  } else if (g.params->law == ContactLaw::kCompliant && (fired0 || fired1)) {
+    endEpisode(m, d, &mem, g, t, e_net);
+  } else if (g.params->law == ContactLaw::kRigid && fired0) {
+    endEpisode(m, d, &mem, g, t, e_net);
+  } else if (fired2) {
+    if (mem.slip_sign == 0) {
+      // Stick -> slip against the friction force.
+      mem.slip_sign = mem.tangential_force_N > 0 ? -1 : 1;
+      forced_slip->push_back(static_cast<int>(i));
+      emitTransition(d, g.pair, mem.state, ContactState::kSlip, t, g);
+      mem.state = ContactState::kSlip;
+    } else {
+      // Slip velocity reached zero: stick or reverse, decided below.
+      mem.slip_sign = 0;
     }
-  } else {
-    updatePedicels(m, d);
   }
-  // The forces and geometry of the end state: the statistics' evaluation above holds them
-  // unless an event, a broken pedicel or a projection changed the state or the index sets.
-  const bool projected = projectConstraints(c, t);
-  if (event || projected || attached_before != attachedCount(*d))
-    rhs(c, t, d->z, d->u, &udot0, &torque1, true);
+}
+
+// Stage 10: switch the index sets for every event function at or past zero; solve the rigid
+// impacts; break the pedicels that reached their detachment force; new consistent modes.
+void switchModes(const Ctx& c, const StepPlan& plan) {
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
+  if (!plan.event) {
+    updatePedicels(c.m, d);
+    return;
+  }
+  const double t = d->t_s;
+  const double e_net = mechanicalEnergy(c.m, *d) - d->stats.drive_work_J;
+  bool rigid_impact = false;
+  std::vector<int>& forced_slip = ws.ed_forced_slip;
+  forced_slip.clear();
+  for (size_t i = 0; i < ws.geoms.size(); ++i) {
+    const size_t j = 4 * i;
+    if (static_cast<Arm>(ws.ed_arm[j]) == Arm::kOff &&
+        static_cast<Arm>(ws.ed_arm[j + 1]) == Arm::kOff &&
+        static_cast<Arm>(ws.ed_arm[j + 2]) == Arm::kOff)
+      continue;
+    switchPair(c, i, e_net, &rigid_impact, &forced_slip);
+  }
+  if (rigid_impact) solveImpact(c, t, false);
+  updatePedicels(c.m, d);
+  if (!updateModes(c, t, forced_slip)) {
+    // Painleve: no consistent accelerations; a tangential (plastic) impact resolves it.
+    solveImpact(c, t, true);
+    if (!updateModes(c, t, forced_slip)) ++d->stats.numerical_recoveries;
+  }
+}
+
+// Stage 11: the forces and geometry of the end state (the statistics' evaluation holds them
+// unless an event, a broken pedicel or a projection changed the state or the index sets), and
+// the contacts published to the data.
+void finishStep(const Ctx& c, const StepPlan& plan, long attached_before) {
+  Data* d = &c.d;
+  Workspace& ws = c.ws;
+  const bool projected = projectConstraints(c, d->t_s);
+  double torque1 = 0;
+  if (plan.event || projected || attached_before != attachedCount(*d))
+    rhs(c, d->t_s, d->z, d->u, &ws.ed_udot_end, &torque1, true);
   publishContacts(d, &ws);
+}
+
+}  // namespace
+
+// One event-driven step: from the data's time to the next event, the step-size law's step, or
+// t_end_s, whichever comes first.
+StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
+  Ctx c{m, *d, *d->ws};
+  StepPlan plan;
+  plan.t_end_s = t_end_s;
+  const double v_bound_mps = motionBound(c);
+  prepareCandidates(c, &plan);
+  openTouchingContacts(c);
+  planStep(c, v_bound_mps, &plan);
+  armEvents(c, &plan);
+  if (!integrateAdaptive(c, &plan)) return StepStatus::kFailed;
+  detectEvents(c, &plan);
+  if (plan.event) locateFirstEvent(c, &plan);
+  // Located maxima of the compliant forces over the step, under the step's index sets.
+  if (plan.peaks_on)
+    locateForcePeaks(c, d->t_s, plan.h_take_s, d->z, d->u, c.ws.ed_z1, c.ws.ed_u1,
+                     plan.end_evaluated);
+  acceptStep(c, plan);
+  recordStepForces(c);
+  const long attached_before = attachedCount(*d);
+  switchModes(c, plan);
+  finishStep(c, plan, attached_before);
   return StepStatus::kOk;
 }
 

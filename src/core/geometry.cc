@@ -358,6 +358,74 @@ Proximity segmentEllipse(const Vec2& p0, const Vec2& p1, const Ellipse& e) {
   return lo.distance_m <= hi.distance_m ? lo : hi;
 }
 
+namespace {
+
+// The ellipse-ellipse gap psi sampled on a uniform ring of an even number of directions, fine
+// enough for the flattest side: n_samples values into psi_m, step_rad apart from theta = 0.
+// Opposite directions share the support term, so each pair costs one evaluation of it; n is
+// rotated from sample to sample rather than recomputed by trigonometry.
+struct GapRing {
+  double psi_m[kMaxDirectionSamples];  // psi at theta = k step_rad [m]
+  int n_samples = 0;                   // samples around the ring [-]
+  double step_rad = 0;                 // angle between samples [rad]
+};
+void sampleGapRing(const GapFunction& gap, double aspect, GapRing* ring) {
+  const int n_pairs = static_cast<int>(
+      std::fmin(kMaxDirectionSamples / 2,
+                std::fmax(kMinDirectionSamples / 2, kSamplesPerAspect * aspect / 2)));
+  ring->n_samples = 2 * n_pairs;
+  ring->step_rad = 2.0 * kPi / ring->n_samples;
+  const double step_c = std::cos(ring->step_rad), step_s = std::sin(ring->step_rad);
+  Vec2 n(1.0, 0.0);
+  for (int k = 0; k < n_pairs; ++k) {
+    const double support_m = gap.support(n), along_m = n.dot(gap.dc_m);
+    ring->psi_m[k] = along_m - support_m;
+    ring->psi_m[k + n_pairs] = -along_m - support_m;
+    n = Vec2(step_c * n.x() - step_s * n.y(), step_s * n.x() + step_c * n.y());
+  }
+}
+
+// A discrete local maximum of the ring: its value [m] and sample index.
+struct Candidate {
+  double value_m;
+  int index;
+};
+
+// The best few discrete local maxima around the ring, sorted by decreasing value; returns how
+// many (at most kMaxCandidates).
+int localMaxima(const GapRing& ring, Candidate* candidates) {
+  const int n = ring.n_samples;
+  int n_candidates = 0;
+  for (int k = 0; k < n; ++k) {
+    const double value_m = ring.psi_m[k];
+    if (value_m < ring.psi_m[(k + n - 1) % n] || value_m <= ring.psi_m[(k + 1) % n]) continue;
+    int slot = n_candidates < kMaxCandidates ? n_candidates++ : kMaxCandidates;
+    while (slot > 0 && candidates[slot - 1].value_m < value_m) {
+      if (slot < kMaxCandidates) candidates[slot] = candidates[slot - 1];
+      --slot;
+    }
+    if (slot < kMaxCandidates) candidates[slot] = {value_m, k};
+  }
+  return n_candidates;
+}
+
+// Witness points of the gap's maximum along direction theta: e1's support point along n and
+// e2's along -n; point2 - point1 = psi n.
+Proximity witnessPoints(const Ellipse& e1, const Ellipse& e2, const GapFunction& gap,
+                        double theta_rad) {
+  Proximity out;
+  out.normal = Vec2(std::cos(theta_rad), std::sin(theta_rad));
+  const double h1_m = std::sqrt(gap.shape1.form(out.normal, out.normal));
+  const double h2_m = std::sqrt(gap.shape2.form(out.normal, out.normal));
+  out.point1 = e1.center + gap.shape1.apply(out.normal) / h1_m;
+  out.point2 = e2.center - gap.shape2.apply(out.normal) / h2_m;
+  out.distance_m = out.normal.dot(gap.dc_m) - h1_m - h2_m;
+  out.radius2_m = e2.a_m * e2.a_m * e2.b_m * e2.b_m / (h2_m * h2_m * h2_m);
+  return out;
+}
+
+}  // namespace
+
 Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
   // A circle on either side: offset point-ellipse distance (exact, also when overlapping).
   if (e1.a_m == e1.b_m) return discEllipse(e1.center, e1.a_m, e2);
@@ -371,55 +439,19 @@ Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
     out.radius2_m = e2.a_m;
     return out;
   }
-
   // General pair: maximise the gap psi(theta) over directions (see GapFunction).
   const GapFunction gap{EllipseShape(e1), EllipseShape(e2), e2.center - e1.center};
-
-  // Sample psi on a uniform ring of an even number of directions, fine enough for the flattest
-  // side. Opposite directions share the support term, so each pair costs one evaluation of it;
-  // n is rotated from sample to sample rather than recomputed by trigonometry.
-  const double aspect = std::fmax(e1.a_m / e1.b_m, e2.a_m / e2.b_m);
-  const int n_pairs = static_cast<int>(
-      std::fmin(kMaxDirectionSamples / 2,
-                std::fmax(kMinDirectionSamples / 2, kSamplesPerAspect * aspect / 2)));
-  const int n_samples = 2 * n_pairs;
-  const double step_rad = 2.0 * kPi / n_samples;
-  const double step_c = std::cos(step_rad), step_s = std::sin(step_rad);
-  double psi_m[kMaxDirectionSamples];
-  Vec2 n(1.0, 0.0);
-  for (int k = 0; k < n_pairs; ++k) {
-    const double support_m = gap.support(n), along_m = n.dot(gap.dc_m);
-    psi_m[k] = along_m - support_m;
-    psi_m[k + n_pairs] = -along_m - support_m;
-    n = Vec2(step_c * n.x() - step_s * n.y(), step_s * n.x() + step_c * n.y());
-  }
-
-  // Candidates: the best few discrete local maxima around the ring, sorted by decreasing value.
-  struct Candidate {
-    double value_m;
-    int index;
-  };
+  GapRing ring;
+  sampleGapRing(gap, std::fmax(e1.a_m / e1.b_m, e2.a_m / e2.b_m), &ring);
   Candidate candidates[kMaxCandidates];
-  int n_candidates = 0;
-  for (int k = 0; k < n_samples; ++k) {
-    const double value_m = psi_m[k];
-    if (value_m < psi_m[(k + n_samples - 1) % n_samples] || value_m <= psi_m[(k + 1) % n_samples]) {
-      continue;
-    }
-    int slot = n_candidates < kMaxCandidates ? n_candidates++ : kMaxCandidates;
-    while (slot > 0 && candidates[slot - 1].value_m < value_m) {
-      if (slot < kMaxCandidates) candidates[slot] = candidates[slot - 1];
-      --slot;
-    }
-    if (slot < kMaxCandidates) candidates[slot] = {value_m, k};
-  }
-
+  const int n_candidates = localMaxima(ring, candidates);
   // Refine every candidate inside its neighbours' bracket and keep the best (psi constant over
   // all directions has no strict local maximum: then any direction, here theta = 0, is optimal).
   // A candidate whose bracket cannot beat the best refined value is skipped: with
   // |psi''| <= C = |c2 - c1| + a1^2/b1 + a2^2/b2 (psi'' = -n.dc - h1'' - h2'' and |h''| =
   // |rho - h| <= a^2/b), psi stays below its largest sample plus C step^2 / 8 between samples,
   // and a candidate is the largest of its three samples. Candidates come in decreasing order.
+  const double step_rad = ring.step_rad;
   const double curvature_bound_m =
       gap.dc_m.norm() + e1.a_m * e1.a_m / e1.b_m + e2.a_m * e2.a_m / e2.b_m;
   const double rise_bound_m = curvature_bound_m * step_rad * step_rad / 8.0;
@@ -431,17 +463,7 @@ Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
         maximiseGap(gap, theta_rad - step_rad, theta_rad, theta_rad + step_rad);
     if (refined.value_m > best.value_m) best = refined;
   }
-
-  // Witness points: e1's support point along n and e2's along -n; point2 - point1 = psi n.
-  Proximity out;
-  out.normal = Vec2(std::cos(best.theta_rad), std::sin(best.theta_rad));
-  const double h1_m = std::sqrt(gap.shape1.form(out.normal, out.normal));
-  const double h2_m = std::sqrt(gap.shape2.form(out.normal, out.normal));
-  out.point1 = e1.center + gap.shape1.apply(out.normal) / h1_m;
-  out.point2 = e2.center - gap.shape2.apply(out.normal) / h2_m;
-  out.distance_m = out.normal.dot(gap.dc_m) - h1_m - h2_m;
-  out.radius2_m = e2.a_m * e2.a_m * e2.b_m * e2.b_m / (h2_m * h2_m * h2_m);
-  return out;
+  return witnessPoints(e1, e2, gap, best.theta_rad);
 }
 
 Proximity planeEllipse(const Vec2& p, const Vec2& n, const Ellipse& e) {

@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "drive.h"
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/geometry.h"
@@ -50,14 +51,6 @@ inline void growTo(MatX* m, Eigen::Index rows, Eigen::Index cols) {
   if (m->rows() < rows || m->cols() < cols)
     m->resize(std::max(m->rows(), rows), std::max(m->cols(), cols));
 }
-
-// Rheonomic drum state at one instant.
-struct Drive {
-  double t_s = 0;           // time [s]
-  double theta_rad = 0;     // drum angle [rad]
-  double omega_radps = 0;   // drum speed [rad/s]
-  double alpha_radps2 = 0;  // drum acceleration [rad/s^2]
-};
 
 // Bodies are numbered teeth first (0..T-1), then kernels (T..T+K-1); -1 is the fixed world.
 inline int toothBody(int k) { return k; }
@@ -358,13 +351,6 @@ struct Workspace {
 
 namespace internal {
 
-// --- drum drive ---------------------------------------------------------------------------
-// Drum state after dt from d with the current target (piecewise-constant acceleration).
-// At most one switch of acceleration occurs when the target speed is reached.
-Drive driveAt(const Model& m, const Data& d, double dt_s);
-// Time until the drum reaches its target speed from data (inf if it is there) [s].
-double timeToTarget(const Model& m, const Data& d);
-
 // --- kinematics ----------------------------------------------------------------------------
 // Deformed centreline of every tooth at its stations, in world, for configuration z (with the
 // stations' foreshortening and H q, which the narrow phase interpolates).
@@ -436,6 +422,10 @@ void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, 
 void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                       const SmallVec& v, double scale, VecX* out);
 
+// The free accelerations a = Minv f of the whole system (mass-normalised tooth modes: the
+// identity; kernels diag(1/m, 1/m, 1/J)), computed as applyInverseMass on a zero vector would,
+// so that the two agree bit for bit.
+void freeAcceleration(const Model& m, const VecX& f, VecX* a);
 // w1^T Minv_body w2 for two Jacobian rows of the same body (Minv as in applyInverseMass).
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2);

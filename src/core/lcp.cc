@@ -147,14 +147,14 @@ bool readSolution(const Tableau& T, const Eigen::Ref<const MatX>& M,
 // Lemke's algorithm on views, so that the contact solver can pass blocks of its workspace.
 // Variables are numbered w_0..w_{n-1}, z_0..z_{n-1}, z0 = 2n; tableau column j belongs to
 // variable j and column 2n+1 holds the basic values.
-bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eigen::Ref<VecX> z,
-           LcpWorkspace* ws, int max_pivots, int* pivots) {
+LcpStatus lemkeStatus(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q,
+                      Eigen::Ref<VecX> z, LcpWorkspace* ws, int max_pivots, int* pivots) {
   const Index n = q.size();
   if (pivots) *pivots = 0;
   z.setZero();
   // Trivial solution: q >= 0 is solved by z = 0. A q that is negative only within the tie
   // tolerance counts as zero too: pivoting on it would make the basis infeasible by round-off.
-  if (n == 0 || q.minCoeff() >= -kTieTol * q.cwiseAbs().maxCoeff()) return true;
+  if (n == 0 || q.minCoeff() >= -kTieTol * q.cwiseAbs().maxCoeff()) return LcpStatus::kSolved;
   if (max_pivots <= 0) max_pivots = static_cast<int>(50 * (n + 1) + 100);
   const Index z0 = 2 * n;
 
@@ -194,11 +194,17 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
     const bool suspicious =
         r < 0 || std::abs(T(r, entering)) < kRefactorTol * T.col(entering).cwiseAbs().maxCoeff();
     if (suspicious && !fresh) {
-      if (!refactor(T, M, q, basis, col)) break;
+      if (!refactor(T, M, q, basis, col)) {
+        if (pivots) *pivots = count;
+        return LcpStatus::kSingularBasis;
+      }
       fresh = true;
       continue;
     }
-    if (r < 0) break;
+    if (r < 0) {
+      if (pivots) *pivots = count;
+      return LcpStatus::kRayTermination;
+    }
     pivot(T, r, entering, col);
     fresh = false;
     ++count;
@@ -207,13 +213,21 @@ bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eig
     if (leaving == z0) {
       if (pivots) *pivots = count;
       // Accept the solution if it verifies, else once more from a rebuilt tableau.
-      if (readSolution(T, M, q, basis, z, w)) return true;
-      return refactor(T, M, q, basis, col) && readSolution(T, M, q, basis, z, w);
+      if (readSolution(T, M, q, basis, z, w)) return LcpStatus::kSolved;
+      if (!refactor(T, M, q, basis, col)) return LcpStatus::kSingularBasis;
+      return readSolution(T, M, q, basis, z, w) ? LcpStatus::kSolved : LcpStatus::kUnverified;
     }
     entering = leaving < n ? leaving + n : leaving - n;
   }
   if (pivots) *pivots = count;
-  return false;
+  return LcpStatus::kPivotLimit;
+}
+
+// lemkeStatus, its status kept in ws->status: true when solved.
+bool lemke(const Eigen::Ref<const MatX>& M, const Eigen::Ref<const VecX>& q, Eigen::Ref<VecX> z,
+           LcpWorkspace* ws, int max_pivots, int* pivots) {
+  ws->status = lemkeStatus(M, q, z, ws, max_pivots, pivots);
+  return ws->status == LcpStatus::kSolved;
 }
 
 // Tangential force per unit normal force imposed on a contact that slides with a known sign.
@@ -222,6 +236,22 @@ double slipCoefficient(const ContactRow& row) {
 }
 
 }  // namespace
+
+const char* toString(LcpStatus status) {
+  switch (status) {
+    case LcpStatus::kSolved:
+      return "solved";
+    case LcpStatus::kRayTermination:
+      return "ray_termination";
+    case LcpStatus::kPivotLimit:
+      return "pivot_limit";
+    case LcpStatus::kSingularBasis:
+      return "singular_basis";
+    case LcpStatus::kUnverified:
+      return "unverified";
+  }
+  return "?";
+}
 
 bool solveLcpLemke(const MatX& M, const VecX& q, VecX* z, LcpWorkspace* ws, int max_pivots,
                    int* pivots) {
@@ -237,56 +267,56 @@ bool solveContactProblem(const MatX& G, const VecX& b, const std::vector<Contact
                              Eigen::Ref<VecX>(*lambda), Eigen::Ref<VecX>(*y), ws);
 }
 
-bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const VecX>& b,
-                         const std::vector<ContactRow>& rows, Eigen::Ref<VecX> lambda,
-                         Eigen::Ref<VecX> y, LcpWorkspace* ws) {
-  const Index k = static_cast<Index>(rows.size());
+namespace {
 
-  // Number the LCP unknowns contact by contact: ivec[2i] is the normal unknown (-1: fixed),
-  // ivec[2i+1] the first of the friction triple (lambda_T+, lambda_T-, beta) (-1: none). Friction
-  // is unknown only for mu > 0, no imposed slip sign and a normal that is not fixed at zero.
-  std::vector<int>& idx = ws->ivec;
-  idx.resize(2 * k);
+// Numbers the LCP unknowns contact by contact: idx[2i] is the normal unknown (-1: fixed),
+// idx[2i+1] the first of the friction triple (lambda_T+, lambda_T-, beta) (-1: none). Friction
+// is unknown only for mu > 0, no imposed slip sign and a normal that is not fixed at zero.
+// Returns the number of unknowns.
+int numberUnknowns(const std::vector<ContactRow>& rows, std::vector<int>* idx) {
+  const Index k = static_cast<Index>(rows.size());
+  idx->resize(2 * k);
   int m = 0;
   for (Index i = 0; i < k; ++i) {
     const ContactRow& row = rows[i];
     const bool friction =
         row.mu > 0 && row.slip_sign == 0 && (row.normal_unknown || row.lambda_n_fixed > 0);
-    idx[2 * i] = row.normal_unknown ? m++ : -1;
-    idx[2 * i + 1] = friction ? m : -1;
+    (*idx)[2 * i] = row.normal_unknown ? m++ : -1;
+    (*idx)[2 * i + 1] = friction ? m : -1;
     if (friction) m += 3;
   }
+  return m;
+}
 
-  // Constant part of lambda from fixed normals (and the slip force they imply); ybar = G c + b
-  // is then the free value seen by the unknowns.
-  growTo(&ws->w, 2 * k);
-  auto ybar = ws->w.head(2 * k);
+// The free values seen by the unknowns: ybar = G c + b, c the constant part of lambda from
+// fixed normals (and the slip force they imply).
+void freeValues(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const VecX>& b,
+                const std::vector<ContactRow>& rows, Eigen::Ref<VecX> ybar) {
   ybar = b;
-  for (Index i = 0; i < k; ++i) {
+  for (Index i = 0; i < static_cast<Index>(rows.size()); ++i) {
     if (rows[i].normal_unknown) continue;
     const double cn = rows[i].lambda_n_fixed;
     const double ct = slipCoefficient(rows[i]) * cn;
     if (cn != 0) ybar += cn * G.col(2 * i);
     if (ct != 0) ybar += ct * G.col(2 * i + 1);
   }
+}
 
-  // Scale g of G: the slip-rate multiplier beta is replaced by g * beta' and its row multiplied
-  // by g, so every block of the LCP matrix has the magnitude of G and the relative tolerances
-  // of Lemke's method mean the same in every row and column (complementarity is unchanged).
+// Scale g of G: the slip-rate multiplier beta is replaced by g * beta' and its row multiplied
+// by g, so every block of the LCP matrix has the magnitude of G and the relative tolerances of
+// Lemke's method mean the same in every row and column (complementarity is unchanged).
+double lcpScale(const Eigen::Ref<const MatX>& G) {
   double g = 0;
-  for (Index i = 0; i < 2 * k; ++i) g = std::max(g, std::abs(G(i, i)));
-  if (!(g > 0)) g = 1;
+  for (Index i = 0; i < G.rows(); ++i) g = std::max(g, std::abs(G(i, i)));
+  return g > 0 ? g : 1.0;
+}
 
-  growTo(&ws->M, m, m);
-  growTo(&ws->q, m);
-  growTo(&ws->z, m);
-  auto M = ws->M.topLeftCorner(m, m);
-  auto q = ws->q.head(m);
-  auto x = ws->z.head(m);
-  M.setZero();
-  // Coupling blocks: row i holds w_N = y_N, w_T+ = y_T (+ g beta'), w_T- = -y_T (+ g beta');
-  // column j moves lambda_Nj (and lambda_Tj = a_j lambda_Nj when j slides with a known sign)
-  // or lambda_Tj = lambda_T+ - lambda_T-.
+// Coupling blocks of the LCP matrix: row i holds w_N = y_N, w_T+ = y_T (+ g beta'), w_T- =
+// -y_T (+ g beta'); column j moves lambda_Nj (and lambda_Tj = a_j lambda_Nj when j slides with
+// a known sign) or lambda_Tj = lambda_T+ - lambda_T-.
+void fillCoupling(const Eigen::Ref<const MatX>& G, const std::vector<ContactRow>& rows,
+                  const std::vector<int>& idx, Eigen::Ref<MatX> M) {
+  const Index k = static_cast<Index>(rows.size());
   for (Index i = 0; i < k; ++i) {
     const int ni = idx[2 * i];
     const int ti = idx[2 * i + 1];
@@ -318,11 +348,16 @@ bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const
       }
     }
   }
-  // Per contact: the slip-rate terms, the friction-cone row g (mu lambda_N - lambda_T+ -
-  // lambda_T-) and the free values. No diagonal regularisation is added: the LCP is solvable
-  // as it stands (Anitescu-Potra; b in the range of W^T for a singular G), and an epsilon on
-  // the diagonal would create pivots below any safe pivot tolerance.
-  for (Index i = 0; i < k; ++i) {
+}
+
+// Per contact: the slip-rate terms, the friction-cone row g (mu lambda_N - lambda_T+ -
+// lambda_T-) and the free values q. No diagonal regularisation is added: the LCP is solvable
+// as it stands (Anitescu-Potra; b in the range of W^T for a singular G), and an epsilon on the
+// diagonal would create pivots below any safe pivot tolerance.
+void fillFrictionRows(const std::vector<ContactRow>& rows, const std::vector<int>& idx,
+                      const Eigen::Ref<const VecX>& ybar, double g, Eigen::Ref<MatX> M,
+                      Eigen::Ref<VecX> q) {
+  for (Index i = 0; i < static_cast<Index>(rows.size()); ++i) {
     const int ni = idx[2 * i];
     const int ti = idx[2 * i + 1];
     if (ni >= 0) q(ni) = ybar(2 * i);
@@ -337,13 +372,13 @@ bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const
     q(ti + 1) = -ybar(2 * i + 1);
     q(ti + 2) = ni >= 0 ? 0.0 : g * mu * rows[i].lambda_n_fixed;
   }
+}
 
-  // Solve (nothing to solve leaves only the constant part of lambda).
-  if (m > 0 && !lemke(M, q, x, ws, 0, nullptr)) return false;
-
-  // Map the unknowns back to lambda (lambda_T+ and lambda_T- may both be positive; only their
-  // difference matters), clip round-off outside the friction cone, and evaluate y = G lambda + b.
-  for (Index i = 0; i < k; ++i) {
+// The unknowns x mapped back to lambda (lambda_T+ and lambda_T- may both be positive; only
+// their difference matters), round-off outside the friction cone clipped.
+void mapBack(const std::vector<ContactRow>& rows, const std::vector<int>& idx,
+             const Eigen::Ref<const VecX>& x, Eigen::Ref<VecX> lambda) {
+  for (Index i = 0; i < static_cast<Index>(rows.size()); ++i) {
     const int ni = idx[2 * i];
     const int ti = idx[2 * i + 1];
     const double ln = ni >= 0 ? x(ni) : rows[i].lambda_n_fixed;
@@ -352,6 +387,32 @@ bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const
     lambda(2 * i) = ln;
     lambda(2 * i + 1) = lt;
   }
+}
+
+}  // namespace
+
+bool solveContactProblem(const Eigen::Ref<const MatX>& G, const Eigen::Ref<const VecX>& b,
+                         const std::vector<ContactRow>& rows, Eigen::Ref<VecX> lambda,
+                         Eigen::Ref<VecX> y, LcpWorkspace* ws) {
+  const Index k = static_cast<Index>(rows.size());
+  const int m = numberUnknowns(rows, &ws->ivec);
+  growTo(&ws->w, 2 * k);
+  auto ybar = ws->w.head(2 * k);
+  freeValues(G, b, rows, ybar);
+  const double g = lcpScale(G.topLeftCorner(2 * k, 2 * k));
+  growTo(&ws->M, m, m);
+  growTo(&ws->q, m);
+  growTo(&ws->z, m);
+  auto M = ws->M.topLeftCorner(m, m);
+  auto q = ws->q.head(m);
+  auto x = ws->z.head(m);
+  M.setZero();
+  fillCoupling(G, rows, ws->ivec, M);
+  fillFrictionRows(rows, ws->ivec, ybar, g, M, q);
+  // Solve (nothing to solve leaves only the constant part of lambda).
+  ws->status = LcpStatus::kSolved;
+  if (m > 0 && !lemke(M, q, x, ws, 0, nullptr)) return false;
+  mapBack(rows, ws->ivec, x, lambda);
   y.noalias() = G * lambda;
   y += b;
   return true;

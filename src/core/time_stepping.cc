@@ -132,61 +132,96 @@ void keepClosedContactDepths(const Model& m, const Drive& end, double h, MemoryO
   }
 }
 
-}  // namespace
+// ---------------------------------------------------------------------------------------------
+// The step's stages (timeSteppingStep below calls them in order).
 
-StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
-  Workspace& ws = *d->ws;
-  const double th = m.integrator.theta;
-  const int T = static_cast<int>(m.teeth.size());
+// What one time step carries from stage to stage.
+struct TsStep {
+  const Model& m;
+  Data* d;
+  Workspace& ws;
+  double h;                         // step length [s]
+  Drive mid{}, end{};               // the drum at the step's midpoint and end
+  double energy_before = 0.0;       // mechanical energy at the start, when known [J]
+  double H_before = 0.0;            // the teeth's angular momentum at the start [kg m^2/s]
+  bool have_energy_before = false;  // energy_before is the start's (else computed on need)
+  double drive_work_before_J = 0;   // drive work at the start [J]
+  double energy_net_before = 0;     // energy minus drive work at the start, when needed [J]
+  double H_after = 0.0;             // angular momentum at the end [kg m^2/s]
+  double energy_after = 0.0;        // mechanical energy at the end, once computed [J]
+  bool have_energy_after = false;   // energy_after is computed
+  bool solved = true;               // every contact problem of the step was solved
 
-  // Drum over the step: midpoint for forces and contacts, end for the new state.
-  const Drive mid = driveAt(m, *d, 0.5 * h);
-  const Drive end = driveAt(m, *d, h);
-  Drive forcing = mid;
-  forcing.alpha_radps2 = (end.omega_radps - d->omega_radps) / h;
-  updateIterationMatrices(m, mid.omega_radps, h, &ws);
-  // Energy and angular momentum at the step start: those the previous step ended with, if the
-  // state is still exactly that one.
-  // The energy is O(kernels) to compute and only needed when an episode begins or ends: it is
-  // computed below only then.
-  double energy_before = 0.0, H_before = 0.0;
-  const bool have_energy_before = ws.ts_end_values.lookup(*d, &energy_before, &H_before);
-  if (!have_energy_before) H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
-  const double drive_work_before_J = d->stats.drive_work_J;
+  PairMemory& memoryOf(size_t c) const { return ws.memory.entry(ws.ts_candidate_memory[c]).second; }
+  // Energy minus drive work at the step end, the energy computed on first use.
+  double energyNetAfter() {
+    if (!have_energy_after) energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
+    have_energy_after = true;
+    return energy_after - d->stats.drive_work_J;
+  }
+};
 
-  // Contact detection at the midpoint configuration z_M = z + h/2 u.
-  ws.z_mid = d->z + 0.5 * h * d->u;
+// Stage 1: the drum over the step (midpoint for forces and contacts, end for the new state),
+// the iteration matrices, and the energy and angular momentum at the start: those the previous
+// step ended with if the state is still exactly that one (the energy is O(kernels) to compute
+// and only needed when an episode begins or ends: computed later only then).
+void beginStep(TsStep* s) {
+  const Model& m = s->m;
+  Data* d = s->d;
+  s->mid = driveAt(m, *d, 0.5 * s->h);
+  s->end = driveAt(m, *d, s->h);
+  updateIterationMatrices(m, s->mid.omega_radps, s->h, &s->ws);
+  s->have_energy_before = s->ws.ts_end_values.lookup(*d, &s->energy_before, &s->H_before);
+  if (!s->have_energy_before) s->H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
+  s->drive_work_before_J = d->stats.drive_work_J;
+}
+
+// Stage 2: contact detection at the midpoint configuration z_M = z + h/2 u: the broad phase,
+// each candidate's pair memory (inserted on first sight), and the narrow phase. Separated pairs
+// surely farther than a quarter margin get only a gap bound: inactive (kernel and obstacle
+// pairs by the supporting-line bound, so that kernels side by side on the grate, within each
+// other's bounding circles but not in reach, get no exact distance).
+void detectContacts(TsStep* s) {
+  const Model& m = s->m;
+  const Data& d = *s->d;
+  Workspace& ws = s->ws;
+  ws.z_mid = d.z + 0.5 * s->h * d.u;
   // Tooth stations only for the teeth that can meet a kernel (computed by the broad phase).
   layoutStations(m, &ws);
-  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * h * speedBound(m, *d), &ws, &mid.theta_rad);
+  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * s->h * speedBound(m, d), &ws,
+             &s->mid.theta_rad);
   ws.geoms.resize(ws.candidates.size());
-  // Pair memory of each candidate, looked up once (inserted on first sight).
-  std::vector<int>& cand_mem = ws.ts_candidate_memory;
-  cand_mem.resize(ws.candidates.size());
+  ws.ts_candidate_memory.resize(ws.candidates.size());
   for (size_t c = 0; c < ws.candidates.size(); ++c)
-    cand_mem[c] = ws.memory.indexOf(pairKey(ws.candidates[c]));
-  auto memoryOf = [&](size_t c) -> PairMemory& { return ws.memory.entry(cand_mem[c]).second; };
-  // Separated pairs surely farther than a quarter margin get only a gap bound: inactive (kernel
-  // and obstacle pairs by the supporting-line bound, so that kernels side by side on the
-  // grate, within each other's bounding circles but not in reach, get no exact distance).
+    ws.ts_candidate_memory[c] = ws.memory.indexOf(pairKey(ws.candidates[c]));
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
-    const bool separated = memoryOf(c).state == ContactState::kSeparated;
+    const bool separated = s->memoryOf(c).state == ContactState::kSeparated;
     evaluateContact(
-        m, ws.z_mid, d->u, mid, ws.candidates[c], &ws, &ws.geoms[c],
+        m, ws.z_mid, d.u, s->mid, ws.candidates[c], &ws, &ws.geoms[c],
         separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity(),
         separated);
   }
+}
 
-  // Free velocity: theta-method on the linear tooth equations, explicit kernel forces.
-  smoothForces(m, *d, ws.z_mid, d->u, forcing, &ws.forces);
+// Stage 3: the free velocity: theta-method on the linear tooth equations, explicit kernel
+// forces (the drum's acceleration over the step as the forcing).
+void freeVelocity(TsStep* s) {
+  const Model& m = s->m;
+  const Data& d = *s->d;
+  Workspace& ws = s->ws;
+  const double h = s->h, th = m.integrator.theta;
+  const int T = static_cast<int>(m.teeth.size());
+  Drive forcing = s->mid;
+  forcing.alpha_radps2 = (s->end.omega_radps - d.omega_radps) / h;
+  smoothForces(m, d, ws.z_mid, d.u, forcing, &ws.forces);
   for (int k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
     auto f = ws.forces.segment(tm.dof_offset, tm.n_modes);
     f.noalias() -=
-        (h * (th - 0.5)) * (ws.iteration_stiffness[k] * d->u.segment(tm.dof_offset, tm.n_modes));
+        (h * (th - 0.5)) * (ws.iteration_stiffness[k] * d.u.segment(tm.dof_offset, tm.n_modes));
   }
-  ws.u_free = d->u;
+  ws.u_free = d.u;
   for (int k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
@@ -197,18 +232,22 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     ws.u_free.segment<2>(k.dof_offset) += h / k.mass_kg * ws.forces.segment<2>(k.dof_offset);
     ws.u_free[k.dof_offset + 2] += h / k.inertia_kgm2 * ws.forces[k.dof_offset + 2];
   }
+}
 
-  // Active contacts: closed at the midpoint. Rigid: unknown normal impulse with Newton's law;
-  // compliant: the Hertz-Hunt-Crossley force over the step as a fixed normal impulse.
+// Stage 4: the active contacts, closed at the midpoint, as rows of the contact problem. Rigid:
+// an unknown normal impulse with Newton's law; compliant: the Hertz-Hunt-Crossley force over
+// the step as a fixed normal impulse. A pressed rigid contact (sticking or slipping at the last
+// step, past its impact step) stays active up to a slop of clearance (h zeno_velocity): the
+// drift its depth keeping corrects must not open it. A contact that just bounced is not pressed.
+void assembleContactRows(TsStep* s) {
+  const Model& m = s->m;
+  Workspace& ws = s->ws;
   ws.active.clear();
   ws.rows.clear();
-  // A pressed rigid contact (sticking or slipping at the last step, past its impact step) stays
-  // active up to a slop of clearance (h zeno_velocity): the drift its depth keeping corrects
-  // must not open it. A contact that just bounced is not pressed.
-  const double keep_m = h * m.integrator.zeno_velocity_mps;
+  const double keep_m = s->h * m.integrator.zeno_velocity_mps;
   for (size_t c = 0; c < ws.geoms.size(); ++c) {
     const ContactGeom& g = ws.geoms[c];
-    PairMemory& mem = memoryOf(c);
+    PairMemory& mem = s->memoryOf(c);
     const bool pressed = g.params->law == ContactLaw::kRigid &&
                          (mem.state == ContactState::kStick || mem.state == ContactState::kSlip);
     if (g.gap_m > (pressed ? keep_m : 0.0)) continue;
@@ -221,11 +260,18 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
       const double v_in = first ? -g.vn : mem.v_in_mps;
       const double K = first ? g.hertz_K : mem.hertz_K;
       row.normal_unknown = false;
-      row.lambda_n_fixed = h * compliantNormalForce(g, K, v_in, m.hc_min_impact_speed_mps);
+      row.lambda_n_fixed = s->h * compliantNormalForce(g, K, v_in, m.hc_min_impact_speed_mps);
     }
     ws.active.push_back(static_cast<int>(c));
     ws.rows.push_back(row);
   }
+}
+
+// Stage 5: the free contact velocities b = W^T u_free (+ the restitution target e dg_N- of
+// Newton's law 0 <= P_N _|_ dg_N+ + e dg_N- >= 0; slow approaches are plastic: Zeno).
+void contactTargets(TsStep* s) {
+  const Model& m = s->m;
+  Workspace& ws = s->ws;
   const int k = static_cast<int>(ws.active.size());
   growTo(&ws.b, 2 * k);
   growTo(&ws.b_offset, k);
@@ -233,27 +279,29 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     double bn = g.wtilde_n, bt = g.wtilde_t;
-    for (const BodyJac& s : g.side) {
-      if (s.body < 0 || s.w_n.size() == 0) continue;
-      const auto uf = ws.u_free.segment(bodyDofOffset(m, s.body), s.w_n.size());
-      bn += s.w_n.dot(uf);
-      bt += s.w_t.dot(uf);
+    for (const BodyJac& side : g.side) {
+      if (side.body < 0 || side.w_n.size() == 0) continue;
+      const auto uf = ws.u_free.segment(bodyDofOffset(m, side.body), side.w_n.size());
+      bn += side.w_n.dot(uf);
+      bt += side.w_t.dot(uf);
     }
-    // Newton's law 0 <= P_N _|_ dg_N+ + e dg_N- >= 0; slow approaches are plastic (Zeno).
     if (ws.rows[i].normal_unknown && g.vn < -m.integrator.zeno_velocity_mps)
       ws.b_offset[i] = g.params->restitution * g.vn;
     ws.b[2 * i] = bn + ws.b_offset[i];
     ws.b[2 * i + 1] = bt;
   }
-  bool solved = solveContactIslands(m, &ws.iteration_inverse, &ws);
+}
 
-  // A compliant force held over a coarse step can throw the bodies apart faster than they
-  // met (energy from nothing). No contact may separate faster than its approach speed
-  // (e <= 1): such a contact is solved again with that bound as a rigid target.
+// A compliant force held over a coarse step can throw the bodies apart faster than they met
+// (energy from nothing). No contact may separate faster than its approach speed (e <= 1): such
+// a contact becomes a rigid row with that bound as its target. Returns whether any did.
+bool capSeparationSpeeds(TsStep* s) {
+  const Model& m = s->m;
+  Workspace& ws = s->ws;
   bool capped = false;
-  for (int i = 0; i < k; ++i) {
+  for (int i = 0; i < static_cast<int>(ws.active.size()); ++i) {
     if (ws.rows[i].normal_unknown) continue;
-    const PairMemory& mem = memoryOf(ws.active[i]);
+    const PairMemory& mem = s->memoryOf(ws.active[i]);
     const double v_in =
         mem.state == ContactState::kSeparated ? -ws.geoms[ws.active[i]].vn : mem.v_in_mps;
     // 1 % above the approach speed is the discretisation noise of an elastic (e = 1) contact.
@@ -264,83 +312,173 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
     ws.b[2 * i] -= v_max;
     capped = true;
   }
-  if (capped) solved = solveContactIslands(m, &ws.iteration_inverse, &ws) && solved;
+  return capped;
+}
 
-  // Newton's law with friction can create energy. The impulses' work relative to the free
-  // motion is P.dg+ - 1/2 P.G P = P.(y - offset) - 1/2 P.(y - b); if it is positive, the
-  // step's impacts are redone plastically (no restitution), which cannot gain energy.
+// Newton's law with friction can create energy. The impulses' work relative to the free
+// motion is P.dg+ - 1/2 P.G P = P.(y - offset) - 1/2 P.(y - b); if it is positive, the step's
+// impacts lose their restitution targets (to be solved again plastically, which cannot gain
+// energy). Returns whether they did.
+bool dropRestitutionIfWorkGained(Workspace* ws) {
+  const int k = static_cast<int>(ws->active.size());
   double work = 0.0, restitution = 0.0;
   for (int i = 0; i < 2 * k; ++i) {
-    const double off = (i % 2 == 0) ? ws.b_offset[i / 2] : 0.0;
-    work += ws.lambda[i] * (ws.y[i] - off) - 0.5 * ws.lambda[i] * (ws.y[i] - ws.b[i]);
-    if (i % 2 == 0 && ws.rows[i / 2].normal_unknown) restitution += std::abs(off);
+    const double off = (i % 2 == 0) ? ws->b_offset[i / 2] : 0.0;
+    work += ws->lambda[i] * (ws->y[i] - off) - 0.5 * ws->lambda[i] * (ws->y[i] - ws->b[i]);
+    if (i % 2 == 0 && ws->rows[i / 2].normal_unknown) restitution += std::abs(off);
   }
-  if (restitution > 0.0 && work > 1e-15) {
-    for (int i = 0; i < k; ++i) {
-      if (!ws.rows[i].normal_unknown || ws.b_offset[i] >= 0.0) continue;
-      ws.b[2 * i] -= ws.b_offset[i];
-      ws.b_offset[i] = 0.0;
-    }
-    solved = solveContactIslands(m, &ws.iteration_inverse, &ws) && solved;
+  if (!(restitution > 0.0 && work > 1e-15)) return false;
+  for (int i = 0; i < k; ++i) {
+    if (!ws->rows[i].normal_unknown || ws->b_offset[i] >= 0.0) continue;
+    ws->b[2 * i] -= ws->b_offset[i];
+    ws->b_offset[i] = 0.0;
   }
+  return true;
+}
 
-  // Energy at the step start (still the state in d): needed if an episode begins.
+// Stage 6: the contact impulses: the complementarity problem per island, again with capped
+// separation speeds, and again plastically if Newton's law gained energy.
+void solveImpulses(TsStep* s) {
+  Workspace& ws = s->ws;
+  s->solved = solveContactIslands(s->m, &ws.iteration_inverse, &ws);
+  if (capSeparationSpeeds(s))
+    s->solved = solveContactIslands(s->m, &ws.iteration_inverse, &ws) && s->solved;
+  if (dropRestitutionIfWorkGained(&ws))
+    s->solved = solveContactIslands(s->m, &ws.iteration_inverse, &ws) && s->solved;
+}
+
+// Stage 7: the energy at the step start (still the state in d), when an episode begins; then
+// the new velocities u+ = u_free + Minv W P, and positions by the theta rule with the depths of
+// closed rigid contacts kept.
+void applyImpulses(TsStep* s) {
+  const Model& m = s->m;
+  Data* d = s->d;
+  Workspace& ws = s->ws;
+  const int k = static_cast<int>(ws.active.size());
   bool episode_begins = false;
   for (int i = 0; i < k && !episode_begins; ++i)
     episode_begins =
-        ws.lambda[2 * i] > 0.0 && memoryOf(ws.active[i]).state == ContactState::kSeparated;
-  if (episode_begins && !have_energy_before)
-    energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
-  const double energy_net_before = energy_before - drive_work_before_J;
-
-  // New velocities u+ = u_free + Minv W P, positions by the theta rule.
+        ws.lambda[2 * i] > 0.0 && s->memoryOf(ws.active[i]).state == ContactState::kSeparated;
+  if (episode_begins && !s->have_energy_before)
+    s->energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
+  s->energy_net_before = s->energy_before - s->drive_work_before_J;
   ws.u_old = d->u;
   d->u = ws.u_free;
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     const double pn = ws.lambda[2 * i], pt = ws.lambda[2 * i + 1];
-    for (const BodyJac& s : g.side) {
-      applyInverseMass(m, &ws.iteration_inverse, s.body, s.w_n, pn, &d->u);
-      applyInverseMass(m, &ws.iteration_inverse, s.body, s.w_t, pt, &d->u);
+    for (const BodyJac& side : g.side) {
+      applyInverseMass(m, &ws.iteration_inverse, side.body, side.w_n, pn, &d->u);
+      applyInverseMass(m, &ws.iteration_inverse, side.body, side.w_t, pt, &d->u);
     }
   }
-  d->z += h * (th * d->u + (1.0 - th) * ws.u_old);
-  keepClosedContactDepths(m, end, h, memoryOf, d, &ws);
+  const double th = m.integrator.theta;
+  d->z += s->h * (th * d->u + (1.0 - th) * ws.u_old);
+  keepClosedContactDepths(
+      m, s->end, s->h, [s](size_t c) -> PairMemory& { return s->memoryOf(c); }, d, &ws);
+}
 
-  // Drive work: Omega (change of the teeth's angular momentum - contact angular impulse).
+// Stage 8: the drive's work, Omega (change of the teeth's angular momentum - the contacts'
+// angular impulse); then time and the drum advance, time kept on the grid of the model's step
+// (no round-off drift).
+void advanceClock(TsStep* s) {
+  const Model& m = s->m;
+  Data* d = s->d;
+  const Workspace& ws = s->ws;
   double contact_angular_impulse = 0.0;
-  for (int i = 0; i < k; ++i) {
+  for (int i = 0; i < static_cast<int>(ws.active.size()); ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     if (g.pair.kind != PairKind::kToothKernel) continue;
     const Vec2& p = g.p0;
     contact_angular_impulse += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
                                ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
   }
-  const double H_after = angularMomentumOf(m, d->z, d->u, end.omega_radps);
-  d->stats.drive_work_J += mid.omega_radps * (H_after - H_before - contact_angular_impulse);
-
-  // Advance time and the drum; keep time on the grid of the model's step (no round-off drift).
-  d->t_s = end.t_s;
+  s->H_after = angularMomentumOf(m, d->z, d->u, s->end.omega_radps);
+  d->stats.drive_work_J +=
+      s->mid.omega_radps * (s->H_after - s->H_before - contact_angular_impulse);
+  d->t_s = s->end.t_s;
   const double grid = m.integrator.dt_s;
   const double snapped = std::round(d->t_s / grid) * grid;
   if (std::abs(snapped - d->t_s) < 1e-6 * grid) d->t_s = snapped;
-  d->theta_rad = end.theta_rad;
-  d->omega_radps = end.omega_radps;
-  d->alpha_radps2 = end.alpha_radps2;
+  d->theta_rad = s->end.theta_rad;
+  d->omega_radps = s->end.omega_radps;
+  d->alpha_radps2 = s->end.alpha_radps2;
   ++d->steps;
-  // Energy at the step end, computed on first use (an episode ends or an impact is logged).
-  double energy_after = 0.0;
-  bool have_energy_after = false;
-  auto energyNetAfter = [&]() {
-    if (!have_energy_after) energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
-    have_energy_after = true;
-    return energy_after - d->stats.drive_work_J;
-  };
+}
 
-  // Contact states, episodes, events and statistics.
-  // Pairs in contact at the previous step end: kept by this integrator in ws.ts_in_contact
-  // (pair-table indices). Any other history of the workspace (a reset, event-driven steps)
-  // leaves it stale: then every pair's memory is scanned once, as a rebuild.
+// The impact event of a rigid contact's first step: its impulse is the impact.
+void logRigidImpact(TsStep* s, const ContactGeom& g, const PairMemory& mem, int row,
+                    double vt_after) {
+  Data* d = s->d;
+  const Workspace& ws = s->ws;
+  ContactEvent ev;
+  ev.t_s = d->t_s;
+  ev.pair = g.pair;
+  ev.from = ContactState::kSeparated;
+  ev.to = ContactState::kImpact;
+  ev.is_impact = true;
+  ev.vn_before_mps = g.vn;
+  ev.vt_before_mps = g.vt;
+  ev.vn_after_mps = ws.y[2 * row] - ws.b_offset[row];
+  ev.vt_after_mps = vt_after;
+  ev.impulse_normal_Ns = ws.lambda[2 * row];
+  ev.impulse_tangential_Ns = ws.lambda[2 * row + 1];
+  ev.energy_lost_J = s->energy_net_before - s->energyNetAfter();
+  ev.macro_collision = mem.macro_index;
+  ev.sub_collision = mem.sub_index;
+  d->events.push_back(ev);
+  ++d->stats.impacts;
+  const int kb = g.pair.kind == PairKind::kKernelObstacle ? g.pair.a : g.pair.b;
+  ++d->stats.kernel_impacts[kb];
+  if (g.pair.kind == PairKind::kKernelKernel) ++d->stats.kernel_impacts[g.pair.a];
+  d->stats.max_energy_gain_at_impact_J =
+      std::max(d->stats.max_energy_gain_at_impact_J, -ev.energy_lost_J);
+}
+
+// A touching pair (row `row` of the contact problem, impulses pn, pt): a new episode starts
+// with an impact, then sticks or slips; its forces and impulses go to the statistics.
+void updateTouchingPair(TsStep* s, const ContactGeom& g, PairMemory* mem, int row,
+                        double vt_after) {
+  const Model& m = s->m;
+  Data* d = s->d;
+  const double h = s->h;
+  const double pn = s->ws.lambda[2 * row], pt = s->ws.lambda[2 * row + 1];
+  const ContactState before = mem->state;
+  if (before == ContactState::kSeparated) {
+    mem->v_in_mps = std::max(-g.vn, 0.0);
+    mem->hertz_K = g.hertz_K;
+    beginEpisode(m, d, mem, g, d->t_s - h, s->energy_net_before);
+  }
+  const double mu = g.params->friction;
+  const bool sticking = mu > 0.0 && std::abs(pt) < mu * pn * (1.0 - 1e-9);
+  mem->state = before == ContactState::kSeparated
+                   ? ContactState::kImpact
+                   : (sticking || mu == 0.0 ? ContactState::kStick : ContactState::kSlip);
+  if (mu == 0.0 && std::abs(vt_after) > m.integrator.zeno_velocity_mps)
+    mem->state = ContactState::kSlip;
+  if (before != ContactState::kSeparated && before != mem->state)
+    emitTransition(d, g.pair, before, mem->state, d->t_s, g);
+  if (before == ContactState::kSeparated && g.params->law == ContactLaw::kRigid)
+    logRigidImpact(s, g, *mem, row, vt_after);
+  mem->normal_force_N = pn / h;
+  mem->tangential_force_N = pt / h;
+  mem->impulse_n_acc += pn;
+  mem->impulse_t_acc += pt;
+  mem->episode_impulse_n += pn;
+  mem->episode_impulse_t += pt;
+  mem->episode_peak_N = std::max(mem->episode_peak_N, pn / h);
+  d->stats.total_normal_impulse_Ns += pn;
+  recordForce(m, d, g, pn / h, pt / h, d->t_s);
+}
+
+// Stage 9: contact states, episodes, events and statistics of every candidate pair. Pairs in
+// contact at the previous step end are kept by this integrator in ws.ts_in_contact (pair-table
+// indices). Any other history of the workspace (a reset, event-driven steps) leaves it stale:
+// then every pair's memory is scanned once, as a rebuild.
+void updateContactStates(TsStep* s) {
+  const Model& m = s->m;
+  Data* d = s->d;
+  Workspace& ws = s->ws;
   std::vector<int>& in_contact = ws.ts_in_contact;
   if (ws.ts_in_contact_step != d->steps - 1) {
     in_contact.clear();
@@ -350,75 +488,22 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
       if (mem.state != ContactState::kSeparated) in_contact.push_back(static_cast<int>(e));
     }
   }
+  const int k = static_cast<int>(ws.active.size());
   int ia = 0;
   for (size_t c = 0; c < ws.geoms.size(); ++c) {
     const ContactGeom& g = ws.geoms[c];
-    PairMemory& mem = memoryOf(c);
+    PairMemory& mem = s->memoryOf(c);
     mem.seen = true;
     const bool is_active = ia < k && ws.active[ia] == static_cast<int>(c);
-    const double pn = is_active ? ws.lambda[2 * ia] : 0.0;
-    const double pt = is_active ? ws.lambda[2 * ia + 1] : 0.0;
-    const double vt_after = is_active ? ws.y[2 * ia + 1] : g.vt;
-    if (is_active) ++ia;
-    const bool touching = is_active && pn > 0.0;
-    if (!touching) {
-      if (mem.state != ContactState::kSeparated) {
-        ContactGeom g_end = g;
-        g_end.vn = is_active ? ws.y[2 * (ia - 1)] - ws.b_offset[ia - 1] : g.vn;
-        endEpisode(m, d, &mem, g_end, d->t_s, energyNetAfter());
-      }
-      continue;
+    const int row = is_active ? ia++ : -1;
+    const double vt_after = is_active ? ws.y[2 * row + 1] : g.vt;
+    if (is_active && ws.lambda[2 * row] > 0.0) {
+      updateTouchingPair(s, g, &mem, row, vt_after);
+    } else if (mem.state != ContactState::kSeparated) {
+      ContactGeom g_end = g;
+      g_end.vn = is_active ? ws.y[2 * row] - ws.b_offset[row] : g.vn;
+      endEpisode(m, d, &mem, g_end, d->t_s, s->energyNetAfter());
     }
-    // Touching: a new episode starts with an impact, then sticks or slips.
-    const ContactState before = mem.state;
-    if (before == ContactState::kSeparated) {
-      mem.v_in_mps = std::max(-g.vn, 0.0);
-      mem.hertz_K = g.hertz_K;
-      beginEpisode(m, d, &mem, g, d->t_s - h, energy_net_before);
-    }
-    const double mu = g.params->friction;
-    const bool sticking = mu > 0.0 && std::abs(pt) < mu * pn * (1.0 - 1e-9);
-    mem.state = before == ContactState::kSeparated
-                    ? ContactState::kImpact
-                    : (sticking || mu == 0.0 ? ContactState::kStick : ContactState::kSlip);
-    if (mu == 0.0 && std::abs(vt_after) > m.integrator.zeno_velocity_mps)
-      mem.state = ContactState::kSlip;
-    if (before != ContactState::kSeparated && before != mem.state)
-      emitTransition(d, g.pair, before, mem.state, d->t_s, g);
-    // Rigid law: the impulse of the first step is the impact.
-    if (before == ContactState::kSeparated && g.params->law == ContactLaw::kRigid) {
-      ContactEvent ev;
-      ev.t_s = d->t_s;
-      ev.pair = g.pair;
-      ev.from = ContactState::kSeparated;
-      ev.to = ContactState::kImpact;
-      ev.is_impact = true;
-      ev.vn_before_mps = g.vn;
-      ev.vt_before_mps = g.vt;
-      ev.vn_after_mps = ws.y[2 * (ia - 1)] - ws.b_offset[ia - 1];
-      ev.vt_after_mps = vt_after;
-      ev.impulse_normal_Ns = pn;
-      ev.impulse_tangential_Ns = pt;
-      ev.energy_lost_J = energy_net_before - energyNetAfter();
-      ev.macro_collision = mem.macro_index;
-      ev.sub_collision = mem.sub_index;
-      d->events.push_back(ev);
-      ++d->stats.impacts;
-      const int kb = g.pair.kind == PairKind::kKernelObstacle ? g.pair.a : g.pair.b;
-      ++d->stats.kernel_impacts[kb];
-      if (g.pair.kind == PairKind::kKernelKernel) ++d->stats.kernel_impacts[g.pair.a];
-      d->stats.max_energy_gain_at_impact_J =
-          std::max(d->stats.max_energy_gain_at_impact_J, -ev.energy_lost_J);
-    }
-    mem.normal_force_N = pn / h;
-    mem.tangential_force_N = pt / h;
-    mem.impulse_n_acc += pn;
-    mem.impulse_t_acc += pt;
-    mem.episode_impulse_n += pn;
-    mem.episode_impulse_t += pt;
-    mem.episode_peak_N = std::max(mem.episode_peak_N, pn / h);
-    d->stats.total_normal_impulse_Ns += pn;
-    recordForce(m, d, g, pn / h, pt / h, d->t_s);
   }
   // Pairs that left the broad phase while in contact have separated (in pair-table order, the
   // order of a scan of the whole table).
@@ -432,31 +517,55 @@ StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
                         static_cast<int>((kv.first >> 30) & 0x3fffffff),
                         static_cast<int>(kv.first & 0x3fffffff)};
     g_far.params = &m.contact[static_cast<int>(g_far.pair.kind)];
-    endEpisode(m, d, &mem, g_far, d->t_s, energyNetAfter());
+    endEpisode(m, d, &mem, g_far, d->t_s, s->energyNetAfter());
   }
   // The candidates in contact now, for the next step; seen flags back to false.
   in_contact.clear();
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
-    PairMemory& mem = memoryOf(c);
+    PairMemory& mem = s->memoryOf(c);
     mem.seen = false;
-    if (mem.state != ContactState::kSeparated) in_contact.push_back(cand_mem[c]);
+    if (mem.state != ContactState::kSeparated) in_contact.push_back(ws.ts_candidate_memory[c]);
   }
   ws.ts_in_contact_step = d->steps;
-  // The next step starts from the end energy with the pedicels as they were before this
-  // step's breaks: if one breaks, that energy is computed now (pedicels put back meanwhile).
-  if (!have_energy_after) ws.ts_attached_before = d->kernel_attached;
-  updatePedicels(m, d);
-  if (!have_energy_after && d->kernel_attached != ws.ts_attached_before) {
+}
+
+// Stage 10: pedicels that reached their detachment force break; the end values for the next
+// step (it starts from the end energy with the pedicels as they were before this step's
+// breaks: if one breaks, that energy is computed now, the pedicels put back meanwhile); the
+// contacts published to the data.
+void finishStep(TsStep* s) {
+  Data* d = s->d;
+  Workspace& ws = s->ws;
+  if (!s->have_energy_after) ws.ts_attached_before = d->kernel_attached;
+  updatePedicels(s->m, d);
+  if (!s->have_energy_after && d->kernel_attached != ws.ts_attached_before) {
     std::swap(d->kernel_attached, ws.ts_attached_before);
-    energyNetAfter();
+    s->energyNetAfter();
     std::swap(d->kernel_attached, ws.ts_attached_before);
   }
-  if (have_energy_after)
-    ws.ts_end_values.store(*d, energy_after, H_after);
+  if (s->have_energy_after)
+    ws.ts_end_values.store(*d, s->energy_after, s->H_after);
   else
     ws.ts_end_values.invalidate();
   publishContacts(d, &ws);
-  return solved ? StepStatus::kOk : StepStatus::kRecovered;
+}
+
+}  // namespace
+
+// One Moreau-Jean time step of length h.
+StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
+  TsStep s{m, d, *d->ws, h, Drive{}, Drive{}};
+  beginStep(&s);
+  detectContacts(&s);
+  freeVelocity(&s);
+  assembleContactRows(&s);
+  contactTargets(&s);
+  solveImpulses(&s);
+  applyImpulses(&s);
+  advanceClock(&s);
+  updateContactStates(&s);
+  finishStep(&s);
+  return s.solved ? StepStatus::kOk : StepStatus::kRecovered;
 }
 
 }  // namespace internal

@@ -82,6 +82,9 @@ struct RecordHeader {
   std::string compression;            // chunk: none, bz2, lz4
   std::uint64_t index_pos = kAbsent;  // bag header: offset of the first index record [bytes]
   std::uint64_t chunk_pos = kAbsent;  // chunk info: offset of its chunk [bytes]
+  std::uint64_t count = kAbsent;      // index data: entries; chunk info: connections
+  std::uint64_t ver = kAbsent;        // index data, chunk info: record version
+  std::uint64_t conn = kAbsent;       // connection, index data, message: connection id
 };
 
 std::uint64_t u64(const char* b) {
@@ -106,6 +109,12 @@ bool parseHeader(const std::string& header, RecordHeader* out) {
     if (name == "compression") out->compression = value;
     if (name == "index_pos" && value.size() == 8) out->index_pos = u64(value.data());
     if (name == "chunk_pos" && value.size() == 8) out->chunk_pos = u64(value.data());
+    if (name == "count" && value.size() == 4)
+      out->count = u32(reinterpret_cast<const unsigned char*>(value.data()));
+    if (name == "ver" && value.size() == 4)
+      out->ver = u32(reinterpret_cast<const unsigned char*>(value.data()));
+    if (name == "conn" && value.size() == 4)
+      out->conn = u32(reinterpret_cast<const unsigned char*>(value.data()));
     f += 4 + len;
   }
   return true;
@@ -115,7 +124,7 @@ bool parseHeader(const std::string& header, RecordHeader* out) {
 // (rosbag and ros::Header::parse read them without bounds checks).
 void checkChunkRecords(const std::string& chunk,
                        const std::function<void(const std::string&)>& refuse,
-                       std::set<std::uint64_t>* starts) {
+                       std::set<std::uint64_t>* starts, std::set<std::uint64_t>* connections) {
   starts->clear();
   for (size_t pos = 0; pos < chunk.size();) {
     starts->insert(pos);
@@ -133,6 +142,7 @@ void checkChunkRecords(const std::string& chunk,
     RecordHeader connection;
     if (h.op == 0x07 && !parseHeader(chunk.substr(pos + 8 + header_len, data_len), &connection))
       refuse("connection header field beyond its record");
+    if (h.op == 0x07) connections->insert(h.conn);
     pos += 8 + header_len + data_len;
   }
 }
@@ -161,7 +171,7 @@ void checkBagLengths(const std::string& path) {
                                 ": " + what);
   };
   unsigned char len4[4];
-  std::set<std::uint64_t> record_starts, chunk_starts;
+  std::set<std::uint64_t> record_starts, chunk_starts, connections, indexed_connections;
   std::vector<std::uint64_t> chunk_positions;
   std::uint64_t index_pos = kAbsent;
   while (pos < file_size) {
@@ -189,7 +199,7 @@ void checkBagLengths(const std::string& path) {
                std::to_string(data_len) + " bytes of data");
       std::string chunk(data_len, '\0');
       in.read(&chunk[0], static_cast<std::streamsize>(data_len));
-      checkChunkRecords(chunk, refuse, &chunk_starts);
+      checkChunkRecords(chunk, refuse, &chunk_starts, &connections);
     } else if (h.op == 0x07) {
       // A connection record's data is itself a header (topic, type, md5sum, definition).
       if (data_len > (16u << 20)) refuse("connection record too large");
@@ -197,9 +207,20 @@ void checkBagLengths(const std::string& path) {
       in.read(&data[0], static_cast<std::streamsize>(data_len));
       RecordHeader connection;
       if (!parseHeader(data, &connection)) refuse("connection header field beyond its record");
+      connections.insert(h.conn);
+    } else if (h.op == 0x06) {
+      // Chunk info: `count` (connection id, message count) pairs, which rosbag reads as many.
+      if (h.ver != 1 || h.count > (1u << 20) || h.count * 8 != data_len)
+        refuse("chunk info declares " + std::to_string(h.count) + " connections for " +
+               std::to_string(data_len) + " bytes of data");
     } else if (h.op == 0x04) {
-      // Index data: entries of (time 8 bytes, offset 4 bytes) into the chunk before it.
+      // Index data: `count` entries of (time 8 bytes, offset 4 bytes) into the chunk before it,
+      // which rosbag reads as many (a larger count read offsets from beyond the record).
       if (data_len > (64u << 20)) refuse("index record too large");
+      if (h.ver != 1 || h.count * 12 != data_len)
+        refuse("index record declares " + std::to_string(h.count) + " entries for " +
+               std::to_string(data_len) + " bytes of data");
+      indexed_connections.insert(h.conn);
       std::string index(data_len, '\0');
       in.read(&index[0], static_cast<std::streamsize>(data_len));
       for (size_t e = 0; e + 12 <= index.size(); e += 12)
@@ -216,6 +237,10 @@ void checkBagLengths(const std::string& path) {
   for (const std::uint64_t c : chunk_positions)
     if (record_starts.count(c) == 0)
       refuse("a chunk info's chunk_pos " + std::to_string(c) + " starts no record");
+  for (const std::uint64_t c : indexed_connections)
+    if (connections.count(c) == 0)
+      refuse("an index record names connection " + std::to_string(c) +
+             ", which no connection record defines");
 }
 
 }  // namespace

@@ -668,6 +668,94 @@ double angleToNextTooth(const Model& model, double direction) {
   return gap_rad;
 }
 
+// The stream's parameters, and the kernel every draw starts from.
+struct StreamSpec {
+  int count = 0;                  // kernels [-]
+  double rate_Hz = 0;             // kernels per second of drum time [1/s]
+  double start_s = 0;             // arrival of the first kernel [s]
+  int seed = 1;                   // seed of the scatter [-]
+  double depth_m = 0;             // centre depth inside the tip circle [m]
+  double position_scatter_m = 0;  // +- radial and along-path scatter [m]
+  double angle_scatter_rad = 0;   // +- orientation scatter [rad]
+  double pedicel_length_m = 0;    // pedicel from the kernel's end to its anchor [m]
+  Vec2 mass_kg;                   // mass range [kg]
+  Vec2 detach_N;                  // detachment force range [N]
+  KernelModel base;               // semi-axes, material, pedicel law
+};
+
+StreamSpec readStreamSpec(const Section& s) {
+  StreamSpec spec;
+  s.require("count");
+  s.require("rate");
+  spec.count = s.integer("count", 1);
+  spec.rate_Hz = s.number("rate", 1.0);
+  spec.start_s = s.number("start", 5e-4);
+  spec.seed = s.integer("seed", 1);
+  spec.depth_m = s.number("depth", 0.005);
+  spec.position_scatter_m = s.number("position_scatter", 0.001);
+  spec.angle_scatter_rad = s.number("angle_scatter", 0.5);
+  KernelModel& base = spec.base;
+  const Vec2 axes = s.vec2("semi_axes", Vec2(base.semi_axis_a_m, base.semi_axis_b_m));
+  if (axes.minCoeff() <= 0 || axes.x() < axes.y()) {
+    fail(s.path("semi_axes"),
+         "must be [a, b] with a >= b > 0 (got " + show(s.node("semi_axes")) + ")");
+  }
+  base.semi_axis_a_m = axes.x();
+  base.semi_axis_b_m = axes.y();
+  spec.mass_kg = positiveRange(s, "mass_range", Vec2(2.4e-5, 3.1e-5));
+  base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa);
+  base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio);
+  spec.pedicel_length_m = s.number("pedicel_length", 0.003);
+  base.pedicel.present = true;
+  base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm);
+  base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm);
+  base.pedicel.rest_length_m = -1.0;
+  base.pedicel.p_KP_K = Vec2(base.semi_axis_a_m, 0.0);
+  spec.detach_N = positiveRange(s, "detachment_force_range", Vec2(0.27, 2.6));
+  return spec;
+}
+
+// The radius of the kernels' centres; refuses a depth that puts them at the drum axis, and a
+// stream that would not pass before the next tooth reaches the first kernel's place.
+double streamRadius(const Section& s, const Model& model, const StreamSpec& spec) {
+  const double omega_radps = model.drum.initial_speed_radps;
+  const double direction = omega_radps > 0 ? 1.0 : -1.0;
+  const double tip_radius_m = model.drum.radius_m + model.teeth[0].length_m;
+  const double radius_m = tip_radius_m - spec.depth_m;
+  if (radius_m - spec.position_scatter_m <= spec.base.semi_axis_a_m) {
+    fail(s.path("depth"), "puts the kernels at the drum axis (centre radius " + show(radius_m) +
+                              " m, got " + show(s.node("depth")) + ")");
+  }
+  const double span_rad = std::abs(omega_radps) * (spec.start_s + (spec.count - 1) / spec.rate_Hz) +
+                          spec.position_scatter_m / (radius_m - spec.position_scatter_m);
+  const double gap_rad = angleToNextTooth(model, direction);
+  if (span_rad >= gap_rad) {
+    fail(s.path("rate"), "the stream spans " + show(span_rad) +
+                             " rad of drum rotation but the next tooth follows tooth 0 after " +
+                             show(gap_rad) + " rad; lower count or start, or raise rate (got " +
+                             show(s.node("rate")) + ")");
+  }
+  return radius_m;
+}
+
+// One draw of kernel j (arriving at arrival_s) at centre radius radius_m: position, angle,
+// pedicel anchor, mass and detachment force with their scatter.
+void drawStreamKernel(const Model& model, const StreamSpec& spec, double radius_m, double arrival_s,
+                      Uniform* uniform, KernelModel* k) {
+  const double theta0_rad = model.drum.initial_angle_rad + model.teeth[0].mount_angle_rad;
+  const double scatter_m = spec.position_scatter_m;
+  const double r_m = radius_m + (*uniform)(-scatter_m, scatter_m);
+  const double phi_rad = theta0_rad + model.drum.initial_speed_radps * arrival_s +
+                         (*uniform)(-scatter_m, scatter_m) / r_m;
+  const double psi_rad = phi_rad + (*uniform)(-spec.angle_scatter_rad, spec.angle_scatter_rad);
+  const Vec2 axis(std::cos(psi_rad), std::sin(psi_rad));
+  k->initial_position_m = r_m * Vec2(std::cos(phi_rad), std::sin(phi_rad));
+  k->initial_angle_rad = psi_rad;
+  k->pedicel.p_WA_W = k->initial_position_m + (k->semi_axis_a_m + spec.pedicel_length_m) * axis;
+  k->mass_kg = (*uniform)(spec.mass_kg.x(), spec.mass_kg.y());
+  k->pedicel.detachment_force_N = (*uniform)(spec.detach_N.x(), spec.detach_N.y());
+}
+
 // Appends the stream's kernels. Kernel j sits where the axis of tooth 0 is at time
 // start + j / rate (drum at its initial speed), depth inside the tip circle, its long axis
 // radial, held at its outer end by a pedicel running on outward; then scatter: uniform
@@ -678,81 +766,24 @@ void readStream(const Section& scene, Model* model) {
   if (!node.IsDefined() || node.IsNull()) return;
   const Section s = scene.section("stream", "stream");
   if (model->teeth.empty()) fail("stream", "needs at least one tooth (teeth is empty)");
-  const double omega_radps = model->drum.initial_speed_radps;
-  if (omega_radps == 0) fail("drum.speed", "must not be 0 with a kernel stream");
-
-  // Parameters.
-  s.require("count");
-  s.require("rate");
-  const int count = s.integer("count", 1);
-  const double rate_Hz = s.number("rate", 1.0);
-  const double start_s = s.number("start", 5e-4);
-  const int seed = s.integer("seed", 1);
-  const double depth_m = s.number("depth", 0.005);
-  const double position_scatter_m = s.number("position_scatter", 0.001);
-  const double angle_scatter_rad = s.number("angle_scatter", 0.5);
-  KernelModel base;
-  const Vec2 axes = s.vec2("semi_axes", Vec2(base.semi_axis_a_m, base.semi_axis_b_m));
-  if (axes.minCoeff() <= 0 || axes.x() < axes.y()) {
-    fail(s.path("semi_axes"),
-         "must be [a, b] with a >= b > 0 (got " + show(s.node("semi_axes")) + ")");
-  }
-  base.semi_axis_a_m = axes.x();
-  base.semi_axis_b_m = axes.y();
-  const Vec2 mass_kg = positiveRange(s, "mass_range", Vec2(2.4e-5, 3.1e-5));
-  base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa);
-  base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio);
-  const double pedicel_length_m = s.number("pedicel_length", 0.003);
-  base.pedicel.present = true;
-  base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm);
-  base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm);
-  base.pedicel.rest_length_m = -1.0;
-  base.pedicel.p_KP_K = Vec2(base.semi_axis_a_m, 0.0);
-  const Vec2 detach_N = positiveRange(s, "detachment_force_range", Vec2(0.27, 2.6));
-
-  // The whole stream must pass before the next tooth reaches the first kernel's place.
-  const double direction = omega_radps > 0 ? 1.0 : -1.0;
-  const double tip_radius_m = model->drum.radius_m + model->teeth[0].length_m;
-  const double radius_m = tip_radius_m - depth_m;
-  if (radius_m - position_scatter_m <= base.semi_axis_a_m) {
-    fail(s.path("depth"), "puts the kernels at the drum axis (centre radius " + show(radius_m) +
-                              " m, got " + show(s.node("depth")) + ")");
-  }
-  const double span_rad = std::abs(omega_radps) * (start_s + (count - 1) / rate_Hz) +
-                          position_scatter_m / (radius_m - position_scatter_m);
-  const double gap_rad = angleToNextTooth(*model, direction);
-  if (span_rad >= gap_rad) {
-    fail(s.path("rate"), "the stream spans " + show(span_rad) +
-                             " rad of drum rotation but the next tooth follows tooth 0 after " +
-                             show(gap_rad) + " rad; lower count or start, or raise rate (got " +
-                             show(s.node("rate")) + ")");
-  }
-
+  if (model->drum.initial_speed_radps == 0)
+    fail("drum.speed", "must not be 0 with a kernel stream");
+  const StreamSpec spec = readStreamSpec(s);
+  const double radius_m = streamRadius(s, *model, spec);
   // Kernels, each redrawn until it clears every body placed before it.
-  Uniform uniform(static_cast<unsigned long long>(seed));
-  const double theta0_rad = model->drum.initial_angle_rad + model->teeth[0].mount_angle_rad;
+  Uniform uniform(static_cast<unsigned long long>(spec.seed));
   constexpr int kMaxDraws = 100;
-  double largest_a_m = base.semi_axis_a_m;
+  double largest_a_m = spec.base.semi_axis_a_m;
   for (const KernelModel& k : model->kernels) largest_a_m = std::max(largest_a_m, k.semi_axis_a_m);
   KernelGrid grid(2.0 * largest_a_m);
   for (size_t i = 0; i < model->kernels.size(); ++i)
     grid.insert(static_cast<int>(i), model->kernels[i].initial_position_m);
-  for (int j = 0; j < count; ++j) {
-    const double arrival_s = start_s + j / rate_Hz;
-    KernelModel k = base;
+  for (int j = 0; j < spec.count; ++j) {
+    KernelModel k = spec.base;
     std::string other;
     double distance_m = -1;
     for (int draw = 0; draw < kMaxDraws && distance_m < 0; ++draw) {
-      const double r_m = radius_m + uniform(-position_scatter_m, position_scatter_m);
-      const double phi_rad = theta0_rad + omega_radps * arrival_s +
-                             uniform(-position_scatter_m, position_scatter_m) / r_m;
-      const double psi_rad = phi_rad + uniform(-angle_scatter_rad, angle_scatter_rad);
-      const Vec2 axis(std::cos(psi_rad), std::sin(psi_rad));
-      k.initial_position_m = r_m * Vec2(std::cos(phi_rad), std::sin(phi_rad));
-      k.initial_angle_rad = psi_rad;
-      k.pedicel.p_WA_W = k.initial_position_m + (k.semi_axis_a_m + pedicel_length_m) * axis;
-      k.mass_kg = uniform(mass_kg.x(), mass_kg.y());
-      k.pedicel.detachment_force_N = uniform(detach_N.x(), detach_N.y());
+      drawStreamKernel(*model, spec, radius_m, spec.start_s + j / spec.rate_Hz, &uniform, &k);
       distance_m = clearance(*model, grid, k, &other);
     }
     if (distance_m < 0) {

@@ -1,7 +1,8 @@
-// Tests of the event-driven integrator (src/core/event_driven.cc) on closed forms and
-// invariants: free flight, restitution, the friction limit, Zeno accumulation, energy
-// conservation, no energy from impacts with friction, bit-identical repeat runs, and the exact
-// propagation of free teeth (closed form, matrix exponential, against Dormand-Prince).
+// Tests of what only the event-driven integrator (src/core/event_driven.cc) has, on closed
+// forms and invariants: free flight, a contact closed at the start, Zeno accumulation in finite
+// steps, the pile's energy step by step, and the exact propagation of free teeth (closed form,
+// matrix exponential, against Dormand-Prince). What both integrators must satisfy is in
+// test_integrators.cc.
 //
 // Tolerances: the smooth phases are integrated by Dormand-Prince 5(4) to a local tolerance of
 // 1e-9 (model.integrator.tolerance, scaled by 1e-2 m for positions and 1 m/s for velocities)
@@ -60,129 +61,8 @@ TEST(EventDriven, FreeKernelFollowsTheParabola) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Restitution of a circular kernel (a = b) dropped on a plane.
-
-// Closed form of the drop: lowest point gap0 above the plane, falling at v0 < 0.
-struct Drop {
-  double t_imp;  // time of impact [s]
-  double v_imp;  // normal velocity at impact (< 0) [m/s]
-};
-Drop dropClosedForm(double gap0, double v0) {
-  const double v_imp = -std::sqrt(v0 * v0 + 2 * kG * gap0);
-  return {(v0 - v_imp) / kG, v_imp};
-}
-
-TEST(EventDriven, RigidRestitutionOfCircularKernel) {
-  const double r = 1.5e-3, gap0 = 1e-3, v0 = -1.0;
-  for (double e : {0.3, 0.8}) {
-    Model m = testutil::dropModel(kED, ContactLaw::kRigid, e, 0.3, r, r, gap0, Vec2(0, v0));
-    compileModel(&m);
-    const Drop drop = dropClosedForm(gap0, v0);
-    const double t_end = drop.t_imp + 2e-3;  // 2 ms of flight after the bounce
-    Data d;
-    testutil::runTo(m, &d, t_end);
-    std::vector<ContactEvent> impacts;
-    for (const ContactEvent& ev : d.events)
-      if (ev.is_impact) impacts.push_back(ev);
-    ASSERT_EQ(impacts.size(), 1u) << "e = " << e;
-    const ContactEvent& ev = impacts[0];
-    // Event time and approach speed to 1e-9 (located by bisection; DOPRI5 exact on parabolas).
-    EXPECT_NEAR(ev.t_s, drop.t_imp, 1e-9);
-    EXPECT_NEAR(ev.vn_before_mps, drop.v_imp, 1e-9);
-    // Newton's law: dg_N+ = -e dg_N-, exactly (one velocity-level LCP); a head-on impact on
-    // a circle takes no tangential impulse.
-    EXPECT_NEAR(ev.vn_after_mps, -e * ev.vn_before_mps, 1e-9) << "e = " << e;
-    EXPECT_NEAR(ev.impulse_tangential_Ns, 0.0, 1e-15);
-    // The state after the bounce against the closed form (independent of the event record).
-    const double tau = t_end - drop.t_imp, v_out = -e * drop.v_imp;
-    EXPECT_NEAR(d.u[1], v_out - kG * tau, 1e-9) << "e = " << e;
-    EXPECT_NEAR(d.z[1], r + v_out * tau - 0.5 * kG * tau * tau, 1e-9) << "e = " << e;
-    EXPECT_NEAR(d.u[0], 0.0, 1e-12);
-    EXPECT_NEAR(d.u[2], 0.0, 1e-9);
-  }
-}
-
-// Under the compliant law the Hunt-Crossley factor is matched to e for a 1-DOF Hertz impact
-// (test_model.cc). Here gravity also acts during the ~25 us contact (m g t_c / (m v) ~ 2e-4)
-// and the factor uses the approach speed at first touch; 1 % ("a few %" in the brief) bounds
-// these with a wide margin while a law off by the wrong damping (e.g. chi = c*) misses it.
-TEST(EventDriven, CompliantRestitutionOfSphereLikeKernel) {
-  const double r = 1.5e-3, gap0 = 1e-3, v0 = -1.0;
-  for (double e : {0.3, 0.8}) {
-    Model m = testutil::dropModel(kED, ContactLaw::kCompliant, e, 0.3, r, r, gap0, Vec2(0, v0));
-    compileModel(&m);
-    const Drop drop = dropClosedForm(gap0, v0);
-    const double t_end = drop.t_imp + 2e-3;
-    Data d;
-    testutil::runTo(m, &d, t_end);
-    int n_impacts = 0;
-    for (const ContactEvent& ev : d.events) {
-      if (!ev.is_impact) continue;
-      ++n_impacts;
-      EXPECT_NEAR(ev.vn_before_mps, drop.v_imp, 1e-6);
-      EXPECT_NEAR(ev.vn_after_mps / -ev.vn_before_mps, e, 0.01 * e) << "e = " << e;
-      EXPECT_GT(ev.peak_normal_force_N, 0.0);
-      RecordProperty("compliant_e" + fmt(e), fmt(ev.vn_after_mps / -ev.vn_before_mps));
-    }
-    EXPECT_EQ(n_impacts, 1);
-    // The kernel's speed 2 ms later, against the rigid closed form with the same e.
-    const double tau = t_end - drop.t_imp;
-    EXPECT_NEAR(d.u[1], -e * drop.v_imp - kG * tau, 0.01 * e * std::abs(drop.v_imp));
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Friction limit on an incline (gravity tilted, see testutil::inclineModel).
-//
-// The kernel starts 1 nm above the plate so that its first contact is an event (a pair that
-// is already closed at t = 0 is the subject of RestingContactAtStartIsHeld below).
-
-constexpr double kMu = 0.5;
-constexpr double kTwoDeg = 2.0 * kPi / 180.0;
-
-TEST(EventDriven, FrictionLimitSticksBelowAtanMu) {
-  const double alpha = std::atan(kMu) - kTwoDeg;
-  Model m = testutil::inclineModel(kED, alpha, kMu, 1e-9);
-  compileModel(&m);
-  Data d;
-  testutil::runTo(m, &d, 0.05);
-  const Vec2 c0 = m.kernels[0].initial_position_m;
-  // The 1 nm approach moves the centre by 1 nm (tan alpha < 1 along x); 1e-8 m is then "no
-  // motion". Sliding at the 2-degree-steeper incline's 0.38 m/s^2 would cover 0.5 mm.
-  EXPECT_NEAR(d.z[0], c0.x(), 1e-8);
-  EXPECT_NEAR(d.z[1], c0.y() - 1e-9, 1e-8);
-  EXPECT_NEAR(d.z[2], m.kernels[0].initial_angle_rad, 1e-8);
-  EXPECT_NEAR(d.u.norm(), 0.0, 1e-8);
-  ASSERT_FALSE(d.contacts.empty());
-  EXPECT_EQ(d.contacts[0].state, ContactState::kStick);
-  // Coulomb: the friction force holds the slope component, |lambda_T| = m g sin alpha < mu N.
-  const double mg = m.kernels[0].mass_kg * kG;
-  EXPECT_NEAR(std::abs(d.contacts[0].tangential_force_N), mg * std::sin(alpha), 1e-6 * mg);
-  EXPECT_NEAR(d.contacts[0].normal_force_N, mg * std::cos(alpha), 1e-6 * mg);
-}
-
-TEST(EventDriven, FrictionLimitSlipsAboveAtanMuWithTheRightAcceleration) {
-  const double alpha = std::atan(kMu) + kTwoDeg;
-  Model m = testutil::inclineModel(kED, alpha, kMu, 1e-9);
-  compileModel(&m);
-  Data d;
-  testutil::runTo(m, &d, 0.05);
-  const double v1 = d.u[0], x1 = d.z[0];
-  ASSERT_EQ(advanceTo(m, &d, 0.10), StepStatus::kOk);
-  const double a_expected = kG * (std::sin(alpha) - kMu * std::cos(alpha));  // 0.383 m/s^2
-  // Constant acceleration between 0.05 s and 0.10 s: exact for DOPRI5; 1e-6 relative.
-  const double a_measured = (d.u[0] - v1) / 0.05;
-  EXPECT_NEAR(a_measured, a_expected, 1e-6 * a_expected);
-  EXPECT_NEAR(d.z[0] - x1, v1 * 0.05 + 0.5 * a_expected * 0.05 * 0.05, 1e-9);
-  RecordProperty("slide_acceleration", fmt(a_measured));
-  // It slides without rocking or lifting off: psi, c_y constant (1e-9) on the plate.
-  EXPECT_NEAR(d.z[2], m.kernels[0].initial_angle_rad, 1e-9);
-  EXPECT_NEAR(d.u[1], 0.0, 1e-9);
-  ASSERT_FALSE(d.contacts.empty());
-  EXPECT_EQ(d.contacts[0].state, ContactState::kSlip);
-  // t = J n = (-1, 0) for the plate's n = (0, 1): sliding downhill (+x) is dg_T/dt = -v_x.
-  EXPECT_NEAR(d.contacts[0].slip_velocity_mps, -d.u[0], 1e-9);
-}
+// Contacts at the start of a run (restitution and the friction limit on an incline are checked
+// for both integrators in test_integrators.cc).
 
 // A kernel resting on the plate at t = 0 (gap exactly 0) stays on it. Regression guard: an
 // event used to fire only when a function went from > 0 to <= 0 over a step, so a pair closed
@@ -239,101 +119,11 @@ TEST(EventDriven, ZenoBouncingComesToRestInFiniteSteps) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Energy conservation with e = 1, mu = 0, no damping.
-
-// Rigid law: an elongated kernel spinning and bouncing on a plane for 0.3 s (4-7 impacts).
-// Newton's law with e = 1 and no friction keeps the kinetic energy at each impact exactly,
-// the flights are integrated to 1e-9; 1e-8 relative covers the accumulated local error.
-TEST(EventDriven, EnergyConservedRigidBounceElasticFrictionless) {
-  Model m = testutil::dropModel(kED, ContactLaw::kRigid, 1.0, 0.0, 5e-3, 1.5e-3, 0.008,
-                                Vec2(0.3, 0.0), 0.3, 30.0);
-  compileModel(&m);
-  Data d;
-  resetData(m, &d);
-  const double E0 = mechanicalEnergy(m, d);
-  double max_dev = 0;
-  for (int k = 1; k <= 60; ++k) {
-    ASSERT_NE(advanceTo(m, &d, 0.005 * k), StepStatus::kFailed);
-    max_dev = std::max(max_dev, std::abs(mechanicalEnergy(m, d) - E0));
-  }
-  EXPECT_GE(d.stats.impacts, 3);
-  EXPECT_LE(max_dev, 1e-8 * E0);
-  RecordProperty("relative_energy_deviation", fmt(max_dev / E0));
-}
-
-// Compliant law with e = 1 (pure Hertz, no Hunt-Crossley damping) against a rigid tooth on a
-// still drum. The contact stores energy while it lasts (mechanicalEnergy does not count it),
-// so energies are compared before the strike and after the kernel has left. Measured 7e-8
-// relative; 1e-6 allows for the tolerance-1e-9 integration of the stiff contact phase.
-TEST(EventDriven, EnergyConservedCompliantStrikeOnRigidTooth) {
-  Model m = testutil::toothStrikeModel(kED, 0, 0.035);
-  compileModel(&m);
-  Data d;
-  resetData(m, &d);
-  const double E0 = mechanicalEnergy(m, d);
-  ASSERT_EQ(advanceTo(m, &d, 0.003), StepStatus::kOk);
-  EXPECT_EQ(d.stats.impacts, 1);
-  for (const ContactInfo& c : d.contacts) EXPECT_EQ(c.state, ContactState::kSeparated);
-  EXPECT_NEAR(mechanicalEnergy(m, d), E0, 1e-6 * E0);
-  EXPECT_GT(d.u[m.kernels[0].dof_offset + 1], 1.9);  // it bounced (2 m/s in, ~2 m/s out)
-}
-
-// The same strike on the flexible (4 modes), undamped, vibrating tooth: everything is still
-// conservative, so E must come back to E0 once the kernel has left.
-// Regression guard: the gap was measured to the polyline through the stations while the
-// force acted through the exact mode shapes, so the Hertz force was not conservative (a gain
-// of 1.4e-6 J at x = 35 mm, between two stations; 3.2e-8 J at the station x = 30 mm). The
-// closest point is now refined on the exact deformed centreline (contact.cc), and both
-// positions lose nothing (see test_contact.cc, ToothKernelNormalVelocityIsGapRateBetweenStations).
-// 1e-5 relative: 100 times the integration error measured on the rigid tooth above.
-TEST(EventDriven, EnergyConservedCompliantStrikeOnVibratingFlexibleTooth) {
-  for (double x : {0.030, 0.035}) {
-    Model m = testutil::toothStrikeModel(kED, 4, x);
-    compileModel(&m);
-    Data d;
-    resetData(m, &d);
-    d.u[0] = 0.05;  // the tooth vibrates in its first mode (tip speed ~1.4 m/s)
-    d.z[1] = 1e-6;  // and is slightly bent in its second
-    const double E0 = mechanicalEnergy(m, d);
-    ASSERT_EQ(advanceTo(m, &d, 0.003), StepStatus::kOk);
-    EXPECT_GE(d.stats.impacts, 1);
-    for (const ContactInfo& c : d.contacts) EXPECT_EQ(c.state, ContactState::kSeparated);
-    const double gain = mechanicalEnergy(m, d) - E0;
-    EXPECT_NEAR(gain, 0.0, 1e-5 * E0) << "x = " << x;
-    RecordProperty("energy_gain_J_x" + fmt(x), fmt(gain));
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
 // No energy from impacts with friction (physics.md section 8: Newton's law with friction can
 // create energy; the integrator must not let it).
 
-// Oblique impacts of elongated spinning kernels on three plates and against each other,
-// mu = 0.8, rigid law (the law that can create energy). Every impact event must lose energy:
-// energy_lost_J >= -1e-12 J (1e-9 of the ~1e-3 J in the box: rounding of the energy
-// bookkeeping), and so must the run statistic.
-TEST(EventDriven, ImpactsWithFrictionNeverCreateEnergy) {
-  for (double e : {0.5, 1.0}) {
-    for (unsigned seed : {1u, 2u}) {
-      Model m = testutil::kernelPileModel(kED, ContactLaw::kRigid, e, 0.8, seed);
-      compileModel(&m);
-      Data d;
-      testutil::runTo(m, &d, 0.03);
-      int impacts = 0, kernel_kernel = 0;
-      for (const ContactEvent& ev : d.events) {
-        if (!ev.is_impact) continue;
-        ++impacts;
-        kernel_kernel += ev.pair.kind == PairKind::kKernelKernel ? 1 : 0;
-        EXPECT_GE(ev.energy_lost_J, -1e-12) << "seed " << seed << " e " << e << " t " << ev.t_s;
-      }
-      EXPECT_LE(d.stats.max_energy_gain_at_impact_J, 1e-12);
-      EXPECT_GE(impacts, 10) << "seed " << seed;  // the scene does what it is meant to
-      EXPECT_GE(kernel_kernel, 3) << "seed " << seed;
-    }
-  }
-}
-
-// The same pile checked step by step: with e <= 1, mu > 0, a still drum and no compliant
+// The pile of test_integrators.cc (ImpactsWithFrictionNeverCreateEnergy), seed 8, to 31 ms,
+// checked step by step: with e <= 1, mu > 0, a still drum and no compliant
 // contact (which would store energy), mechanicalEnergy can only fall. 1e-10 J (1e-7 of E0)
 // is the integration error a step may add.
 // Regression guard (seed 8: kernels stacked on the floor, several closed sticking rigid
@@ -361,64 +151,6 @@ TEST(EventDriven, MechanicalEnergyNeverRisesInAKernelPile) {
   EXPECT_LE(E, E0);
   // A rigid contact must not be penetrated beyond the projection's accuracy.
   EXPECT_LE(d.stats.max_penetration_m, 1e-9);
-}
-
-// Single oblique impacts under the compliant law, mu = 0.8: 40 random incidences of an
-// elongated kernel (5 x 1.3 mm) on the plate, no gravity; one contact at a time, so each
-// event's energy_lost_J is that impact's loss. Hunt-Crossley damping with e = 0.5 must lose
-// energy; e = 1 (no damping) may lose only to friction. Tolerance -1e-12 J (rounding of the
-// energy bookkeeping on ~1e-4 J).
-// Regression guard: the Hertz constant K = 4/3 E* sqrt(R*) was taken from the local
-// curvature at the current contact point, which moves along a rolling, spinning elongated
-// kernel (its radius ranges from 0.34 to 19 mm), so F = K(q) delta^(3/2) derived from no
-// potential and an e = 1 impact gained up to 5.1e-7 J. K is now frozen at first touch for
-// the whole episode (PairMemory::hertz_K). A disc kernel (constant K) is checked as well.
-TEST(EventDriven, CompliantImpactsWithFrictionNeverCreateEnergy) {
-  struct Case {
-    double a, b, e;
-  };
-  for (const Case& c : {Case{2e-3, 2e-3, 1.0}, Case{5e-3, 1.3e-3, 0.5}, Case{5e-3, 1.3e-3, 1.0}}) {
-    std::mt19937 rng(7);
-    int impacts = 0;
-    double worst = 1.0;
-    for (int i = 0; i < 40; ++i) {
-      Model m = testutil::obliqueImpactModel(kED, ContactLaw::kCompliant, c.e, 0.8, c.a, c.b, &rng);
-      compileModel(&m);
-      Data d;
-      testutil::runTo(m, &d, 2e-3);
-      for (const ContactEvent& ev : d.events) {
-        if (!ev.is_impact) continue;
-        ++impacts;
-        worst = std::min(worst, ev.energy_lost_J);
-        EXPECT_GE(ev.energy_lost_J, -1e-12) << "a " << c.a << " e " << c.e << " case " << i;
-      }
-      EXPECT_LE(d.stats.max_energy_gain_at_impact_J, 1e-12);
-    }
-    EXPECT_GE(impacts, 40);
-    RecordProperty("worst_energy_lost_J_a" + fmt(c.a) + "_e" + fmt(c.e), fmt(worst));
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Bit-identical repeat runs: the default scene twice in fresh Data, and once more in reused
-// Data after resetData: z, u, drum state and every event field compared byte by byte.
-
-TEST(EventDriven, RepeatRunsAreBitIdentical) {
-  Model m = testutil::defaultSceneModel(kED);
-  compileModel(&m);
-  Data a, b;
-  testutil::runTo(m, &a, 0.002);
-  testutil::runTo(m, &b, 0.002);
-  ASSERT_GE(a.stats.impacts, 1);
-  EXPECT_TRUE(testutil::sameBits(a.z, b.z));
-  EXPECT_TRUE(testutil::sameBits(a.u, b.u));
-  EXPECT_TRUE(testutil::sameBits(a.theta_rad, b.theta_rad));
-  EXPECT_EQ(a.steps, b.steps);
-  EXPECT_TRUE(testutil::sameEvents(a.events, b.events));
-  testutil::runTo(m, &a, 0.002);  // the same Data again
-  EXPECT_TRUE(testutil::sameBits(a.z, b.z));
-  EXPECT_TRUE(testutil::sameBits(a.u, b.u));
-  EXPECT_TRUE(testutil::sameEvents(a.events, b.events));
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -207,9 +207,28 @@ TEST(Lemke, InfeasibleProblemReturnsFalse) {
   VecX z;
   // w = -z - 1 < 0 for every z >= 0.
   EXPECT_FALSE(solveLcpLemke(MatX::Constant(1, 1, -1.0), VecX::Constant(1, -1.0), &z, &ws));
+  EXPECT_EQ(ws.status, LcpStatus::kRayTermination) << toString(ws.status);
   const MatX M = (MatX(2, 2) << -1.0, 0.5, 0.5, -1.0).finished();
   const VecX q = (VecX(2) << -1.0, -2.0).finished();
   EXPECT_FALSE(solveLcpLemke(M, q, &z, &ws));
+  EXPECT_EQ(ws.status, LcpStatus::kRayTermination) << toString(ws.status);
+}
+
+TEST(Lemke, StatusTellsThePivotLimitFromARayAndFromASolution) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  LcpWorkspace ws;
+  VecX z;
+  const MatX M = randomSpd(12, &rng);
+  const VecX q = VecX::NullaryExpr(12, [&]() { return -1.0 + 0.1 * u(rng); });  // all negative
+  int pivots = 0;
+  ASSERT_TRUE(solveLcpLemke(M, q, &z, &ws, 0, &pivots));
+  EXPECT_EQ(ws.status, LcpStatus::kSolved);
+  ASSERT_GT(pivots, 2);
+  // The same problem with fewer pivots allowed than it needs stops on the limit.
+  EXPECT_FALSE(solveLcpLemke(M, q, &z, &ws, pivots - 1));
+  EXPECT_EQ(ws.status, LcpStatus::kPivotLimit) << toString(ws.status);
+  EXPECT_STREQ(toString(LcpStatus::kPivotLimit), "pivot_limit");
 }
 
 TEST(Lemke, WorkspaceIsReusedWithoutReallocation) {

@@ -198,6 +198,21 @@ TEST(CommandBag, CorruptConnectionHeaderIsRefused) {
       << message;
 }
 
+// Found by fuzz_command_bag (the 1e6-input run): an index record declaring 47 entries with the
+// data of one made rosbag read 46 offsets from beyond the record, then a message header at one
+// of them (SEGV in rosbag::Bag::readHeaderFromBuffer). Every index record's and chunk info's
+// count must now match its data, and every indexed connection must be defined.
+TEST(CommandBag, IndexCountBeyondItsDataIsRefused) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/overread_index_count.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(message.find("~command_bag (" + path +
+                         "): corrupt record at byte 9206: index "
+                         "record declares 47 entries for 12 bytes of data"),
+            std::string::npos)
+      << message;
+}
+
 TEST(CommandBag, MissingAndNonBagFilesAreRefused) {
   EXPECT_NE(refusal("/nonexistent/x.bag").find("~command_bag (/nonexistent/x.bag)"),
             std::string::npos);
