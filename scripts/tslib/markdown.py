@@ -23,6 +23,7 @@ SECTIONS = {
     "stability-table": "docs/numerical_stability.md",  # scripts/stability_table.py
     "stability-full": "docs/numerical_stability.md",   # scripts/stability_table.py --full
     "findings": "docs/threshing_findings.md",  # scripts/compare_teeth.py --findings
+    "convergence": "README.md",             # scripts/convergence_table.py
     "sweep-overhead": "docs/sweeps.md",     # scripts/sweep_overhead.py --docs
 }
 

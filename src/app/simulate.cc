@@ -224,6 +224,10 @@ void printModes(const Model& model) {
     std::printf("tooth %zu: L %.6g m, d %.6g m, E %.6g Pa, rho %.6g kg/m^3, %d modes\n", k,
                 tooth.length_m, tooth.diameter_m, tooth.youngs_modulus_Pa, tooth.density_kgpm3,
                 tooth.n_modes);
+    if (tooth.modes_auto) {
+      std::printf("  modes: auto (Hertz contact time estimate %.3g us, see README)\n",
+                  tooth.contact_time_s * 1e6);
+    }
     if (tooth.n_modes == 0) {
       std::printf("  rigid tooth: no bending modes\n");
       continue;

@@ -13,6 +13,7 @@
 #endif
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
+#include <Eigen/LU>
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
@@ -43,9 +44,9 @@ constexpr std::array<double, kGaussPoints> kGaussWeight = {
     0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734, 0.36268378337836198297,
     0.36268378337836198297, 0.31370664587788728734, 0.22238103445337447054, 0.10122853629037625915};
 
-// Sub-intervals per tooth length: with beta_12 L ~ 36, the fastest integrand (phi_12'^2) turns
+// Sub-intervals per tooth length: with beta_64 L ~ 200, the fastest integrand (phi_64'^2) turns
 // by ~2.3 rad per sub-interval, where the 8-point rule is accurate to ~1e-14.
-constexpr int kSubintervalsPerLength = 32;
+constexpr int kSubintervalsPerLength = 176;
 
 // Calls add(x, weight) at the nodes of a composite Gauss-Legendre rule on [a, b]; the number of
 // sub-intervals is proportional to (b - a) / length_m so any sub-range is integrated as finely
@@ -111,7 +112,7 @@ void validateTooth(double drum_radius_m, const ToothModel& tooth) {
     throwInvalid("tooth.poisson_ratio", "must be in [0, 0.5)", tooth.poisson_ratio);
   }
   if (tooth.n_modes < 0 || tooth.n_modes > kMaxModes) {
-    throwInvalid("tooth.n_modes", "must be in [0, 12]", tooth.n_modes);
+    throwInvalid("tooth.n_modes", "must be in [0, 64]", tooth.n_modes);
   }
   if (tooth.n_stations < 2) throwInvalid("tooth.n_stations", "must be >= 2", tooth.n_stations);
 }
@@ -272,6 +273,148 @@ void interpolateH(const ToothModel& tooth, double x_m, MatX* H) {
   // Linear blend of the two neighbouring station matrices.
   const double t = (x - xs[s]) / (xs[s + 1] - xs[s]);
   *H = (1.0 - t) * tooth.H_s[s] + t * tooth.H_s[s + 1];
+}
+
+namespace {
+
+// Cubic Hermite shape functions of a beam element of length h at s in [0, 1]: values N,
+// slopes dN/dx and curvatures d2N/dx2, for the element dofs (w_a, w'_a, w_b, w'_b).
+void hermiteShapes(double s, double h, Eigen::Vector4d* N, Eigen::Vector4d* dN,
+                   Eigen::Vector4d* ddN) {
+  const double s2 = s * s, s3 = s2 * s;
+  *N << 1 - 3 * s2 + 2 * s3, h * (s - 2 * s2 + s3), 3 * s2 - 2 * s3, h * (s3 - s2);
+  *dN << (-6 * s + 6 * s2) / h, 1 - 4 * s + 3 * s2, (6 * s - 6 * s2) / h, 3 * s2 - 2 * s;
+  *ddN << (-6 + 12 * s) / (h * h), (-4 + 6 * s) / h, (6 - 12 * s) / (h * h), (6 * s - 2) / h;
+}
+
+// Stiffness of the clamped-free rotating beam on n_el equal Hermite elements, root dofs
+// removed: dofs (w_1, w'_1, ..., w_n, w'_n) [N/m, N, N m].
+MatX rotatingBeamStiffness(const ToothModel& t, double R, double omega_radps, int n_el) {
+  const double L = t.length_m, h = L / n_el;
+  const double EI = t.youngs_modulus_Pa * t.second_moment_m4, rhoA = t.mass_per_length_kgpm;
+  const double w2 = omega_radps * omega_radps;
+  // 4-point Gauss-Legendre on [0, 1]: exact for the degree-6 integrands below.
+  constexpr double kNode[4] = {0.06943184420297371, 0.33000947820757187, 0.66999052179242813,
+                               0.93056815579702629};
+  constexpr double kWeight[4] = {0.17392742256872693, 0.32607257743127307, 0.32607257743127307,
+                                 0.17392742256872693};
+  const int n_full = 2 * (n_el + 1);
+  MatX K = MatX::Zero(n_full, n_full);
+  Eigen::Vector4d N, dN, ddN;
+  for (int e = 0; e < n_el; ++e) {
+    Eigen::Matrix4d Ke = Eigen::Matrix4d::Zero();
+    for (int g = 0; g < 4; ++g) {
+      hermiteShapes(kNode[g], h, &N, &dN, &ddN);
+      const double x = (e + kNode[g]) * h;
+      const double axial_N = rhoA * w2 * (R * (L - x) + 0.5 * (L * L - x * x));
+      Ke += kWeight[g] * h *
+            (EI * ddN * ddN.transpose() + axial_N * dN * dN.transpose() -
+             rhoA * w2 * N * N.transpose());
+    }
+    K.block<4, 4>(2 * e, 2 * e) += Ke;
+  }
+  return K.bottomRightCorner(n_full - 2, n_full - 2);
+}
+
+}  // namespace
+
+StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                     double omega_radps, int n_points, int n_elements) {
+  // Element count a multiple of the point intervals, so that every point is a node.
+  const int per = n_elements > 0 ? std::max(1, n_elements / (n_points - 1))
+                                 : (256 + n_points - 2) / (n_points - 1);
+  const int n_el = per * (n_points - 1);
+  const Eigen::PartialPivLU<MatX> lu(
+      rotatingBeamStiffness(tooth, drum_radius_m, omega_radps, n_el));
+  StationFlexibility f;
+  f.ww.setZero(n_points);
+  f.wt.setZero(n_points);
+  f.tt.setZero(n_points);
+  VecX load = VecX::Zero(2 * n_el);
+  for (int s = 1; s < n_points; ++s) {
+    const int dof = 2 * (s * per - 1);  // w of node s * per (node 0, the root, is removed)
+    load.setZero();
+    load[dof] = 1.0;
+    const VecX under_force = lu.solve(load);
+    load.setZero();
+    load[dof + 1] = 1.0;
+    const VecX under_couple = lu.solve(load);
+    f.ww[s] = under_force[dof];
+    f.wt[s] = 0.5 * (under_force[dof + 1] + under_couple[dof]);  // equal by reciprocity
+    f.tt[s] = under_couple[dof + 1];
+  }
+  return f;
+}
+
+StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps, int n_points) {
+  StationFlexibility f;
+  f.ww.setZero(n_points);
+  f.wt.setZero(n_points);
+  f.tt.setZero(n_points);
+  if (tooth.n_modes == 0) return f;
+  const Eigen::PartialPivLU<MatX> lu(toothStiffness(tooth, omega_radps));
+  VecX phi, dphi;
+  for (int s = 0; s < n_points; ++s) {
+    evaluateModes(tooth, tooth.length_m * s / (n_points - 1), &phi, &dphi);
+    const VecX k_phi = lu.solve(phi), k_dphi = lu.solve(dphi);
+    f.ww[s] = phi.dot(k_phi);
+    f.wt[s] = 0.5 * (phi.dot(k_dphi) + dphi.dot(k_phi));
+    f.tt[s] = dphi.dot(k_dphi);
+  }
+  return f;
+}
+
+StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                       double omega_radps) {
+  const int n_pt = kResidualPoints;
+  StationFlexibility r;
+  if (tooth.n_modes == 0) {
+    r.ww.setZero(n_pt);
+    r.wt.setZero(n_pt);
+    r.tt.setZero(n_pt);
+    return r;
+  }
+  const StationFlexibility exact = staticFlexibility(tooth, drum_radius_m, omega_radps, n_pt);
+  const StationFlexibility modal = modalFlexibility(tooth, omega_radps, n_pt);
+  r.ww = exact.ww - modal.ww;
+  r.wt = exact.wt - modal.wt;
+  r.tt = exact.tt - modal.tt;
+  // Rounding can leave a block slightly indefinite where the modes capture nearly everything
+  // (the root): clamp to the nearest positive semidefinite block.
+  for (int s = 0; s < n_pt; ++s) {
+    r.ww[s] = std::max(r.ww[s], 0.0);
+    r.tt[s] = std::max(r.tt[s], 0.0);
+    const double limit = std::sqrt(r.ww[s] * r.tt[s]);
+    r.wt[s] = std::clamp(r.wt[s], -limit, limit);
+  }
+  return r;
+}
+
+void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth) {
+  ToothModel& t = *tooth;
+  StationFlexibility r;
+  if (t.static_correction) {
+    r = residualFlexibility(t, drum_radius_m, omega_radps);
+  } else {
+    r.ww = r.wt = r.tt = VecX::Zero(kResidualPoints);
+  }
+  t.residual_omega_radps = omega_radps;
+  t.residual_ww = r.ww;
+  t.residual_wt = r.wt;
+  t.residual_tt = r.tt;
+  // The truncated modes start at omega_{n+1}; a change of Omega^2 by 1e-3 of its square moves
+  // their static flexibility by about 1e-3.
+  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
+  t.residual_speed_window_radps2 = 1e-3 * std::pow(cantileverBetaL(t.n_modes), 4) * EI /
+                                   (t.mass_per_length_kgpm * std::pow(t.length_m, 4));
+}
+
+double residualAt(const VecX& table, double length_m, double x_m) {
+  const int last = static_cast<int>(table.size()) - 1;
+  const double u = std::clamp(x_m / length_m, 0.0, 1.0) * last;
+  const int s = std::min(static_cast<int>(u), last - 1);
+  const double f = u - s;
+  return (1 - f) * table[s] + f * table[s + 1];
 }
 
 MatX toothStiffness(const ToothModel& tooth, double omega_radps) {

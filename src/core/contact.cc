@@ -108,9 +108,9 @@ void stationHq(const ToothModel& tm, int s, const double* q, double* hq, double*
 
 // The stations bracketing one interval, computed directly (without the workspace's stations).
 struct StationPair {
-  int s = -1;               // interval [x_s, x_{s+1}] held (-1: none) [-]
-  double hq0[16], hq1[16];  // H q at its two stations (SmallVec capacity) [1/sqrt(kg)]
-  double wc0 = 0, wc1 = 0;  // w_c there [m]
+  int s = -1;                                       // interval [x_s, x_{s+1}] held (-1: none) [-]
+  double hq0[kMaxModes], hq1[kMaxModes];  // H q at its two stations [1/sqrt(kg)]
+  double wc0 = 0, wc1 = 0;                          // w_c there [m]
   void update(const ToothModel& tm, int s_new, const double* q) {
     if (s == s_new) return;
     s = s_new;
@@ -152,6 +152,30 @@ Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const Vec
   const double slope = ws->scratch_dphi.dot(q);
   *dr_dx = rot * ((1.0 - 0.5 * slope * slope) * tm.e1_D + slope * tm.e2_D);
   return rot * (tm.p_DR_D + (x_m + wc) * tm.e1_D + w * tm.e2_D);
+}
+
+// Residual flexibility of tooth k at material point x_m for drum speed omega_radps, as the
+// 2 x 2 block (ww, wt, tt) of w and w' under a force and a couple: the compiled table where
+// Omega^2 is within its window, else one built once per speed into ws->tooth_residual.
+void residualAtSpeed(const Model& m, int k, double omega_radps, double x_m, Workspace* ws,
+                     double* ww, double* wt, double* tt) {
+  const ToothModel& tm = m.teeth[k];
+  const double w2 = omega_radps * omega_radps;
+  const double window = tm.residual_speed_window_radps2;
+  const VecX *t_ww = &tm.residual_ww, *t_wt = &tm.residual_wt, *t_tt = &tm.residual_tt;
+  if (tm.static_correction &&
+      std::abs(w2 - tm.residual_omega_radps * tm.residual_omega_radps) > window) {
+    if (ws->tooth_residual.size() < m.teeth.size()) ws->tooth_residual.resize(m.teeth.size());
+    ResidualCache& cache = ws->tooth_residual[k];
+    if (!(std::abs(w2 - cache.omega_radps * cache.omega_radps) <= window)) {
+      cache.table = residualFlexibility(tm, m.drum.radius_m, omega_radps);
+      cache.omega_radps = omega_radps;
+    }
+    t_ww = &cache.table.ww, t_wt = &cache.table.wt, t_tt = &cache.table.tt;
+  }
+  *ww = residualAt(*t_ww, tm.length_m, x_m);
+  *wt = residualAt(*t_wt, tm.length_m, x_m);
+  *tt = residualAt(*t_tt, tm.length_m, x_m);
 }
 
 }  // namespace
@@ -596,6 +620,7 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   g->params = &m.contact[static_cast<int>(pair.kind)];
   g->wtilde_n = g->wtilde_t = 0.0;
   g->rho0_m = g->rho1_m = std::numeric_limits<double>::infinity();
+  g->residual_mpN = 0.0;
   g->side[0].body = -1;
   g->side[0].w_n.resize(0);
   g->side[0].w_t.resize(0);
@@ -698,7 +723,11 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
             xb = xn;
             hb = slopeAt(xb, &pb);
           }
-          if (!converged) continue;
+          // A warm point that says the bodies are apart is checked by the polyline search,
+          // which decides for separated pairs: the secant can settle on another stationary
+          // point of the distance than the closest one (a kernel near the round tip), and a
+          // pair that separates there would touch again at once (an endless impact chatter).
+          if (!converged || pb.distance_m > r_t) continue;
           from_warm = true;
           g->tooth_x_m = xb;
           best = pb;
@@ -783,6 +812,10 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
         s.w_n[i] = -(e2n * ws->scratch_phi[i] - e1n * hq + jrn * ws->scratch_dphi[i]);
         s.w_t[i] = -(e2t * ws->scratch_phi[i] - e1t * hq + jrt * ws->scratch_dphi[i]);
       }
+      // The truncated modes' compliance along n: the load (e2.n, (J r_t n).n) on (w, w').
+      double r_ww, r_wt, r_tt;
+      residualAtSpeed(m, pair.a, drive.omega_radps, g->tooth_x_m, ws, &r_ww, &r_wt, &r_tt);
+      g->residual_mpN = e2n * e2n * r_ww + 2 * e2n * jrn * r_wt + jrn * jrn * r_tt;
     }
     // Rheonomic term: the drum carries the tooth point at Omega J p0.
     g->wtilde_n = -drive.omega_radps * cross(g->p0, g->n);
@@ -1087,13 +1120,89 @@ void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, 
   }
 }
 
+namespace {
+
+// The Hertz-Hunt-Crossley force with a spring of flexibility r [m/N] in series, as a function
+// of the Hertz indentation x [m] at the approach rate rate_mps = d(delta)/dt:
+//   Phi(x) = K x^{3/2} D(x),  D = 1 + chi rate / (1 + r s),  s = dF_e/dx = 3/2 K x^{1/2},
+// with its partial derivatives in x and in the rate. Zero (no adhesion) where D <= 0.
+struct SeriesHertz {
+  double K, chi, r, rate;  // [N/m^{3/2}], [s/m], [m/N], [m/s]
+  double force(double x, double* d_x, double* d_rate) const {
+    const double sq = std::sqrt(x);
+    const double split = 1.0 + r * 1.5 * K * sq;  // 1 + r s
+    const double D = 1.0 + chi * rate / split;
+    if (x <= 0.0 || D <= 0.0) {
+      *d_x = *d_rate = 0.0;
+      return 0.0;
+    }
+    *d_x = 1.5 * K * sq * D - chi * rate * r * 0.75 * K * K * x / (split * split);
+    *d_rate = K * x * sq * chi / split;
+    return K * x * sq * D;
+  }
+};
+
+// Hertz indentation x in [0, delta] with x + r Phi(x) = delta, by Newton's method kept inside a
+// shrinking bracket (bisection where a step leaves it); at most 60 iterations.
+double seriesIndentation(const SeriesHertz& h, double delta) {
+  double lo = 0.0, hi = delta, x = delta;
+  for (int it = 0; it < 60; ++it) {
+    double d_x, d_rate;
+    const double res = x + h.r * h.force(x, &d_x, &d_rate) - delta;
+    if (res > 0.0)
+      hi = x;
+    else
+      lo = x;
+    double next = x - res / (1.0 + h.r * d_x);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    if (std::abs(next - x) <= 1e-15 * delta || hi - lo <= 1e-15 * delta) return next;
+    x = next;
+  }
+  return x;
+}
+
+}  // namespace
+
 double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps) {
   const double delta = -g.gap_m;
   if (delta <= 0.0) return 0.0;
   // F = K delta^{3/2} (1 + chi d(delta)/dt), chi = c* / v_in, clamped: no adhesion.
   const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
-  const double f = K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
-  return std::max(f, 0.0);
+  if (g.residual_mpN <= 0.0) {
+    const double f = K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
+    return std::max(f, 0.0);
+  }
+  const SeriesHertz h{K, chi, g.residual_mpN, -g.vn};
+  double d_x, d_rate;
+  return h.force(seriesIndentation(h, delta), &d_x, &d_rate);
+}
+
+double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
+                                  double v_floor_mps) {
+  const double delta = std::max(-g.gap_m, 0.0);
+  const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
+  if (g.residual_mpN <= 0.0 || delta <= 0.0)
+    return K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
+  // Where the damping would pull, the series spring carries no force: x = delta.
+  const SeriesHertz h{K, chi, g.residual_mpN, -g.vn};
+  const double x = seriesIndentation(h, delta);
+  const double sq = std::sqrt(x);
+  return K * x * sq * (1.0 + chi * h.rate / (1.0 + h.r * 1.5 * K * sq));
+}
+
+double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
+                                double acc_n_mps2) {
+  const double delta = -g.gap_m;
+  if (delta <= 0.0) return 0.0;
+  const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
+  const SeriesHertz h{K, chi, std::max(g.residual_mpN, 0.0), -g.vn};
+  const double x = h.r > 0.0 ? seriesIndentation(h, delta) : delta;
+  double d_x, d_rate;
+  if (h.force(x, &d_x, &d_rate) <= 0.0) return 0.0;
+  // x + r Phi(x, rate) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
+  // delta'', with delta' = -g_N', delta'' = -g_N''.
+  const double x_rate = (h.rate + h.r * d_rate * acc_n_mps2) / (1.0 + h.r * d_x);
+  return d_x * x_rate - d_rate * acc_n_mps2;
 }
 
 Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_WP) {

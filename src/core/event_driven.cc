@@ -477,10 +477,14 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
       v[0] = -g.gap_m;
       if (rates) (*rates)[4 * i] = -g.vn;
       const double delta = std::max(-g.gap_m, 0.0);
-      v[1] = mem.hertz_K * delta * std::sqrt(delta) *
-             (1.0 - g.params->hc_damping_factor /
-                        std::max(mem.v_in_mps, m.hc_min_impact_speed_mps) * g.vn) /
-             std::max(1.0, mem.hertz_K * 1e-9);
+      v[1] = g.residual_mpN > 0.0
+                 ? compliantNormalForceSigned(g, mem.hertz_K, mem.v_in_mps,
+                                              m.hc_min_impact_speed_mps) /
+                       std::max(1.0, mem.hertz_K * 1e-9)
+                 : mem.hertz_K * delta * std::sqrt(delta) *
+                       (1.0 - g.params->hc_damping_factor /
+                                  std::max(mem.v_in_mps, m.hc_min_impact_speed_mps) * g.vn) /
+                       std::max(1.0, mem.hertz_K * 1e-9);
     } else {
       // Rigid: the normal multiplier falls to zero.
       v[0] = fn;
@@ -940,13 +944,16 @@ double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& 
   const double rate_mps = -g.vn;
   const double chi_spm =
       g.params->hc_damping_factor / std::max(mem.v_in_mps, c.m.hc_min_impact_speed_mps);
-  if (delta_m <= 0.0 || 1.0 + chi_spm * rate_mps <= 0.0) return 0.0;
+  if (delta_m <= 0.0 || (g.residual_mpN <= 0.0 && 1.0 + chi_spm * rate_mps <= 0.0)) return 0.0;
   // Normal relative acceleration: the Jacobians times the accelerations, plus the drift.
   double acc_mps2 = contactVelocityDrift(c.m, z, u, driveAtTime(c, t), g, &c.ws)[0];
   for (const BodyJac& s : g.side) {
     if (s.body < 0 || s.w_n.size() == 0) continue;
     acc_mps2 += s.w_n.dot(udot.segment(bodyDofOffset(c.m, s.body), s.w_n.size()));
   }
+  if (g.residual_mpN > 0.0)  // the residual spring in series (static correction)
+    return compliantNormalForceRate(g, mem.hertz_K, mem.v_in_mps, c.m.hc_min_impact_speed_mps,
+                                    acc_mps2);
   const double sq = std::sqrt(delta_m);
   return mem.hertz_K *
          (1.5 * sq * rate_mps * (1.0 + chi_spm * rate_mps) - delta_m * sq * chi_spm * acc_mps2);

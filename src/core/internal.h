@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "drive.h"
+#include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/geometry.h"
 #include "threshing_sim/core/large_deflection.h"
@@ -24,8 +25,9 @@
 namespace threshing_sim {
 namespace internal {
 
-// A short vector that never touches the heap (a tooth has at most 12 modes, a kernel 3 dofs).
-using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 16, 1>;
+// A short vector that never touches the heap (a tooth has at most kMaxModes = 64 modes,
+// a kernel 3 dofs).
+using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxModes, 1>;
 
 // Dormand-Prince 5(4) tableau: nodes kC, stages kA (row 7 is the 5th-order solution, FSAL),
 // error weights kE. Shared by the event-driven integrator and the kernels' own clocks.
@@ -84,6 +86,8 @@ struct ContactGeom {
   // unused, its drift follows the deformed centreline) [m].
   double rho0_m = std::numeric_limits<double>::infinity();
   double rho1_m = std::numeric_limits<double>::infinity();
+  double residual_mpN = 0;  // tooth contacts: residual flexibility of the truncated modes along
+                            // n at the contact point, in series with the Hertz law [m/N]
   const ContactParams* params = nullptr;
   bool far = false;  // only a lower bound of the gap was computed (no Jacobians)
 };
@@ -198,6 +202,13 @@ struct ToothPropagator {
   Eigen::VectorXcd c;       // scratch: modal amplitudes V^-1 y, then scaled, 2n [mixed]
 };
 
+// A tooth's residual flexibility table at a drum speed outside the window of the one compiled
+// into its ToothModel (see residualTableAt in contact.cc).
+struct ResidualCache {
+  double omega_radps = std::numeric_limits<double>::quiet_NaN();  // drum speed built at [rad/s]
+  StationFlexibility table;  // residualFlexibility at that speed [m/N, 1/N, 1/(N m)]
+};
+
 // Builds (or keeps, if already built at this drum speed) the propagator of tooth `tooth` at drum
 // speed omega_radps. Returns prop->valid: false for a rigid tooth or an eigendecomposition that
 // does not reproduce (the balanced) A to 1e-9 relative (defective or ill-conditioned), where the
@@ -262,8 +273,9 @@ struct Workspace {
   std::vector<int> obstacle_order;      // bars and plates (not planes) by increasing xmin
   std::vector<double> obstacle_sorted_xmin_m;            // their xmin in that order [m]
   std::vector<double> obstacle_xmin_m, obstacle_xmax_m;  // x extent per obstacle [m]
-  double obstacle_max_width_m = 0;                // largest xmax - xmin of a bar or plate [m]
-  std::vector<int> obstacle_planes;               // planes (unbounded: tested against every kernel)
+  double obstacle_max_width_m = 0;   // largest xmax - xmin of a bar or plate [m]
+  std::vector<int> obstacle_planes;  // planes (unbounded: tested against every kernel)
+  std::vector<internal::ResidualCache> tooth_residual;  // per tooth (drum speed changed)
   std::vector<internal::SmallVec> tooth_phi_max;  // per tooth, max_s |phi_i(x_s)| [1/sqrt(kg)]
   std::vector<double> tooth_H_max;                // per tooth, max_s |H(x_s)|_F [1/(kg m)]
   std::vector<Vec2> stations_W;                   // deformed tooth centrelines, all teeth [m]
@@ -443,8 +455,20 @@ double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body
 // island's LCP failed (its lambda is then zero).
 bool solveContactIslands(const Model& m, const std::vector<MatX>* tooth_minv, Workspace* ws);
 
-// Compliant normal force (Hertz constant K with Hunt-Crossley damping), >= 0 [N].
+// Compliant normal force (Hertz constant K with Hunt-Crossley damping), >= 0 [N]. For tooth
+// contacts the residual flexibility r = g.residual_mpN is a spring in series: the Hertz law sees
+// the indentation delta_e = delta - r F and its rate delta_e' = delta' / (1 + r dF_e/d delta_e)
+// (the quasi-static split of the approach between the two springs, F_e = K delta_e^{3/2}):
+//   F = K delta_e^{3/2} (1 + chi delta_e'),  solved for delta_e by a bracketed Newton iteration.
 double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps);
+// The same force before the no-adhesion clamp: negative where the damping would pull (the
+// event function of a compliant contact's release) [N].
+double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
+                                  double v_floor_mps);
+// Its time derivative [N/s] given the normal relative acceleration g_N'' [m/s^2] (implicit
+// differentiation of the relation above).
+double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
+                                double acc_n_mps2);
 
 // Smooth generalised forces without contacts: tooth damping, stiffness and drum-acceleration
 // load; kernel gravity and pedicels.

@@ -21,12 +21,11 @@
 #include <stdexcept>
 
 #include "internal.h"
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/large_deflection.h"
 
 namespace threshing_sim {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // 8-point Gauss-Legendre rule on [-1, 1].
 constexpr std::array<double, kLdGauss> kNode = {-0.96028985649753623168, -0.79666647741362673959,

@@ -1,8 +1,10 @@
 // Model compilation: validation, generalised-coordinate layout, derived constants.
 #include "threshing_sim/core/model.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <sstream>
@@ -10,6 +12,8 @@
 #include <string>
 
 #include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/constants.h"
+#include "threshing_sim/core/large_deflection.h"
 
 namespace threshing_sim {
 namespace {
@@ -67,6 +71,49 @@ double solveHuntCrossleyFactor(double e) {
   return 0.5 * (lo + hi);
 }
 
+// Shortest Hertz contact time [s] of a kernel of the model struck by the flank of tooth t at
+// its tip speed |Omega_0| (R + L) (at least 1 m/s): F = K delta^{3/2} with K = 4/3 E* sqrt(R*),
+// the kernel's sharpest in-plane curvature b^2 / a against the flat flank, b against the round
+// section across; t_c = 2.9432 delta_max / v with delta_max = (5 m v^2 / (4 K))^{2/5}.
+// Infinite without kernels or with non-physical kernel values (validated later).
+double shortestContactTime(const Model& m, const ToothModel& t) {
+  const double v =
+      std::max(std::abs(m.drum.initial_speed_radps) * (m.drum.radius_m + t.length_m), 1.0);
+  const double r_t = 0.5 * t.diameter_m;
+  double t_c = std::numeric_limits<double>::infinity();
+  for (const KernelModel& k : m.kernels) {
+    const double e_star = 1.0 / ((1 - t.poisson_ratio * t.poisson_ratio) / t.youngs_modulus_Pa +
+                                 (1 - k.poisson_ratio * k.poisson_ratio) / k.youngs_modulus_Pa);
+    const double r_in = k.semi_axis_b_m * k.semi_axis_b_m / k.semi_axis_a_m;
+    const double r_out = r_t * k.semi_axis_b_m / (r_t + k.semi_axis_b_m);
+    const double K = 4.0 / 3.0 * e_star * std::sqrt(std::sqrt(r_in * r_out));
+    const double delta_max = std::pow(5.0 * k.mass_kg * v * v / (4.0 * K), 0.4);
+    const double tk = 2.9432 * delta_max / v;
+    if (std::isfinite(tk) && tk > 0.0) t_c = std::min(t_c, tk);
+  }
+  return t_c;
+}
+
+// The automatic mode count (teeth.*.modes: auto). A retained mode of circular frequency omega
+// follows a contact pulse of duration t_c dynamically; a truncated one only through the static
+// correction, which is exact for a mode much faster than the pulse and off by about
+// (omega_c / omega)^2 for one that is not, omega_c = pi / t_c. Modes are retained until the
+// first truncated one (at rest) has (omega_c / omega_{n+1})^2 <= eps, i.e. omega_{n+1} >=
+// omega_c / sqrt(eps), with eps = max(tolerance, 2.5e-4): the truncation error is kept at the
+// integrator's tolerance, but no finer than 2.5e-4 (omega_{n+1} >= 64 omega_c), which is what
+// the 1 % convergence of the knead forces needs (docs/convergence.md). At least 2 modes, at most
+// kMaxModes; 4 without kernels.
+int chooseModeCount(const Model& m, const ToothModel& t, double t_c) {
+  if (!std::isfinite(t_c)) return 4;
+  const double eps = std::max(m.integrator.tolerance, 2.5e-4);
+  const double omega_needed = kPi / t_c / std::sqrt(eps);
+  const double area = kPi * t.diameter_m * t.diameter_m / 4;
+  const double EI = t.youngs_modulus_Pa * area * t.diameter_m * t.diameter_m / 16;
+  const double scale = std::sqrt(EI / (t.density_kgpm3 * area)) / (t.length_m * t.length_m);
+  int n = 2;
+  while (n < kMaxModes && std::pow(cantileverBetaL(n), 2) * scale < omega_needed) ++n;
+  return n;
+}
 // solveHuntCrossleyFactor, remembered per restitution (the bisection costs about 1e6 flops, paid
 // three times by every compile; sweeps, tests and fuzzing compile thousands of scenes in one
 // process). The value is the same bit for bit; the memory holds at most kMaxRemembered values.
@@ -117,8 +164,20 @@ void compileModel(Model* model) {
     if (m.teeth[k].youngs_modulus_Pa > 1e13)
       fail("teeth." + std::to_string(k) + ".youngs_modulus",
            "must be <= 1e13 Pa (use modes: 0 for a rigid tooth)", m.teeth[k].youngs_modulus_Pa);
+    ToothModel& t = m.teeth[k];
+    const bool rod = t.beam_model == ToothBeamModel::kLargeDeflection;
+    if (t.n_modes == kAutoModes || t.modes_auto) {
+      t.modes_auto = true;
+      t.contact_time_s = shortestContactTime(m, t);
+      // A large-deflection rod's `modes` are the Ritz shape functions of its section angle, not
+      // bending modes: kLdAutoShapes resolve its statics to 1e-7 L (docs/large_deflection.md).
+      t.n_modes = rod ? kLdAutoShapes : chooseModeCount(m, t, t.contact_time_s);
+    }
+    // The rod truncates no modes: there is no residual flexibility to correct.
+    if (rod) t.static_correction = false;
     try {
       compileTooth(m.drum.radius_m, &m.teeth[k]);
+      compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, &m.teeth[k]);
     } catch (const std::invalid_argument& e) {
       // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
       std::string what = e.what();

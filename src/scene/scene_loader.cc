@@ -15,6 +15,7 @@
 #include <random>
 #include <utility>
 
+#include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/geometry.h"
 #include "threshing_sim/core/overlap.h"
@@ -71,11 +72,12 @@ const KeySpec kSchema[] = {
     {"teeth.*.diameter", KeyKind::kValue, "number", "m", Bound{1e-5, 1.0, false, false}},
     {"teeth.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
     {"teeth.*.density", KeyKind::kValue, "number", "kg/m^3", Bound{1.0, 1e5, false, false}},
-    {"teeth.*.modes", KeyKind::kValue, "integer", "", Bound{0.0, kMaxModes, false, false}},
+    {"teeth.*.modes", KeyKind::kValue, "integer or auto", "", Bound{0.0, kMaxModes, false, false}},
     {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true}},
     {"teeth.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
     {"teeth.*.stations", KeyKind::kValue, "integer", "", Bound{2.0, 65.0, false, false}},
     {"teeth.*.model", KeyKind::kValue, "word", "", kNoRange},
+    {"teeth.*.static_correction", KeyKind::kValue, "word", "", kNoRange},
     {"kernels", KeyKind::kList, "list", "", kNoRange},
     {"kernels.*.position", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
     {"kernels.*.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
@@ -451,7 +453,11 @@ ToothModel readTooth(const Section& s) {
   t.diameter_m = s.number("diameter", t.diameter_m);
   t.youngs_modulus_Pa = s.number("youngs_modulus", t.youngs_modulus_Pa);
   t.density_kgpm3 = s.number("density", t.density_kgpm3);
-  t.n_modes = s.integer("modes", t.n_modes);
+  // modes: auto (the default) lets compileModel choose the count (model.cc, chooseModeCount).
+  const bool auto_modes =
+      !s.has("modes") || (s.node("modes").IsScalar() && s.node("modes").Tag() != "!" &&
+                          s.node("modes").Scalar() == "auto");
+  t.n_modes = auto_modes ? kAutoModes : s.integer("modes", t.n_modes);
   t.damping_ratio = s.number("damping_ratio", t.damping_ratio);
   t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio);
   t.n_stations = s.integer("stations", t.n_stations);
@@ -460,6 +466,8 @@ ToothModel readTooth(const Section& s) {
   const std::string model = s.word("model", "modal", "tooth model", {"modal", "large_deflection"});
   t.beam_model =
       model == "large_deflection" ? ToothBeamModel::kLargeDeflection : ToothBeamModel::kModal;
+  t.static_correction =
+      s.word("static_correction", "on", "static correction", {"on", "off"}) == "on";
   return t;
 }
 

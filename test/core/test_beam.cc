@@ -425,7 +425,7 @@ TEST(BeamTest, CompileToothRejectsNonPhysicalValues) {
   tooth = ToothModel();
   tooth.n_modes = -1;
   expectInvalid(tooth, "tooth.n_modes");
-  tooth.n_modes = 13;
+  tooth.n_modes = kMaxModes + 1;
   expectInvalid(tooth, "tooth.n_modes");
   tooth = ToothModel();
   tooth.damping_ratio = 1.5;

@@ -230,7 +230,7 @@ TEST(CompileModel, RefusesNonFiniteKernelInitialState) {
 // Tooth fields are reported under the scene's key path, teeth.<k>.<field>.
 TEST(CompileModel, RefusesBadTeethWithTheirIndex) {
   expectRefused([](Model* m) { m->teeth[1].length_m = -0.06; }, "teeth.1.length");
-  expectRefused([](Model* m) { m->teeth[0].n_modes = 13; }, "teeth.0.n_modes");
+  expectRefused([](Model* m) { m->teeth[0].n_modes = 65; }, "teeth.0.n_modes");
   expectRefused([](Model* m) { m->teeth[1].density_kgpm3 = 0.0; }, "teeth.1.density");
   expectRefused([](Model* m) { m->teeth[0].damping_ratio = 1.0; }, "teeth.0.damping_ratio");
 }

@@ -73,13 +73,16 @@ TEST(SceneLoader, BaseSceneLoadsWithDefaults) {
   ASSERT_EQ(m.teeth.size(), 1u);
   ASSERT_EQ(m.kernels.size(), 1u);
   ASSERT_EQ(m.obstacles.size(), 1u);
-  EXPECT_EQ(m.n_dof, 4 + 3);
+  // modes: auto by default; the count follows from the contact time (static_correction.cc).
+  EXPECT_TRUE(m.teeth[0].modes_auto);
+  EXPECT_GE(m.teeth[0].n_modes, 2);
+  EXPECT_EQ(m.n_dof, m.teeth[0].n_modes + 3);
+  EXPECT_TRUE(m.teeth[0].static_correction);
 
   // Struct defaults where the scene is silent.
   EXPECT_DOUBLE_EQ(m.drum.max_acceleration_radps2, 200.0);
   EXPECT_DOUBLE_EQ(m.teeth[0].diameter_m, 0.010);
   EXPECT_DOUBLE_EQ(m.teeth[0].youngs_modulus_Pa, 3e9);
-  EXPECT_EQ(m.teeth[0].n_modes, 4);
   EXPECT_EQ(m.teeth[0].n_stations, 9);
   EXPECT_DOUBLE_EQ(m.kernels[0].mass_kg, 2.8e-5);
   EXPECT_DOUBLE_EQ(m.kernels[0].semi_axis_a_m, 5.0e-3);
@@ -262,7 +265,9 @@ TEST(SceneLoader, RefusesBadValues) {
       {"kernels.0.position=[0.1, x]", {"kernels.0.position", "[0.1, x]"}},
       {"teeth.0.modes=2.5", {"teeth.0.modes", "integer", "2.5"}},
       {"teeth.0.modes=-1", {"teeth.0.modes", "-1"}},
-      {"teeth.0.modes=13", {"teeth.0.modes", "13"}},
+      {"teeth.0.modes=65", {"teeth.0.modes", "65"}},
+      {"teeth.0.modes=automatic", {"teeth.0.modes", "automatic"}},
+      {"teeth.0.static_correction=yes", {"teeth.0.static_correction", "yes"}},
       {"teeth.0.stations=1", {"teeth.0.stations", "in [2, 65]", "1"}},
       {"drum=5", {"drum", "expected a mapping", "5"}},
       {"teeth={length: 0.06}", {"teeth", "expected a list"}},
@@ -484,7 +489,8 @@ TEST_F(ReportTest, TraceHeaderMatchesRow) {
   EXPECT_NE(header.str().find(",tooth0_tip_deflection_m,tooth0_q0,"), std::string::npos);
   const auto commas = [](const std::string& s) { return std::count(s.begin(), s.end(), ','); };
   EXPECT_EQ(commas(header.str()), commas(row.str()));
-  EXPECT_EQ(commas(header.str()), 3 + 6 + 1 + 4 - 1);
+  // Drum (3), kernel (6), tip deflection (1), one column per mode (modes: auto here).
+  EXPECT_EQ(commas(header.str()), 3 + 6 + 1 + model_.teeth[0].n_modes - 1);
 }
 
 TEST_F(ReportTest, EventRowsMatchHeader) {

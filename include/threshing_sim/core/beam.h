@@ -5,9 +5,21 @@
 //   q'' + D q' + [Lambda + Omega^2 (K_G - I)] q = -dOmega/dt p + Q.
 #pragma once
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/model.h"
 
 namespace threshing_sim {
+
+// Points x_j = L j / (kResidualPoints - 1) at which the residual flexibility is tabulated.
+constexpr int kResidualPoints = 33;
+
+// Quasi-static flexibility of a tooth at equally spaced points x_j = L j / (n - 1) for a
+// transverse load at the same point (docs/model.md §9b): the deflection w and slope w'
+// under a unit force and a unit couple (a load on w'): ww [m/N], wt = w under a couple = w'
+// under a force [1/N], tt [1/(N m)].
+struct StationFlexibility {
+  VecX ww, wt, tt;  // one entry per point
+};
 
 // beta_i L of the i-th (0-based) clamped-free mode: 1.87510407, 4.69409113, ... [-]
 double cantileverBetaL(int i);
@@ -26,6 +38,32 @@ void evaluateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi);
 
 // H(x) = int_0^x phi' phi'^T d xi (n x n) [1/(kg m)], linearly interpolated between stations.
 void interpolateH(const ToothModel& tooth, double x_m, MatX* H);
+
+// Exact static flexibility of the rotating cantilever at n_points equally spaced points, from
+// EI w'''' - (N w')' - rho A Omega^2 w = load, clamped at x = 0, free at x = L (the operator of
+// the modal equations, so the modal flexibility tends to it as modes are added), by cubic
+// Hermite finite elements fine enough that it is converged to ~1e-9 (n_elements <= 0: the
+// default, at least 256 elements). Needs the section fields of compileTooth.
+StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                     double omega_radps, int n_points, int n_elements = 0);
+
+// The part of it that the n retained modes represent: Phi_n^T K_n^-1 Phi_n (K_n full, from
+// toothStiffness), at the same points. Needs compileTooth.
+StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps, int n_points);
+
+// Residual flexibility of the truncated modes (static minus modal, clamped so that each
+// point's 2 x 2 block stays positive semidefinite) at drum speed omega_radps, at
+// kResidualPoints points. Zero for a rigid tooth (n_modes = 0 means rigid, not "all modes
+// truncated"). Needs compileTooth.
+StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                       double omega_radps);
+
+// Fills the residual_* fields of a compiled tooth for drum speed omega_radps.
+void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth);
+
+// A table at kResidualPoints equally spaced points on [0, length_m] (one of those above)
+// linearly interpolated at x_m.
+double residualAt(const VecX& table, double length_m, double x_m);
 
 // Stiffness matrix at drum speed Omega: Lambda + Omega^2 (K_G - I) [1/s^2].
 MatX toothStiffness(const ToothModel& tooth, double omega_radps);

@@ -27,6 +27,7 @@ constexpr int kLdIntervals = 8;                    // collocation intervals alon
 constexpr int kLdGauss = 8;                        // Gauss nodes per interval [-]
 constexpr int kLdNodes = kLdIntervals * kLdGauss;  // mass and collocation nodes [-]
 constexpr int kLdMaxShapes = 12;                   // most Ritz shape functions (teeth.*.modes)
+constexpr int kLdAutoShapes = 6;                   // shape functions of teeth.*.modes: auto
 
 // 2 x n Jacobian of a point (dr/dq, tooth frame) [m/rad], n <= kLdMaxShapes.
 using LdJac = Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, kLdMaxShapes>;

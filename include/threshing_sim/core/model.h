@@ -45,11 +45,14 @@ struct ToothModel {
   double youngs_modulus_Pa = 3e9;  // E [Pa]
   double poisson_ratio = 0.35;     // nu, used by the Hertz law [-]
   double density_kgpm3 = 1140.0;   // rho [kg/m^3]
-  int n_modes = 4;                 // n retained bending modes; 0 = rigid tooth
+  int n_modes = 4;                 // n retained bending modes; 0 = rigid tooth; kAutoModes (-1):
+                                   // compileModel picks it (see chooseModeCount in model.cc) [-]
   double damping_ratio = 0.02;     // zeta, same for every mode [-]
   int n_stations = 9;              // centreline sample points used for contact (>= 2)
   ToothBeamModel beam_model = ToothBeamModel::kModal;  // teeth.*.model; large deflection: n_modes
                                                        // is the number of Ritz shape functions
+  bool static_correction = true;   // residual flexibility of the truncated modes in series with
+                                   // the contact (docs/model.md §9b); false: modes only [-]
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
@@ -81,7 +84,21 @@ struct ToothModel {
   MatX ld_K;  // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
   MatX ld_D;  // damping matrix (modal damping of the linearised tooth at rest) [N m s]
   Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
+  bool modes_auto = false;          // n_modes was chosen by compileModel (kAutoModes) [-]
+  double contact_time_s = 0;        // Hertz contact time estimate the automatic count used [s]
+  // Residual flexibility of the truncated modes (docs/model.md §9b) at kResidualPoints (beam.h)
+  // equally spaced points, at drum speed residual_omega_radps; a massless spring in series
+  // with the Hertz contact (contact.cc). Reused at other drum speeds within
+  // residual_speed_window_radps2 of Omega^2 (see contact.cc residualAtSpeed).
+  double residual_omega_radps = 0;          // drum speed of the tables below [rad/s]
+  double residual_speed_window_radps2 = 0;  // |Omega^2 - residual_omega^2| the tables serve [1/s^2]
+  VecX residual_ww;                         // w under a unit force at the same point [m/N]
+  VecX residual_wt;                         // w under a unit couple (= w' under a force) [1/N]
+  VecX residual_tt;                         // w' under a unit couple [1/(N m)]
 };
+
+// ToothModel::n_modes value asking compileModel to choose the count.
+constexpr int kAutoModes = -1;
 
 // Optional pedicel: a linear spring-damper from a fixed anchor in the world to a point on the
 // kernel; it breaks for good when its tension exceeds the detachment force.

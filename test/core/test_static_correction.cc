@@ -1,0 +1,193 @@
+// Unit tests of the static correction of the truncated modes (docs/model.md §9b): the exact
+// static flexibility of the rotating cantilever, the modal and residual parts, the series Hertz
+// law that carries the residual, and the automatic mode count.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "../../src/core/internal.h"
+#include "threshing_sim/core/beam.h"
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+namespace {
+
+constexpr double kRpm800_radps = 83.776;
+
+// The polyurethane tooth of config/bench/knead_polyurethane.yaml on a 0.14 m drum.
+ToothModel polyurethaneTooth(int n_modes) {
+  ToothModel t;
+  t.youngs_modulus_Pa = 5e6;
+  t.density_kgpm3 = 1200;
+  t.poisson_ratio = 0.49;
+  t.n_modes = n_modes;
+  compileTooth(0.14, &t);
+  return t;
+}
+
+// At rest the flexibility under a load at the same point has the closed form of docs/model.md §9b:
+// w = x^3 / (3 EI), w under a couple = w' under a force = x^2 / (2 EI), w' under a couple x / EI.
+TEST(StaticCorrection, ExactFlexibilityMatchesClosedFormAtRest) {
+  const ToothModel t = polyurethaneTooth(6);
+  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
+  const int n = kResidualPoints;
+  const StationFlexibility f = staticFlexibility(t, 0.14, 0.0, n);
+  for (int j = 1; j < n; ++j) {
+    const double x = t.length_m * j / (n - 1);
+    EXPECT_NEAR(f.ww[j], x * x * x / (3 * EI), 1e-7 * x * x * x / (3 * EI)) << j;
+    EXPECT_NEAR(f.wt[j], x * x / (2 * EI), 1e-7 * x * x / (2 * EI)) << j;
+    EXPECT_NEAR(f.tt[j], x / EI, 1e-7 * x / EI) << j;
+  }
+  EXPECT_EQ(f.ww[0], 0.0);
+}
+
+// Rotating at 800 rpm: the centrifugal tension stiffens the soft tooth (tip flexibility about
+// half the static one), and the finite-element solution is converged: doubling the elements
+// moves it by < 3e-6 (the slope under a couple, most; against a residual of >= 1 % of it).
+TEST(StaticCorrection, ExactFlexibilityIsConvergedWhenRotating) {
+  const ToothModel t = polyurethaneTooth(6);
+  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
+  const double L = t.length_m;
+  const int n = kResidualPoints;
+  const StationFlexibility coarse = staticFlexibility(t, 0.14, kRpm800_radps, n, 256);
+  const StationFlexibility fine = staticFlexibility(t, 0.14, kRpm800_radps, n, 512);
+  for (int j = 1; j < n; ++j) {
+    EXPECT_NEAR(coarse.ww[j], fine.ww[j], 3e-6 * fine.ww[j]) << j;
+    EXPECT_NEAR(coarse.wt[j], fine.wt[j], 3e-6 * fine.wt[j]) << j;
+    EXPECT_NEAR(coarse.tt[j], fine.tt[j], 3e-6 * fine.tt[j]) << j;
+  }
+  EXPECT_LT(fine.ww[n - 1], 0.6 * L * L * L / (3 * EI));
+  EXPECT_GT(fine.ww[n - 1], 0.3 * L * L * L / (3 * EI));
+}
+
+// Modal + residual = exact at any mode count; the residual shrinks as modes are added (the
+// slope term slowest), and 64 modes alone approach the exact flexibility (a converged
+// discretisation by a second, independent route).
+TEST(StaticCorrection, ResidualCompletesTheModesAndShrinks) {
+  for (double omega : {0.0, kRpm800_radps}) {
+    const ToothModel t64 = polyurethaneTooth(64);
+    const StationFlexibility exact = staticFlexibility(t64, 0.14, omega, kResidualPoints);
+    const StationFlexibility modal64 = modalFlexibility(t64, omega, kResidualPoints);
+    const int tip = kResidualPoints - 1;
+    EXPECT_NEAR(modal64.ww[tip], exact.ww[tip], 1e-5 * exact.ww[tip]);
+    EXPECT_NEAR(modal64.wt[tip], exact.wt[tip], 1e-3 * exact.wt[tip]);
+    EXPECT_NEAR(modal64.tt[tip], exact.tt[tip], 2e-2 * exact.tt[tip]);
+    double previous_tt = INFINITY;
+    for (int n : {2, 4, 8, 16, 32}) {
+      const ToothModel t = polyurethaneTooth(n);
+      const StationFlexibility modal = modalFlexibility(t, omega, kResidualPoints);
+      const StationFlexibility r = residualFlexibility(t, 0.14, omega);
+      for (int j = 1; j < kResidualPoints; ++j) {
+        EXPECT_GE(r.ww[j], 0.0);
+        EXPECT_GE(r.tt[j], 0.0);
+        EXPECT_LE(r.wt[j] * r.wt[j], r.ww[j] * r.tt[j] * (1 + 1e-12));
+        // Where it is not clamped, the sum is the exact flexibility.
+        if (r.ww[j] > 0) {
+          EXPECT_NEAR(modal.ww[j] + r.ww[j], exact.ww[j], 1e-12 * exact.ww[j]);
+        }
+        if (r.tt[j] > 0) {
+          EXPECT_NEAR(modal.tt[j] + r.tt[j], exact.tt[j], 1e-12 * exact.tt[j]);
+        }
+      }
+      EXPECT_LT(r.tt[tip], previous_tt) << n;
+      previous_tt = r.tt[tip];
+    }
+    // Slope residual falls like 1/n: still ~5 % of the slope flexibility at 16 modes.
+    const ToothModel t16 = polyurethaneTooth(16);
+    EXPECT_GT(residualFlexibility(t16, 0.14, omega).tt[tip], 0.01 * exact.tt[tip]);
+  }
+}
+
+// The compiled tooth carries the residual at the drum's speed; off, or for a rigid tooth, it
+// is zero.
+TEST(StaticCorrection, CompileModelFillsTheResidualTables) {
+  Model m;
+  m.drum.radius_m = 0.14;
+  m.teeth.resize(3);
+  for (ToothModel& t : m.teeth) {
+    t.youngs_modulus_Pa = 5e6;
+    t.density_kgpm3 = 1200;
+    t.n_modes = 6;
+  }
+  m.teeth[1].static_correction = false;
+  m.teeth[2].n_modes = 0;
+  compileModel(&m);
+  const int tip = kResidualPoints - 1;
+  const StationFlexibility r =
+      residualFlexibility(m.teeth[0], m.drum.radius_m, m.drum.initial_speed_radps);
+  EXPECT_EQ(m.teeth[0].residual_ww[tip], r.ww[tip]);
+  EXPECT_GT(m.teeth[0].residual_tt[tip], 0.0);
+  EXPECT_EQ(m.teeth[0].residual_omega_radps, m.drum.initial_speed_radps);
+  EXPECT_EQ(m.teeth[1].residual_tt.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(m.teeth[2].residual_tt.cwiseAbs().maxCoeff(), 0.0);
+}
+
+// The Hertz law with a spring r in series: without damping F = K (delta - r F)^{3/2} exactly;
+// r = 0 is the plain Hunt-Crossley law; the force is softer with the spring; its rate is the
+// time derivative along a trajectory.
+TEST(StaticCorrection, SeriesHertzLawAndItsRate) {
+  ContactParams params;
+  params.hc_damping_factor = 0.0;
+  internal::ContactGeom g;
+  g.params = &params;
+  const double K = 2e5, delta = 1e-3, r = 2e-5;
+  g.gap_m = -delta;
+  g.vn = 0.0;
+  g.residual_mpN = r;
+  const double F = internal::compliantNormalForce(g, K, 1.0, 1e-2);
+  EXPECT_NEAR(F, K * std::pow(delta - r * F, 1.5), 1e-12 * F);
+  EXPECT_LT(F, K * std::pow(delta, 1.5));
+  g.residual_mpN = 0.0;
+  EXPECT_EQ(internal::compliantNormalForce(g, K, 1.0, 1e-2), K * delta * std::sqrt(delta));
+
+  // Rate: delta(t) = delta0 + v t + a t^2 / 2 with damping, central difference in t.
+  params.hc_damping_factor = 0.3;
+  g.residual_mpN = r;
+  const double v = 2.0, a = -3e4, dt = 1e-9;
+  auto at = [&](double t) {
+    internal::ContactGeom h = g;
+    h.gap_m = -(delta + v * t + 0.5 * a * t * t);
+    h.vn = -(v + a * t);
+    return h;
+  };
+  const double numeric = (internal::compliantNormalForce(at(dt), K, 1.5, 1e-2) -
+                          internal::compliantNormalForce(at(-dt), K, 1.5, 1e-2)) /
+                         (2 * dt);
+  const double analytic = internal::compliantNormalForceRate(at(0), K, 1.5, 1e-2, -a);
+  EXPECT_NEAR(analytic, numeric, 1e-5 * std::abs(numeric));
+}
+
+// modes: auto picks more modes for a softer tooth (slower modes against the contact), never
+// fewer than 2 or more than kMaxModes, and records the contact time it used.
+TEST(StaticCorrection, AutomaticModeCount) {
+  auto chosen = [](double E_Pa, double tolerance) {
+    Model m;
+    m.drum.radius_m = 0.14;
+    m.integrator.tolerance = tolerance;
+    m.teeth.resize(1);
+    m.teeth[0].youngs_modulus_Pa = E_Pa;
+    m.teeth[0].n_modes = kAutoModes;
+    m.kernels.resize(1);
+    compileModel(&m);
+    EXPECT_TRUE(m.teeth[0].modes_auto);
+    EXPECT_GT(m.teeth[0].contact_time_s, 0.0);
+    return m.teeth[0].n_modes;
+  };
+  const int steel = chosen(2.06e11, 1e-6), nylon = chosen(3e9, 1e-6), pu = chosen(5e6, 1e-6);
+  EXPECT_GE(steel, 2);
+  EXPECT_LT(steel, nylon);
+  EXPECT_LT(nylon, pu);
+  EXPECT_LE(pu, kMaxModes);
+  // A coarse tolerance asks for fewer.
+  EXPECT_LT(chosen(3e9, 1e-2), nylon);
+  // Without kernels: 4.
+  Model m;
+  m.teeth.resize(1);
+  m.teeth[0].n_modes = kAutoModes;
+  compileModel(&m);
+  EXPECT_EQ(m.teeth[0].n_modes, 4);
+}
+
+}  // namespace
+}  // namespace threshing_sim

@@ -1,0 +1,97 @@
+// Mode convergence of a knead (issue 12): the polyurethane knead of config/bench/ with the
+// automatic mode count and the static correction gives the same knead force, normal force and
+// exit speed to 1 % as the next finer level (ceil(1.5 n) modes, as scripts/convergence_table.py
+// compares), where the modal tooth alone moved by 10 % between 10 and 12 modes; no impact gains
+// energy. Full table: docs/convergence.md.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/simulator.h"
+#include "threshing_sim/scene/scene_loader.h"
+
+namespace threshing_sim {
+namespace {
+
+const std::string kKnead =
+    std::string(THRESHING_SIM_SOURCE_DIR) + "/config/bench/knead_polyurethane.yaml";
+
+struct Result {
+  int modes = 0;             // retained modes [-]
+  double normal_N = 0;       // peak tooth normal force on the kernel [N]
+  double tangential_N = 0;   // peak tooth tangential (knead) force [N]
+  double exit_mps = 0;       // kernel speed at the end [m/s]
+  double energy_gain_J = 0;  // largest energy gain at an impact [J]
+};
+
+Result runKnead(const std::vector<std::string>& overrides) {
+  const Model m = loadScene(kKnead, overrides);
+  Data d;
+  resetData(m, &d);
+  EXPECT_EQ(advanceTo(m, &d, m.duration_s), StepStatus::kOk);
+  Result r;
+  r.modes = m.teeth[0].n_modes;
+  r.normal_N = d.stats.kernel_tooth_peaks[0].normal_force_N;
+  r.tangential_N = d.stats.kernel_tooth_peaks[0].tangential_force_N;
+  r.exit_mps = d.u.segment<2>(m.kernels[0].dof_offset).norm();
+  r.energy_gain_J = d.stats.max_energy_gain_at_impact_J;
+  return r;
+}
+
+TEST(Convergence, PolyurethaneKneadIsConvergedAtTheAutomaticModeCount) {
+  const Result chosen = runKnead({"teeth.*.modes=auto"});
+  const int finer_modes = std::min(64, static_cast<int>(std::ceil(1.5 * chosen.modes)));
+  ASSERT_GT(finer_modes, chosen.modes);
+  const Result finer = runKnead({"teeth.*.modes=" + std::to_string(finer_modes)});
+  RecordProperty("auto_modes", chosen.modes);
+  RecordProperty("knead_force_auto_N", std::to_string(chosen.tangential_N));
+  RecordProperty("knead_force_finer_N", std::to_string(finer.tangential_N));
+  EXPECT_NEAR(finer.tangential_N, chosen.tangential_N, 0.01 * chosen.tangential_N);
+  EXPECT_NEAR(finer.normal_N, chosen.normal_N, 0.01 * chosen.normal_N);
+  EXPECT_NEAR(finer.exit_mps, chosen.exit_mps, 0.01 * chosen.exit_mps);
+  EXPECT_EQ(chosen.energy_gain_J, 0.0);
+  EXPECT_EQ(finer.energy_gain_J, 0.0);
+  // The knead is a real one: a few newtons of tangential force.
+  EXPECT_GT(chosen.tangential_N, 2.0);
+}
+
+// `static_correction: off` is the modal tooth of before the correction: bit for bit the run of
+// a model whose residual tables are zero (the series law with r = 0 is the plain Hertz law),
+// under both integrators; with the correction on, the forces differ (the test can fail) and no
+// impact gains energy.
+TEST(Convergence, StaticCorrectionOffIsTheModalToothUnderBothIntegrators) {
+  for (const char* integrator : {"event_driven", "time_stepping"}) {
+    SCOPED_TRACE(integrator);
+    const std::vector<std::string> base = {std::string("integrator.type=") + integrator,
+                                           "teeth.*.modes=12"};
+    std::vector<std::string> off = base, on = base;
+    off.push_back("teeth.*.static_correction=off");
+    Model m_off = loadScene(kKnead, off), m_zero = loadScene(kKnead, on),
+          m_on = loadScene(kKnead, on);
+    ASSERT_TRUE(m_zero.teeth[0].static_correction);
+    ASSERT_GT(m_zero.teeth[0].residual_ww.maxCoeff(), 0.0);
+    m_zero.teeth[0].residual_ww.setZero();
+    m_zero.teeth[0].residual_wt.setZero();
+    m_zero.teeth[0].residual_tt.setZero();
+    Data d_off, d_zero, d_on;
+    for (auto [m, d] :
+         {std::pair<const Model*, Data*>{&m_off, &d_off}, {&m_zero, &d_zero}, {&m_on, &d_on}}) {
+      resetData(*m, d);
+      ASSERT_EQ(advanceTo(*m, d, m->duration_s), StepStatus::kOk);
+    }
+    EXPECT_EQ(d_off.stats.peak_normal_force_N, d_zero.stats.peak_normal_force_N);
+    EXPECT_EQ(d_off.stats.peak_tangential_force_N, d_zero.stats.peak_tangential_force_N);
+    EXPECT_EQ(d_off.stats.impacts, d_zero.stats.impacts);
+    EXPECT_TRUE(d_off.z == d_zero.z && d_off.u == d_zero.u);
+    EXPECT_NE(d_on.stats.peak_normal_force_N, d_off.stats.peak_normal_force_N);
+    EXPECT_LE(d_on.stats.max_energy_gain_at_impact_J, 1e-9 * d_on.stats.energy_initial_J);
+  }
+}
+
+}  // namespace
+}  // namespace threshing_sim
