@@ -287,6 +287,10 @@ CommandBagContents readCommandBag(const std::string& path, std::int64_t dt_ns,
     throw std::invalid_argument(where(path) +
                                 "unreadable: a record claims more memory than "
                                 "there is (corrupt lengths)");
+  } catch (const std::runtime_error& e) {
+    // ros::Time's own check of a stamp read from an index record (normalizeSecNSec: "Time is
+    // out of dual 32-bit range"), thrown as a plain runtime_error.
+    throw std::invalid_argument(where(path) + "unreadable: " + e.what());
   }
   return out;
 }
