@@ -224,6 +224,19 @@ TEST(CommandBag, StampOutOfRangeIsRefusedNotThrownOut) {
       << message;
 }
 
+// Found by fuzz_command_bag (scripts/test.sh's 30 s run): an index record whose stamp's
+// nanoseconds overflow made ros::Time throw a plain std::runtime_error from rosbag::Bag::open,
+// which ended the process (std::terminate). It is now a refusal naming the bag.
+TEST(CommandBag, IndexStampOutOfRangeIsRefused) {
+  const std::string path = std::string(THRESHING_SIM_SOURCE_DIR) +
+                           "/test/fuzz/corpus/fuzz_command_bag/time_out_of_range_index.bag";
+  const std::string message = refusal(path);
+  EXPECT_NE(
+      message.find("~command_bag (" + path + "): unreadable: Time is out of dual 32-bit range"),
+      std::string::npos)
+      << message;
+}
+
 TEST(CommandBag, MissingAndNonBagFilesAreRefused) {
   EXPECT_NE(refusal("/nonexistent/x.bag").find("~command_bag (/nonexistent/x.bag)"),
             std::string::npos);
