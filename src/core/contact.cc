@@ -108,9 +108,9 @@ void stationHq(const ToothModel& tm, int s, const double* q, double* hq, double*
 
 // The stations bracketing one interval, computed directly (without the workspace's stations).
 struct StationPair {
-  int s = -1;                                       // interval [x_s, x_{s+1}] held (-1: none) [-]
+  int s = -1;                             // interval [x_s, x_{s+1}] held (-1: none) [-]
   double hq0[kMaxModes], hq1[kMaxModes];  // H q at its two stations [1/sqrt(kg)]
-  double wc0 = 0, wc1 = 0;                          // w_c there [m]
+  double wc0 = 0, wc1 = 0;                // w_c there [m]
   void update(const ToothModel& tm, int s_new, const double* q) {
     if (s == s_new) return;
     s = s_new;
@@ -1283,8 +1283,7 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
   }
 }
 
-void freeAcceleration(const Model& m, const std::vector<MatX>* tooth_minv, const VecX& f,
-                      VecX* a) {
+void freeAcceleration(const Model& m, const std::vector<MatX>* tooth_minv, const VecX& f, VecX* a) {
   a->resize(m.n_dof);
   for (size_t k = 0; k < m.teeth.size(); ++k) {
     const ToothModel& tm = m.teeth[k];

@@ -443,8 +443,7 @@ void applyInverseMass(const Model& m, const std::vector<MatX>* tooth_minv, int b
 // The free accelerations a = Minv f of the whole system (mass-normalised tooth modes: the
 // identity; a large-deflection tooth: its tooth_minv block; kernels diag(1/m, 1/m, 1/J)),
 // computed as applyInverseMass on a zero vector would, so that the two agree bit for bit.
-void freeAcceleration(const Model& m, const std::vector<MatX>* tooth_minv, const VecX& f,
-                      VecX* a);
+void freeAcceleration(const Model& m, const std::vector<MatX>* tooth_minv, const VecX& f, VecX* a);
 // w1^T Minv_body w2 for two Jacobian rows of the same body (Minv as in applyInverseMass).
 double weightedDot(const Model& m, const std::vector<MatX>* tooth_minv, int body,
                    const SmallVec& w1, const SmallVec& w2);

@@ -130,7 +130,7 @@ struct RunStats {
   // Per kernel: peak tooth contact forces [N] and their times [s] (sized by resetData).
   std::vector<KernelToothPeaks> kernel_tooth_peaks;
   SchedulerStats scheduler;  // the island-local scheduler's work (zero under the global scheme)
-  FailureInfo failure;  // why the last advanceTo() failed (cause kNone if it did not)
+  FailureInfo failure;       // why the last advanceTo() failed (cause kNone if it did not)
 };
 
 struct Workspace;  // integrator scratch memory, opaque

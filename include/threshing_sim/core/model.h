@@ -51,8 +51,8 @@ struct ToothModel {
   int n_stations = 9;              // centreline sample points used for contact (>= 2)
   ToothBeamModel beam_model = ToothBeamModel::kModal;  // teeth.*.model; large deflection: n_modes
                                                        // is the number of Ritz shape functions
-  bool static_correction = true;   // residual flexibility of the truncated modes in series with
-                                   // the contact (docs/model.md §9b); false: modes only [-]
+  bool static_correction = true;  // residual flexibility of the truncated modes in series with
+                                  // the contact (docs/model.md §9b); false: modes only [-]
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
@@ -84,8 +84,8 @@ struct ToothModel {
   MatX ld_K;  // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
   MatX ld_D;  // damping matrix (modal damping of the linearised tooth at rest) [N m s]
   Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
-  bool modes_auto = false;          // n_modes was chosen by compileModel (kAutoModes) [-]
-  double contact_time_s = 0;        // Hertz contact time estimate the automatic count used [s]
+  bool modes_auto = false;        // n_modes was chosen by compileModel (kAutoModes) [-]
+  double contact_time_s = 0;      // Hertz contact time estimate the automatic count used [s]
   // Residual flexibility of the truncated modes (docs/model.md §9b) at kResidualPoints (beam.h)
   // equally spaced points, at drum speed residual_omega_radps; a massless spring in series
   // with the Hertz contact (contact.cc). Reused at other drum speeds within

@@ -164,10 +164,10 @@ class ThreshingSimNode {
   std::atomic<bool> staged_dirty_{false};
   long resets_requested_ = 0, resets_done_ = 0;
   long steps_requested_ = 0, steps_done_ = 0;
-  std::string reset_result_;                            // the answer to the last served ~reset
-  bool reset_ok_ = false;                               // whether it reset the bodies
-  std::string failure_text_;                            // describe() of the last integrator failure
-  double failure_t_s_ = 0;  // time of the state kept at the last integrator failure [s]
+  std::string reset_result_;  // the answer to the last served ~reset
+  bool reset_ok_ = false;     // whether it reset the bodies
+  std::string failure_text_;  // describe() of the last integrator failure
+  double failure_t_s_ = 0;    // time of the state kept at the last integrator failure [s]
   std::optional<ThreshingSimConfig> last_good_config_;  // last reconfiguration accepted
 
   // --- shared: snapshot queue (queue_mutex_) ---
