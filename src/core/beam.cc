@@ -4,19 +4,7 @@
 //   cosh z - sigma sinh z = ((1 - sigma) e^z + (1 + sigma) e^-z) / 2,
 // where (1 - sigma) ~ e^-(beta L) is computed directly, so every term stays O(1) for all modes.
 
-// GCC 12 at -O2 reports a false -Wmaybe-uninitialized inside Eigen 3.4's tridiagonalisation
-// (SelfAdjointEigenSolver) unless Eigen is a system include, as it is in the CMake build; the
-// guard keeps plain -I builds with -Werror clean as well.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-#include <Eigen/Core>
-#include <Eigen/Eigenvalues>
-#include <Eigen/LU>
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
+#include "threshing_sim/core/beam.h"
 
 #include <algorithm>
 #include <array>
@@ -25,8 +13,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "eigen_solvers.h"
 #include "internal.h"
-#include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/simulator.h"

@@ -1,17 +1,6 @@
 // threshing_sim core: the geometrically exact planar tooth (see large_deflection.h).
 
-// GCC 12 at -O2 reports a false -Wmaybe-uninitialized inside Eigen 3.4's eigen solvers unless
-// Eigen is a system include (as in beam.cc).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-#include <Eigen/Core>
-#include <Eigen/Eigenvalues>
-#include <Eigen/LU>
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
+#include "threshing_sim/core/large_deflection.h"
 
 #include <algorithm>
 #include <array>
@@ -20,9 +9,9 @@
 #include <limits>
 #include <stdexcept>
 
+#include "eigen_solvers.h"
 #include "internal.h"
 #include "threshing_sim/core/constants.h"
-#include "threshing_sim/core/large_deflection.h"
 
 namespace threshing_sim {
 namespace {
