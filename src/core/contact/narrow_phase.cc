@@ -92,11 +92,11 @@ void residualAtSpeed(const Model& m, int k, double omega_radps, double x_m, Work
 // What every pair function is given: the pair and its evaluation's arguments (see
 // evaluateContact), and the kernel of the pair (body 1) as an ellipse.
 struct NarrowInput {
-  const Model& m;
-  const VecX& z;
-  const Drive& drive;
-  const PairId& pair;
-  Workspace* ws;
+  const Model& m;             // the model
+  const VecX& z;              // configuration [m, rad or sqrt(kg) m]
+  const Drive& drive;         // the drum at that instant
+  const PairId& pair;         // the pair evaluated
+  Workspace* ws;              // stations (updateStations for z) and scratch
   double far_m;               // a pair whose gap bound exceeds it is far [m]
   bool tight_bound;           // supporting-line bounds for exact shapes [-]
   double* warm_x_m;           // tooth pairs: warm start, receives the closest point [m]
@@ -108,7 +108,7 @@ struct NarrowInput {
 // The Hertz law's inputs of one pair: the relative radii of curvature in the plane and across
 // it [m], and the effective modulus [Pa].
 struct HertzInputs {
-  double r_in = 0, r_out = 0, E_star = 0;
+  double r_in = 0, r_out = 0, E_star = 0;  // [m], [m], [Pa]
 };
 
 // A pair whose lower bound of the gap exceeds far_m: only that bound is stored.
@@ -141,15 +141,15 @@ struct CentrelineProbe {
     *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
     return p->normal.dot(dr_dx);
   }
-  const ToothModel& tm;
-  int tooth;                 // tooth index [-]
-  Eigen::Ref<const VecX> q;  // its modal coordinates [sqrt(kg) m]
-  Rotation2 rot;             // the drum's rotation [-]
-  Workspace* ws;
-  const Ellipse& e;
-  const EllipseWidth& width;
-  StationPair* direct;      // stations computed directly (warm start), else nullptr
-  Vec2 r_x = Vec2::Zero();  // centreline point of the last evaluation [m]
+  const ToothModel& tm;       // the tooth
+  int tooth;                  // tooth index [-]
+  Eigen::Ref<const VecX> q;   // its coordinates [sqrt(kg) m; a rod's: rad]
+  Rotation2 rot;              // the drum's rotation [-]
+  Workspace* ws;              // stations and mode scratch
+  const Ellipse& e;           // the kernel
+  const EllipseWidth& width;  // its support function
+  StationPair* direct;        // stations computed directly (warm start), else nullptr
+  Vec2 r_x = Vec2::Zero();    // centreline point of the last evaluation [m]
 };
 
 // Closest approach of the deformed centreline polyline to the ellipse: sets g->tooth_x_m and
