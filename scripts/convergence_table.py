@@ -295,7 +295,7 @@ of the others; that of the slope, which friction acts on through the tooth's sur
   the Hertz law, in both integrators and both schemes: the Hertz law sees `delta - r_n F`, and
   its damping the approach rate split between the two springs, `delta' / (1 + r_n dF_e/d
   delta_e)`; the relation is solved per evaluation by a bracketed Newton iteration
-  (`compliantNormalForce` in `src/core/contact.cc`), and the release event of the contact is the
+  (`compliantNormalForce` in `src/core/contact/contact_forces.cc`), and the release event of the contact is the
   same force before its no-adhesion clamp. The spring stores `r_n F^2 / 2`, zero whenever a
   contact opens or closes, so the energy checks at impacts are unchanged. At another drum speed
   the tables are rebuilt (per workspace, cleared by `resetData`).

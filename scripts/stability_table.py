@@ -372,7 +372,7 @@ integrator, scene 7 a feature of the core):
   1e-6 L away. When the closest-point condition has equal values at both points (a kernel flank
   square to the tooth axis at the tip: the point is held at x = L by the clamp), the secant made
   no step and the probe's point was kept: the gap came out too large by the probe's offset
-  (1e-6 L) exactly at the graze's deepest point, which hid the 10 nm overlap. Fix (`src/core/contact.cc`, `evaluateContact()`): without a secant step
+  (1e-6 L) exactly at the graze's deepest point, which hid the 10 nm overlap. Fix (`src/core/contact/narrow_phase.cc`, `refineClosestPoint()`): without a secant step
   the closer of the two points is kept.
 - **Scene 7 (soft rubber tooth at 1500 rpm), both integrators: model-validity warning.** The
   tip deflects beyond 0.1 L (the "validity warning" check of the table prints the largest

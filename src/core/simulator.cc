@@ -329,7 +329,7 @@ void resetData(const Model& model, Data* data) {
   data->ws->ld_minv_valid = false;
   // So are the residual tables of other drum speeds (an island slot reuses its workspace for
   // other teeth: a table is valid only for the tooth it was built for).
-  data->ws->tooth_residual.clear();
+  data->ws->narrow.tooth_residual.clear();
   resetBodies(model, data);
   internal::resetAsync(data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);

@@ -1,4 +1,4 @@
-// Unit tests of the contact kinematics (src/core/contact.cc): gap, normal, Jacobians and
+// Unit tests of the contact kinematics (src/core/contact/): gap, normal, Jacobians and
 // rheonomic terms checked by finite differences of the geometry along the motion; the broad
 // phase; the Hertz constant. Uses the internal header (the core's narrow phase is not public).
 #include <gtest/gtest.h>
@@ -227,7 +227,7 @@ TEST(ContactJacobian, ToothKernelNormalVelocityIsGapRateAtAStation) {
   EXPECT_NEAR(r.g.vn, r.vn_fd_gap, 1e-5);
 }
 
-// Regression guard (contact.cc evaluateContact, tooth-kernel branch): the gap was measured to
+// Regression guard (narrow_phase.cc, the tooth-kernel pair function): the gap was measured to
 // the capsule around the polyline through the stations while w_N used the exact mode shapes
 // phi(x*), phi'(x*), so between stations dg/dt != w_N^T u + w~_N (at x = 33 mm the modal part
 // was off by 0.5 % for mode 1 up to 20 % for mode 4). The closest point is now refined on the

@@ -309,9 +309,10 @@ double hertzIndentation(double mass_kg, double v_mps, double K) {
   return std::pow(5.0 * mass_kg * v_mps * v_mps / (4.0 * K), 0.4);
 }
 
-// Smallest Hertz constant K = 4/3 E* sqrt(R*) of a tooth-kernel contact (src/core/contact.cc):
-// R* = sqrt(r_in r_out) smallest where the kernel is most curved (b^2 / a) and the tooth is
-// its round tip (radius d/2); across the plane r_out = (1/(d/2) + 1/b)^-1.
+// Smallest Hertz constant K = 4/3 E* sqrt(R*) of a tooth-kernel contact
+// (src/core/contact/narrow_phase.cc): R* = sqrt(r_in r_out) smallest where the kernel is most
+// curved (b^2 / a) and the tooth is its round tip (radius d/2); across the plane
+// r_out = (1/(d/2) + 1/b)^-1.
 double toothKernelHertzMin(const ToothModel& t, const KernelModel& k) {
   const double e_star = 1.0 / ((1 - t.poisson_ratio * t.poisson_ratio) / t.youngs_modulus_Pa +
                                (1 - k.poisson_ratio * k.poisson_ratio) / k.youngs_modulus_Pa);

@@ -88,8 +88,8 @@ struct ToothModel {
   double contact_time_s = 0;      // Hertz contact time estimate the automatic count used [s]
   // Residual flexibility of the truncated modes (docs/model.md §9b) at kResidualPoints (beam.h)
   // equally spaced points, at drum speed residual_omega_radps; a massless spring in series
-  // with the Hertz contact (contact.cc). Reused at other drum speeds within
-  // residual_speed_window_radps2 of Omega^2 (see contact.cc residualAtSpeed).
+  // with the Hertz contact (contact/narrow_phase.cc). Reused at other drum speeds within
+  // residual_speed_window_radps2 of Omega^2 (see contact/narrow_phase.cc residualAtSpeed).
   double residual_omega_radps = 0;          // drum speed of the tables below [rad/s]
   double residual_speed_window_radps2 = 0;  // |Omega^2 - residual_omega^2| the tables serve [1/s^2]
   VecX residual_ww;                         // w under a unit force at the same point [m/N]

@@ -20,7 +20,7 @@ inline Vec2 rotated(double angle_rad, const Vec2& v) {
 }
 
 // Pedicel force on the kernel at state y [N] and its moment about the centre [N m]
-// (the law of pedicelForce in contact.cc).
+// (the law of pedicelForce in contact/smooth_forces.cc).
 Vec2 pedicelForceOf(const KernelModel& k, const Vec6& y, double* moment_Nm) {
   const Vec2 r = rotated(y[2], k.pedicel.p_KP_K);
   const Vec2 v = y.segment<2>(3) + y[5] * Vec2(-r.y(), r.x());

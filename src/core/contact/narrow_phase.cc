@@ -1,0 +1,559 @@
+// threshing_sim core: the narrow phase (narrow_phase.h). evaluateContact is a short driver: it
+// fills what every pair shares, calls the pair function of the pair's kind from a small table
+// (kPairFunctions, in the manner of a collision function table), then adds the kernel's side,
+// the relative velocities and the Hertz constant.
+#include "narrow_phase.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "../internal.h"
+#include "planar.h"
+#include "stations.h"
+#include "threshing_sim/core/geometry.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace {
+
+// Effective modulus E* of two bodies in contact [Pa].
+double effectiveModulus(double E1, double nu1, double E2, double nu2) {
+  return 1.0 / ((1.0 - nu1 * nu1) / E1 + (1.0 - nu2 * nu2) / E2);
+}
+// Series combination of two radii of curvature (inf = flat) [m].
+double seriesRadius(double r1, double r2) {
+  const double k = (std::isfinite(r1) ? 1.0 / r1 : 0.0) + (std::isfinite(r2) ? 1.0 / r2 : 0.0);
+  return k > 0.0 ? 1.0 / k : std::numeric_limits<double>::infinity();
+}
+// Hertz point-contact constant K = 4/3 E* sqrt(R*), with R* = sqrt(R' R'') from the in-plane
+// and out-of-plane relative radii (Johnson, Contact Mechanics, eq. 4.24 equivalent sphere).
+double hertzConstant(double E_star, double r_in, double r_out) {
+  const double r_star = std::sqrt(r_in * r_out);
+  return 4.0 / 3.0 * E_star * std::sqrt(r_star);
+}
+
+// Half-width of an ellipse along the unit direction n (its support value h(n)) [m].
+struct EllipseWidth {
+  explicit EllipseWidth(const Ellipse& e)
+      : axis(std::cos(e.angle_rad), std::sin(e.angle_rad)), a_m(e.a_m), b_m(e.b_m) {}
+  double operator()(const Vec2& n) const {
+    const double na = a_m * n.dot(axis), nb = b_m * cross(axis, n);
+    return std::sqrt(na * na + nb * nb);
+  }
+  Vec2 axis;        // unit a-axis in world [-]
+  double a_m, b_m;  // semi-axes [m]
+};
+
+// Lower bound of the signed distance between the ellipse and a convex body whose nearest point
+// to the ellipse's centre is p: with n from p to the centre, the body lies behind the line
+// through p normal to n, and the ellipse reaches at most h(n) towards it. (Any direction gives
+// a lower bound, the supporting-line gap; this one is cheap and tight for nearby bodies.)
+double gapLowerBound(const Ellipse& e, const EllipseWidth& width, const Vec2& p) {
+  const Vec2 d = e.center - p;
+  const double dist = d.norm();
+  if (!(dist > 0.0)) return -e.a_m;
+  return dist - width(d / dist);
+}
+
+// Kernel contact point Jacobian rows: d(v_point . dir)/d(vx, vy, omega).
+void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, SmallVec* w) {
+  w->resize(3);
+  (*w)[0] = sign * dir.x();
+  (*w)[1] = sign * dir.y();
+  (*w)[2] = sign * cross(p_W - c_W, dir);
+}
+
+// Residual flexibility of tooth k at material point x_m for drum speed omega_radps, as the
+// 2 x 2 block (ww, wt, tt) of w and w' under a force and a couple: the compiled table where
+// Omega^2 is within its window, else one built once per speed into ws->narrow.tooth_residual.
+void residualAtSpeed(const Model& m, int k, double omega_radps, double x_m, Workspace* ws,
+                     double* ww, double* wt, double* tt) {
+  const ToothModel& tm = m.teeth[k];
+  const double w2 = omega_radps * omega_radps;
+  const double window = tm.residual_speed_window_radps2;
+  const VecX *t_ww = &tm.residual_ww, *t_wt = &tm.residual_wt, *t_tt = &tm.residual_tt;
+  if (tm.static_correction &&
+      std::abs(w2 - tm.residual_omega_radps * tm.residual_omega_radps) > window) {
+    if (ws->narrow.tooth_residual.size() < m.teeth.size())
+      ws->narrow.tooth_residual.resize(m.teeth.size());
+    ResidualCache& cache = ws->narrow.tooth_residual[k];
+    if (!(std::abs(w2 - cache.omega_radps * cache.omega_radps) <= window)) {
+      cache.table = residualFlexibility(tm, m.drum.radius_m, omega_radps);
+      cache.omega_radps = omega_radps;
+    }
+    t_ww = &cache.table.ww, t_wt = &cache.table.wt, t_tt = &cache.table.tt;
+  }
+  *ww = residualAt(*t_ww, tm.length_m, x_m);
+  *wt = residualAt(*t_wt, tm.length_m, x_m);
+  *tt = residualAt(*t_tt, tm.length_m, x_m);
+}
+
+// What every pair function is given: the pair and its evaluation's arguments (see
+// evaluateContact), and the kernel of the pair (body 1) as an ellipse.
+struct NarrowInput {
+  const Model& m;             // the model
+  const VecX& z;              // configuration [m, rad or sqrt(kg) m]
+  const Drive& drive;         // the drum at that instant
+  const PairId& pair;         // the pair evaluated
+  Workspace* ws;              // stations (updateStations for z) and scratch
+  double far_m;               // a pair whose gap bound exceeds it is far [m]
+  bool tight_bound;           // supporting-line bounds for exact shapes [-]
+  double* warm_x_m;           // tooth pairs: warm start, receives the closest point [m]
+  const KernelModel& kern;    // the kernel of the pair (body 1)
+  const Ellipse& e;           // its ellipse
+  const EllipseWidth& width;  // and its support function
+};
+
+// The Hertz law's inputs of one pair: the relative radii of curvature in the plane and across
+// it [m], and the effective modulus [Pa].
+struct HertzInputs {
+  double r_in = 0, r_out = 0, E_star = 0;  // [m], [m], [Pa]
+};
+
+// A pair whose lower bound of the gap exceeds far_m: only that bound is stored.
+bool isFar(double bound, double far_m, ContactGeom* g) {
+  if (!(bound > far_m)) return false;
+  g->gap_m = bound;
+  g->far = true;
+  return true;
+}
+
+// --- tooth against kernel -------------------------------------------------------------------
+
+// The closest-point condition h(x) = n(x) . r'(x) on a tooth's deformed centreline against
+// the kernel's ellipse, at material coordinate x; keeps the centreline point r_x of the last
+// evaluation (and the mode values in ws->centreline.scratch_phi/dphi), *p its proximity to the
+// ellipse.
+struct CentrelineProbe {
+  CentrelineProbe(const NarrowInput& in, const ToothModel& tm, StationPair* direct_stations)
+      : tm(tm),
+        tooth(in.pair.a),
+        q(in.z.segment(tm.dof_offset, tm.n_modes)),
+        rot(in.drive.theta_rad),
+        ws(in.ws),
+        e(in.e),
+        width(in.width),
+        direct(direct_stations) {}
+  double operator()(double x, Proximity* p) {
+    Vec2 dr_dx;
+    r_x = centrelinePoint(tm, tooth, q, rot, x, ws, &dr_dx, direct);
+    *p = pointEllipse(r_x, e, width.axis.x(), width.axis.y());
+    return p->normal.dot(dr_dx);
+  }
+  const ToothModel& tm;       // the tooth
+  int tooth;                  // tooth index [-]
+  Eigen::Ref<const VecX> q;   // its coordinates [sqrt(kg) m; a rod's: rad]
+  Rotation2 rot;              // the drum's rotation [-]
+  Workspace* ws;              // stations and mode scratch
+  const Ellipse& e;           // the kernel
+  const EllipseWidth& width;  // its support function
+  StationPair* direct;        // stations computed directly (warm start), else nullptr
+  Vec2 r_x = Vec2::Zero();    // centreline point of the last evaluation [m]
+};
+
+// Closest approach of the deformed centreline polyline to the ellipse: sets g->tooth_x_m and
+// *best; false if the pair is far (only its bound stored).
+bool polylineClosestPoint(const NarrowInput& in, const ToothModel& tm, ContactGeom* g,
+                          Proximity* best) {
+  const Ellipse& e = in.e;
+  const int s0 = in.ws->centreline.station_offset[in.pair.a];
+  const std::vector<Vec2>& st = in.ws->centreline.stations_W;
+  best->distance_m = std::numeric_limits<double>::infinity();
+  int best_seg = 0;
+  // Segments are visited nearest first by a cheap lower bound (distance to the ellipse's
+  // centre minus a); once the bound passes the best distance the rest cannot win.
+  // Segments are ordered by the supporting-line gap (gapLowerBound); "far" is decided by the
+  // coarser bounding-circle bound (centre distance minus a) as it always was: the polyline
+  // only approximates the deformed centreline between stations, which the margin covers.
+  const int n_seg = tm.n_stations - 1;
+  double lower[64];
+  int order[64];
+  double circle_bound = std::numeric_limits<double>::infinity();
+  for (int s = 0; s < n_seg; ++s) {
+    const Vec2& a = st[s0 + s];
+    const Vec2 ab = st[s0 + s + 1] - a;
+    const double f = std::clamp((e.center - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    const Vec2 p = a + f * ab;
+    lower[s] = gapLowerBound(e, in.width, p);
+    circle_bound = std::min(circle_bound, (e.center - p).norm() - e.a_m);
+    order[s] = s;
+  }
+  std::sort(order, order + n_seg, [&](int i, int j) { return lower[i] < lower[j]; });
+  if (isFar(circle_bound - 0.5 * tm.diameter_m, in.far_m, g)) return false;
+  for (int o = 0; o < n_seg; ++o) {
+    const int s = order[o];
+    if (lower[s] > best->distance_m) break;
+    const Proximity p = segmentEllipse(st[s0 + s], st[s0 + s + 1], e);
+    if (p.distance_m < best->distance_m) {
+      *best = p;
+      best_seg = s;
+    }
+  }
+  const double x0 = tm.station_x_m[best_seg], x1 = tm.station_x_m[best_seg + 1];
+  g->tooth_x_m = x0 + best->param * (x1 - x0);
+  return true;
+}
+
+// Warm start: the last closest point is within the motion since it was found, so the
+// secant starts with a short probe (1e-9 L) and stops once its next correction is
+// below the tolerance (1e-15 L) without evaluating it; not converged in 20 iterations
+// (or equal slopes apart), the polyline search decides (false returned, nothing set).
+bool warmClosestPoint(const ToothModel& tm, double warm_x_m, CentrelineProbe* slopeAt,
+                      ContactGeom* g, Proximity* best) {
+  const double r_t = 0.5 * tm.diameter_m;
+  double xa = warm_x_m;
+  double xb = std::min(tm.length_m, xa + 1e-9 * tm.length_m);
+  if (xb == xa) xb = xa - 1e-9 * tm.length_m;
+  Proximity pa, pb;
+  double ha = (*slopeAt)(xa, &pa), hb = (*slopeAt)(xb, &pb);
+  bool converged = false;
+  for (int it = 0; it < 20 && hb != ha; ++it) {
+    const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
+    converged = std::abs(xn - xb) <= 1e-15 * tm.length_m;
+    if (converged) break;
+    xa = xb, ha = hb;
+    xb = xn;
+    hb = (*slopeAt)(xb, &pb);
+  }
+  // A warm point that says the bodies are apart is checked by the polyline search,
+  // which decides for separated pairs: the secant can settle on another stationary
+  // point of the distance than the closest one (a kernel near the round tip), and a
+  // pair that separates there would touch again at once (an endless impact chatter).
+  if (!converged || pb.distance_m > r_t) return false;
+  g->tooth_x_m = xb;
+  *best = pb;
+  best->point1 = slopeAt->r_x;
+  return true;
+}
+
+// Refine on the exact deformed centreline (the polyline only brackets it), so that the
+// gap and the modal Jacobian below describe the same curve: secant iterations on the
+// closest-point condition h(x) = n(x) . r'(x) = 0, started from the polyline's answer.
+void refineClosestPoint(const ToothModel& tm, CentrelineProbe* slopeAt, ContactGeom* g,
+                        Proximity* best) {
+  double xa = g->tooth_x_m;
+  double xb = std::min(tm.length_m, xa + 1e-6 * tm.length_m);
+  if (xb == xa) xb = xa - 1e-6 * tm.length_m;
+  Proximity pa, pb;
+  double ha = (*slopeAt)(xa, &pa), hb = (*slopeAt)(xb, &pb);
+  int iterations = 0;
+  for (; iterations < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m; ++iterations) {
+    const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
+    xa = xb, ha = hb;
+    xb = xn;
+    hb = (*slopeAt)(xb, &pb);
+  }
+  // No secant step (equal slopes at both points, e.g. a flank square to the axis at the
+  // tip): xb is only the probe; keep the polyline's point if it is the closer one, and
+  // evaluate there again so that r_x and the mode values in scratch_phi/dphi describe it.
+  if (iterations == 0 && pa.distance_m < pb.distance_m) {
+    xb = xa;
+    (*slopeAt)(xb, &pb);
+  }
+  // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
+  g->tooth_x_m = xb;
+  *best = pb;
+  best->point1 = slopeAt->r_x;
+}
+
+// The closest point of a tooth-kernel pair, into g->tooth_x_m and *best. A pair in contact
+// starts from its last closest point (in.warm_x_m) on the exact centreline; should that
+// refinement not converge, the polyline search is the fallback. (Not for a large-deflection
+// rod: a strongly bent rod alongside an elongated kernel can have two local minima of the
+// distance, and the warm start and the search must not pick different ones, or the pair would
+// close and open at once.) *direct receives the warm start's stations (the workspace's may be
+// stale then) and *from_warm whether the closest point came from the warm start. False if the
+// pair is far.
+bool toothClosestPoint(const NarrowInput& in, const ToothModel& tm, StationPair* direct,
+                       bool* from_warm, ContactGeom* g, Proximity* best) {
+  const bool warm = in.warm_x_m != nullptr && *in.warm_x_m >= 0.0 && tm.n_modes > 0 &&
+                    tm.beam_model == ToothBeamModel::kModal &&
+                    in.far_m == std::numeric_limits<double>::infinity();
+  if (warm) {
+    CentrelineProbe slopeAt(in, tm, direct);
+    *from_warm = warmClosestPoint(tm, *in.warm_x_m, &slopeAt, g, best);
+    if (*from_warm) return true;
+    updateToothStations(in.m, in.z, in.drive.theta_rad, in.pair.a, in.ws);
+  }
+  if (!polylineClosestPoint(in, tm, g, best)) return false;
+  if (tm.n_modes > 0) {
+    CentrelineProbe slopeAt(in, tm, nullptr);
+    refineClosestPoint(tm, &slopeAt, g, best);
+  }
+  return true;
+}
+
+// Rod: the centreline point moves at A E (dr/dq) qdot, the surface offset r_t n turns
+// with the section angle theta(x) = phi(x) . q.
+void rodToothSide(const NarrowInput& in, const ToothModel& tm, ContactGeom* g) {
+  const double r_t = 0.5 * tm.diameter_m;
+  BodyJac& s = g->side[0];
+  const int n = tm.n_modes;
+  LdJac jac;
+  ldPoint(tm, ldConfigOf(in.m, in.pair.a, in.z, in.ws), g->tooth_x_m, nullptr, nullptr, &jac);
+  double phi[kLdMaxShapes];
+  ldShapes(tm, g->tooth_x_m, phi, nullptr);
+  const Rotation2 rot(in.drive.theta_rad);
+  const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
+  const Vec2 jr = perp(r_t * g->n);
+  const double jrn = jr.dot(g->n), jrt = jr.dot(g->t);
+  for (int i = 0; i < n; ++i) {
+    const Vec2 col = jac(0, i) * e1 + jac(1, i) * e2;
+    s.w_n[i] = -(col.dot(g->n) + jrn * phi[i]);
+    s.w_t[i] = -(col.dot(g->t) + jrt * phi[i]);
+  }
+}
+
+// Modal tooth: phi and phi' at x are still in the scratch from the refinement's last
+// evaluation; H(x) q is blended from the stations like H(x) itself (from *direct after a warm
+// start). Also the residual flexibility along n in series with the Hertz law.
+void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
+                    StationPair* direct, ContactGeom* g) {
+  Workspace* ws = in.ws;
+  const double r_t = 0.5 * tm.diameter_m;
+  BodyJac& s = g->side[0];
+  const int n = tm.n_modes;
+  int s_h = 0;
+  double t_h = 0;
+  stationInterval(tm, g->tooth_x_m, &s_h, &t_h);
+  const int col_h = ws->centreline.station_offset[in.pair.a] + s_h;
+  if (from_warm) direct->update(tm, s_h, in.z.data() + tm.dof_offset);
+  const Rotation2 rot(in.drive.theta_rad);
+  const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
+  const Vec2 jr = perp(r_t * g->n);
+  const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
+  const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
+  for (int i = 0; i < n; ++i) {
+    const double hq = from_warm ? (1.0 - t_h) * direct->hq0[i] + t_h * direct->hq1[i]
+                                : (1.0 - t_h) * ws->centreline.station_Hq(i, col_h) +
+                                      t_h * ws->centreline.station_Hq(i, col_h + 1);
+    s.w_n[i] =
+        -(e2n * ws->centreline.scratch_phi[i] - e1n * hq + jrn * ws->centreline.scratch_dphi[i]);
+    s.w_t[i] =
+        -(e2t * ws->centreline.scratch_phi[i] - e1t * hq + jrt * ws->centreline.scratch_dphi[i]);
+  }
+  // The truncated modes' compliance along n: the load (e2.n, (J r_t n).n) on (w, w').
+  double r_ww, r_wt, r_tt;
+  residualAtSpeed(in.m, in.pair.a, in.drive.omega_radps, g->tooth_x_m, ws, &r_ww, &r_wt, &r_tt);
+  g->residual_mpN = e2n * e2n * r_ww + 2 * e2n * jrn * r_wt + jrn * jrn * r_tt;
+}
+
+// Tooth (body 0) against a kernel: the closest point of the deformed centreline, the tooth's
+// side of the Jacobians, the drum's rheonomic term and the Hertz inputs.
+bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
+  const ToothModel& tm = in.m.teeth[in.pair.a];
+  Proximity best;
+  best.distance_m = std::numeric_limits<double>::infinity();
+  const double r_t = 0.5 * tm.diameter_m;
+  StationPair direct;      // the warm start's stations (the workspace's may be stale then)
+  bool from_warm = false;  // the closest point came from the warm start
+  if (!toothClosestPoint(in, tm, &direct, &from_warm, g, &best)) return false;
+  if (in.warm_x_m != nullptr) *in.warm_x_m = g->tooth_x_m;
+  g->gap_m = best.distance_m - r_t;
+  g->rho1_m = best.radius2_m;
+  g->n = best.normal;
+  g->t = perp(g->n);
+  g->p0 = best.point1 + r_t * g->n;
+  g->p1 = best.point2;
+
+  // Tooth side: velocity of the surface point = Omega J p0 + Jq qdot, with
+  // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) phi'^T.
+  BodyJac& s = g->side[0];
+  s.body = toothBody(in.pair.a);
+  const int n = tm.n_modes;
+  s.w_n.resize(n);
+  s.w_t.resize(n);
+  if (n > 0 && tm.beam_model == ToothBeamModel::kLargeDeflection)
+    rodToothSide(in, tm, g);
+  else if (n > 0)
+    modalToothSide(in, tm, from_warm, &direct, g);
+  // Rheonomic term: the drum carries the tooth point at Omega J p0.
+  g->wtilde_n = -in.drive.omega_radps * cross(g->p0, g->n);
+  g->wtilde_t = -in.drive.omega_radps * cross(g->p0, g->t);
+  // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
+  const bool at_tip = g->tooth_x_m >= tm.length_m * (1.0 - 1e-9);
+  h->r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
+                         ellipseCurvatureRadius(in.e, g->p1));
+  h->r_out = seriesRadius(r_t, in.kern.semi_axis_b_m);
+  h->E_star = effectiveModulus(tm.youngs_modulus_Pa, tm.poisson_ratio, in.kern.youngs_modulus_Pa,
+                               in.kern.poisson_ratio);
+  return true;
+}
+
+// --- kernel against kernel ------------------------------------------------------------------
+
+// Ellipse a against ellipse b; normal from a to b.
+bool kernelKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
+  const Ellipse& e = in.e;
+  const KernelModel& ka = in.m.kernels[in.pair.a];
+  const Ellipse ea = kernelEllipse(in.m, in.z, in.pair.a);
+  // Supporting-line gap along the line of centres.
+  const Vec2 d_ab = e.center - ea.center;
+  const double dist_ab = d_ab.norm();
+  const double bound =
+      !in.tight_bound
+          ? dist_ab - e.a_m - ea.a_m
+          : (dist_ab > 0.0 ? dist_ab - in.width(d_ab / dist_ab) - EllipseWidth(ea)(d_ab / dist_ab)
+                           : -e.a_m - ea.a_m);
+  if (isFar(bound, in.far_m, g)) return false;
+  const Proximity p = ellipseEllipse(ea, e);
+  g->gap_m = p.distance_m;
+  g->n = p.normal;
+  g->t = perp(g->n);
+  g->p0 = p.point1;
+  g->p1 = p.point2;
+  g->tooth_x_m = 0;
+  BodyJac& s = g->side[0];
+  s.body = kernelBody(in.m, in.pair.a);
+  kernelRow(g->p0, ea.center, g->n, -1.0, &s.w_n);
+  kernelRow(g->p0, ea.center, g->t, -1.0, &s.w_t);
+  g->rho0_m = ellipseCurvatureRadius(ea, g->p0);
+  g->rho1_m = p.radius2_m;
+  h->r_in = seriesRadius(g->rho0_m, p.radius2_m);
+  h->r_out = seriesRadius(ka.semi_axis_b_m, in.kern.semi_axis_b_m);
+  h->E_star = effectiveModulus(ka.youngs_modulus_Pa, ka.poisson_ratio, in.kern.youngs_modulus_Pa,
+                               in.kern.poisson_ratio);
+  return true;
+}
+
+// --- kernel against a fixed obstacle, one function per obstacle type ------------------------
+// Fixed obstacle against the kernel; normal from the obstacle to the kernel.
+
+// What the obstacles share once the proximity p is known: the surface's own curvature rho0
+// (a plate: flat along it, round with its radius at either end), the obstacle's in-plane
+// radius r_obst for the Hertz law (inf: flat) [m].
+void obstacleContact(const NarrowInput& in, const ObstacleModel& o, const Proximity& p,
+                     double rho0_m, double r_obst, ContactGeom* g, HertzInputs* h) {
+  g->rho0_m = rho0_m;
+  g->rho1_m = p.radius2_m;
+  g->gap_m = p.distance_m;
+  g->n = p.normal;
+  g->t = perp(g->n);
+  g->p0 = p.point1;
+  g->p1 = p.point2;
+  g->tooth_x_m = 0;
+  h->r_in = seriesRadius(r_obst, p.radius2_m);
+  h->r_out = in.kern.semi_axis_b_m;  // bars and plates are straight along the drum axis
+  h->E_star = effectiveModulus(o.youngs_modulus_Pa, o.poisson_ratio, in.kern.youngs_modulus_Pa,
+                               in.kern.poisson_ratio);
+}
+
+bool kernelPlane(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
+  const ObstacleModel& o = in.m.obstacles[in.pair.b];
+  const Ellipse& e = in.e;
+  const double bound =
+      o.normal.dot(e.center - o.point_m) - (!in.tight_bound ? e.a_m : in.width(o.normal));
+  if (isFar(bound, in.far_m, g)) return false;
+  const Proximity p = planeEllipse(o.point_m, o.normal, e);
+  const double inf = std::numeric_limits<double>::infinity();
+  obstacleContact(in, o, p, inf, inf, g, h);
+  return true;
+}
+
+// A plate (segment with a radius).
+bool kernelPlate(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
+  const ObstacleModel& o = in.m.obstacles[in.pair.b];
+  const Ellipse& e = in.e;
+  const Vec2 ab = o.point_b_m - o.point_m;
+  const double f = std::clamp((e.center - o.point_m).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  const Vec2 c = o.point_m + f * ab;
+  const double bound =
+      (!in.tight_bound ? (e.center - c).norm() - e.a_m : gapLowerBound(e, in.width, c)) -
+      o.radius_m;
+  if (isFar(bound, in.far_m, g)) return false;
+  Proximity p = segmentEllipse(o.point_m, o.point_b_m, e);
+  p.distance_m -= o.radius_m;
+  p.point1 += o.radius_m * p.normal;
+  const double inf = std::numeric_limits<double>::infinity();
+  obstacleContact(in, o, p, p.param <= 0.0 || p.param >= 1.0 ? o.radius_m : inf, inf, g, h);
+  return true;
+}
+
+// A bar (circle).
+bool kernelBar(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
+  const ObstacleModel& o = in.m.obstacles[in.pair.b];
+  const Ellipse& e = in.e;
+  const double bound = (!in.tight_bound ? (e.center - o.center_m).norm() - e.a_m
+                                        : gapLowerBound(e, in.width, o.center_m)) -
+                       o.radius_m;
+  if (isFar(bound, in.far_m, g)) return false;
+  const Proximity p = circleEllipse(o.center_m, o.radius_m, e);
+  obstacleContact(in, o, p, o.radius_m, o.radius_m, g, h);
+  return true;
+}
+
+// --- the dispatch table ---------------------------------------------------------------------
+
+// A pair function fills g's gap, normal, tangent, contact points and curvatures, body 0's side
+// of the Jacobians and the rheonomic terms, and the Hertz inputs; false if the pair is far
+// (only g->gap_m and g->far set).
+using PairFunction = bool (*)(const NarrowInput& in, ContactGeom* g, HertzInputs* h);
+
+// One function per pair kind, kernel-obstacle pairs one per obstacle type: indexed by
+// PairKind, then (kKernelObstacle + ObstacleType) for the obstacles.
+constexpr PairFunction kPairFunctions[] = {
+    toothKernel,   // PairKind::kToothKernel
+    kernelKernel,  // PairKind::kKernelKernel
+    kernelPlane,   // PairKind::kKernelObstacle + ObstacleType::kPlane
+    kernelPlate,   // PairKind::kKernelObstacle + ObstacleType::kSegment
+    kernelBar,     // PairKind::kKernelObstacle + ObstacleType::kCircle
+};
+static_assert(static_cast<int>(PairKind::kToothKernel) == 0 &&
+                  static_cast<int>(PairKind::kKernelKernel) == 1 &&
+                  static_cast<int>(PairKind::kKernelObstacle) == 2,
+              "kPairFunctions is indexed by PairKind");
+static_assert(static_cast<int>(ObstacleType::kPlane) == 0 &&
+                  static_cast<int>(ObstacleType::kSegment) == 1 &&
+                  static_cast<int>(ObstacleType::kCircle) == 2,
+              "kPairFunctions is indexed by ObstacleType after kKernelObstacle");
+
+int pairFunctionIndex(const Model& m, const PairId& pair) {
+  const int kind = static_cast<int>(pair.kind);
+  if (pair.kind != PairKind::kKernelObstacle) return kind;
+  return kind + static_cast<int>(m.obstacles[pair.b].type);
+}
+
+// Kernel side (body 1) and the relative velocities.
+void kernelSide(const Model& m, const VecX& u, int kb, const Ellipse& e, ContactGeom* g) {
+  BodyJac& s1 = g->side[1];
+  s1.body = kernelBody(m, kb);
+  kernelRow(g->p1, e.center, g->n, 1.0, &s1.w_n);
+  kernelRow(g->p1, e.center, g->t, 1.0, &s1.w_t);
+  g->vn = g->wtilde_n;
+  g->vt = g->wtilde_t;
+  for (const BodyJac& s : g->side) {
+    if (s.body < 0 || s.w_n.size() == 0) continue;
+    const auto ub = u.segment(bodyDofOffset(m, s.body), s.w_n.size());
+    g->vn += s.w_n.dot(ub);
+    g->vt += s.w_t.dot(ub);
+  }
+}
+
+}  // namespace
+
+void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
+                     bool tight_bound, double* warm_x_m) {
+  g->pair = pair;
+  g->far = false;
+  g->params = &m.contact[static_cast<int>(pair.kind)];
+  g->wtilde_n = g->wtilde_t = 0.0;
+  g->rho0_m = g->rho1_m = std::numeric_limits<double>::infinity();
+  g->residual_mpN = 0.0;
+  g->side[0].body = -1;
+  g->side[0].w_n.resize(0);
+  g->side[0].w_t.resize(0);
+  const int kb = pair.kind == PairKind::kKernelObstacle ? pair.a : pair.b;
+  const Ellipse e = kernelEllipse(m, z, kb);
+  const EllipseWidth width(e);
+  const NarrowInput in{m,           z,        drive,         pair, ws,   far_m,
+                       tight_bound, warm_x_m, m.kernels[kb], e,    width};
+  HertzInputs h;
+  if (!kPairFunctions[pairFunctionIndex(m, pair)](in, g, &h)) return;
+  kernelSide(m, u, kb, e, g);
+  g->hertz_K = hertzConstant(h.E_star, h.r_in, h.r_out);
+}
+
+}  // namespace internal
+}  // namespace threshing_sim

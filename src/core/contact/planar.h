@@ -1,0 +1,26 @@
+// threshing_sim core, private: planar vector helpers shared by the contact pipeline's stages.
+#pragma once
+
+#include <cmath>
+
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+namespace internal {
+
+inline Vec2 rotate(double angle_rad, const Vec2& v) {
+  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y());
+}
+// The same rotation with its cosine and sine computed once.
+struct Rotation2 {
+  explicit Rotation2(double angle_rad) : c(std::cos(angle_rad)), s(std::sin(angle_rad)) {}
+  Vec2 operator*(const Vec2& v) const { return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y()); }
+  double c, s;  // cos and sin of the angle [-]
+};
+
+inline Vec2 perp(const Vec2& v) { return Vec2(-v.y(), v.x()); }  // J v
+inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+}  // namespace internal
+}  // namespace threshing_sim

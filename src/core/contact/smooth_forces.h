@@ -1,0 +1,20 @@
+// threshing_sim core, private: the smooth generalised forces, everything but the contacts
+// (src/core/contact/smooth_forces.cc).
+#pragma once
+
+#include "../drive.h"
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+namespace internal {
+
+// Smooth generalised forces without contacts: tooth damping, stiffness and drum-acceleration
+// load; kernel gravity and pedicels.
+void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, const Drive& drive,
+                  VecX* f);
+// Pedicel spring-damper force on kernel i (world, at its attachment point) [N] and that point.
+Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_WP);
+
+}  // namespace internal
+}  // namespace threshing_sim
