@@ -230,26 +230,52 @@ bool warmClosestPoint(const ToothModel& tm, double warm_x_m, CentrelineProbe* sl
 // Refine on the exact deformed centreline (the polyline only brackets it), so that the
 // gap and the modal Jacobian below describe the same curve: secant iterations on the
 // closest-point condition h(x) = n(x) . r'(x) = 0, started from the polyline's answer.
-void refineClosestPoint(const ToothModel& tm, CentrelineProbe* slopeAt, ContactGeom* g,
-                        Proximity* best) {
-  double xa = g->tooth_x_m;
-  double xb = std::min(tm.length_m, xa + 1e-6 * tm.length_m);
+// Secant iterations on h(x) = n(x) . r'(x) = 0 from xa (with a probe at xa + dx), x kept in
+// [lo, hi]; returns the iterations made. *pa: the proximity at the start xa; *pb: at the end
+// *xb_out (the last evaluation, whose values the probe's scratch holds).
+int closestPointSecant(const ToothModel& tm, CentrelineProbe* slopeAt, double xa, double lo,
+                       double hi, double* xb_out, Proximity* pa, Proximity* pb) {
+  double xb = std::min(hi, xa + 1e-6 * tm.length_m);
   if (xb == xa) xb = xa - 1e-6 * tm.length_m;
-  Proximity pa, pb;
-  double ha = (*slopeAt)(xa, &pa), hb = (*slopeAt)(xb, &pb);
+  double ha = (*slopeAt)(xa, pa), hb = (*slopeAt)(xb, pb);
   int iterations = 0;
   for (; iterations < 20 && hb != ha && std::abs(xb - xa) > 1e-15 * tm.length_m; ++iterations) {
-    const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), 0.0, tm.length_m);
+    const double xn = std::clamp(xb - hb * (xb - xa) / (hb - ha), lo, hi);
     xa = xb, ha = hb;
     xb = xn;
-    hb = (*slopeAt)(xb, &pb);
+    hb = (*slopeAt)(xb, pb);
   }
   // No secant step (equal slopes at both points, e.g. a flank square to the axis at the
   // tip): xb is only the probe; keep the polyline's point if it is the closer one, and
   // evaluate there again so that r_x and the mode values in scratch_phi/dphi describe it.
-  if (iterations == 0 && pa.distance_m < pb.distance_m) {
+  if (iterations == 0 && pa->distance_m < pb->distance_m) {
     xb = xa;
-    (*slopeAt)(xb, &pb);
+    (*slopeAt)(xb, pb);
+  }
+  *xb_out = xb;
+  return iterations;
+}
+
+void refineClosestPoint(const ToothModel& tm, CentrelineProbe* slopeAt, ContactGeom* g,
+                        Proximity* best) {
+  const double x0 = g->tooth_x_m;
+  double xb = x0;
+  Proximity pa, pb;
+  closestPointSecant(tm, slopeAt, x0, 0.0, tm.length_m, &xb, &pa, &pb);
+  // The secant may leave the polyline's neighbourhood for another stationary point of the
+  // distance, a farther one (a strongly bent rod pressed against an elongated kernel: the
+  // iteration ran to the root, and the pair, 0.36 mm deep, read 59.5 mm apart for one step, so
+  // that it opened and closed every 1e-11 s). Then the search is kept to one station interval
+  // about the polyline's point, and failing that the polyline's point itself is taken.
+  const double d0_m = pa.distance_m;  // the first evaluation was at x0
+  if (pb.distance_m > d0_m + 1e-9 * tm.length_m) {
+    const double dx = tm.length_m / std::max(1, tm.n_stations - 1);
+    closestPointSecant(tm, slopeAt, x0, std::max(0.0, x0 - dx), std::min(tm.length_m, x0 + dx), &xb,
+                       &pa, &pb);
+    if (pb.distance_m > d0_m + 1e-9 * tm.length_m) {
+      xb = x0;
+      (*slopeAt)(xb, &pb);
+    }
   }
   // The last evaluation was at xb (r_x, pb, and the mode values in scratch_phi/dphi).
   g->tooth_x_m = xb;
