@@ -72,7 +72,7 @@ double warmStart(const Model& m, const PairMemory& mem, const PairId& p, double 
 // needs; a pair beyond that reach cannot close within the step.
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
                  SeparatedPairs separated = SeparatedPairs::kNear, double horizon_s = 0.0) {
-  c.ws.ed_memo.valid = false;  // ws.geoms and the stations change
+  c.ws.ed.memo.valid = false;  // ws.geoms and the stations change
   // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
   // are sorted by kind, tooth pairs first, by tooth).
   // A tooth whose evaluated pairs are all in contact with a warm start (evaluateContact) needs
@@ -135,15 +135,15 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   }
 }
 
-// Solves the leading n x n block of ws->ed_A for the right-hand side ws->ed_rc into ws->ed_lam
-// by Gaussian elimination with complete pivoting, in place (ed_A and ed_rc are overwritten).
+// Solves the leading n x n block of ws->ed.A for the right-hand side ws->ed.rc into ws->ed.lam
+// by Gaussian elimination with complete pivoting, in place (ed.A and ed.rc are overwritten).
 // Returns false if the matrix is singular: a pivot at or below n eps times the largest entry,
 // the rank test of Eigen's FullPivLU.
 bool solveSquare(Workspace* ws, int n) {
-  auto A = ws->ed_A.topLeftCorner(n, n);
-  auto r = ws->ed_rc.head(n);
-  growTo(&ws->ed_lam, n);
-  std::vector<int>& col_of = ws->ed_col_perm;  // unknown held by column j
+  auto A = ws->ed.A.topLeftCorner(n, n);
+  auto r = ws->ed.rc.head(n);
+  growTo(&ws->ed.lam, n);
+  std::vector<int>& col_of = ws->ed.col_perm;  // unknown held by column j
   col_of.resize(n);
   for (int j = 0; j < n; ++j) col_of[j] = j;
   double max_pivot = 0.0;
@@ -173,7 +173,7 @@ bool solveSquare(Workspace* ws, int n) {
     for (int j = k + 1; j < n; ++j) v -= A(k, j) * r[j];
     r[k] = v / A(k, k);
   }
-  for (int k = 0; k < n; ++k) ws->ed_lam[col_of[k]] = r[k];
+  for (int k = 0; k < n; ++k) ws->ed.lam[col_of[k]] = r[k];
   return true;
 }
 
@@ -196,14 +196,14 @@ bool bitsEqual(const VecX& a, const VecX& b) {
 }
 
 // Whether the last rhs() call (whose geometry, forces and multipliers are still in the
-// workspace: any other evaluation clears ws.ed_memo.valid) was made with the same inputs, so
+// workspace: any other evaluation clears ws.ed.memo.valid) was made with the same inputs, so
 // that its results hold for a call at (dr, z, u): the same drum state, state bits, pedicels,
 // candidates and index sets, and separated pairs evaluated as `separated` asks (any mode
 // serves kNone, whose callers read only pairs in contact; without separated candidates the
 // modes agree).
 bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
                 SeparatedPairs separated, double horizon_s) {
-  const RhsMemo& mm = c.ws.ed_memo;
+  const RhsMemo& mm = c.ws.ed.memo;
   if (!mm.valid || mm.model != &c.m || mm.t_s != dr.t_s || mm.theta_rad != dr.theta_rad ||
       mm.omega_radps != dr.omega_radps || mm.alpha_radps2 != dr.alpha_radps2)
     return false;
@@ -232,7 +232,7 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
 // Records the inputs and the accelerations of a completed rhs() call.
 void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
                   SeparatedPairs separated, double horizon_s, const VecX& udot, double torque) {
-  RhsMemo& mm = c.ws.ed_memo;
+  RhsMemo& mm = c.ws.ed.memo;
   mm.model = &c.m;
   mm.t_s = dr.t_s;
   mm.theta_rad = dr.theta_rad;
@@ -258,21 +258,21 @@ void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   mm.valid = true;
 }
 
-// Contact forces per geom (ws.ed_fn, ws.ed_ft) from the multipliers of the last rhs(), stored
+// Contact forces per geom (ws.ed.fn, ws.ed.ft) from the multipliers of the last rhs(), stored
 // in the pair memory if asked; returns the contact torque on the drum [N m].
 double finishRhs(const Ctx& c, bool store_forces) {
   Workspace& ws = c.ws;
   const int k = static_cast<int>(ws.active.size());
   double torque = 0.0;
   const int n_geoms = static_cast<int>(ws.geoms.size());
-  growTo(&ws.ed_fn, n_geoms);
-  growTo(&ws.ed_ft, n_geoms);
-  ws.ed_fn.head(n_geoms).setZero();
-  ws.ed_ft.head(n_geoms).setZero();
+  growTo(&ws.ed.fn, n_geoms);
+  growTo(&ws.ed.ft, n_geoms);
+  ws.ed.fn.head(n_geoms).setZero();
+  ws.ed.ft.head(n_geoms).setZero();
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
-    ws.ed_fn[ws.active[i]] = ws.lambda[2 * i];
-    ws.ed_ft[ws.active[i]] = ws.lambda[2 * i + 1];
+    ws.ed.fn[ws.active[i]] = ws.lambda[2 * i];
+    ws.ed.ft[ws.active[i]] = ws.lambda[2 * i + 1];
     if (g.pair.kind == PairKind::kToothKernel) {
       const Vec2& p = g.p0;
       torque += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
@@ -299,7 +299,7 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   Workspace& ws = c.ws;
   const Drive dr = driveAtTime(c, t);
   if (rhsMemoHit(c, dr, z, u, separated, horizon_s)) {
-    *udot = ws.ed_memo.udot;
+    *udot = ws.ed.memo.udot;
     *drum_torque = finishRhs(c, store_forces);
     return true;
   }
@@ -353,11 +353,11 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
   }
   if (nc > 0) {
     // Unknowns: per constraint row, lambda along a direction that may carry a slip coupling.
-    growTo(&ws.ed_A, nc, nc);
-    growTo(&ws.ed_rc, nc);
-    auto A = ws.ed_A.topLeftCorner(nc, nc);
-    auto rhs_c = ws.ed_rc.head(nc);
-    std::vector<std::pair<int, int>>& idx = ws.ed_idx;  // (active contact, 0 = N / 1 = T)
+    growTo(&ws.ed.A, nc, nc);
+    growTo(&ws.ed.rc, nc);
+    auto A = ws.ed.A.topLeftCorner(nc, nc);
+    auto rhs_c = ws.ed.rc.head(nc);
+    std::vector<std::pair<int, int>>& idx = ws.ed.idx;  // (active contact, 0 = N / 1 = T)
     idx.clear();
     for (int i = 0; i < k; ++i) {
       if (ws.rows[i].normal_unknown) idx.push_back({i, 0});
@@ -414,7 +414,7 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
       }
     }
     if (!solveSquare(&ws, nc)) return false;
-    const auto lam = ws.ed_lam.head(nc);
+    const auto lam = ws.ed.lam.head(nc);
     for (int r = 0; r < nc; ++r) {
       const int i = idx[r].first;
       const ContactGeom& g = ws.geoms[ws.active[i]];
@@ -457,7 +457,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
   const Model& m = c.m;
   Workspace& ws = c.ws;
   double torque;
-  rhs(c, t, z, u, &ws.ed_udot_ev, &torque, true, SeparatedPairs::kSign, horizon_s);
+  rhs(c, t, z, u, &ws.ed.udot_ev, &torque, true, SeparatedPairs::kSign, horizon_s);
   vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
   if (rates) rates->assign(vals->size(), std::numeric_limits<double>::quiet_NaN());
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
@@ -503,7 +503,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
   }
 }
 
-// Marks in ws.ed_tooth_exact the teeth that the step from the data's time may advance exactly:
+// Marks in ws.ed.tooth_exact the teeth that the step from the data's time may advance exactly:
 // the option is on, the drum is at its target speed (no ramp, so dOmega/dt = 0 all through the
 // step), the tooth has modes and a valid propagator, and none of its pairs is in contact (a
 // separated pair exerts no force within a step). Returns the number of teeth marked.
@@ -511,22 +511,22 @@ int markExactTeeth(const Ctx& c) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   const int T = static_cast<int>(m.teeth.size());
-  ws.ed_tooth_exact.assign(T, 0);
+  ws.ed.tooth_exact.assign(T, 0);
   if (!m.integrator.exact_free_teeth || c.d.omega_radps != c.d.omega_target_radps) return 0;
-  if (ws.ed_prop.size() != static_cast<size_t>(T)) ws.ed_prop.resize(T);
+  if (ws.ed.prop.size() != static_cast<size_t>(T)) ws.ed.prop.resize(T);
   // Teeth with a mode and a usable propagator at this drum speed.
   int marked = 0;
   for (int k = 0; k < T; ++k) {
     if (m.teeth[k].n_modes == 0) continue;
-    if (!buildToothPropagator(m, k, c.d.omega_radps, &ws.ed_prop[k])) continue;
-    ws.ed_tooth_exact[k] = 1;
+    if (!buildToothPropagator(m, k, c.d.omega_radps, &ws.ed.prop[k])) continue;
+    ws.ed.tooth_exact[k] = 1;
     ++marked;
   }
   // Minus the teeth in contact.
   for (const PairId& p : ws.candidates) {
-    if (p.kind != PairKind::kToothKernel || !ws.ed_tooth_exact[p.a]) continue;
+    if (p.kind != PairKind::kToothKernel || !ws.ed.tooth_exact[p.a]) continue;
     if (isActive(ws.memory[pairKey(p)])) {
-      ws.ed_tooth_exact[p.a] = 0;
+      ws.ed.tooth_exact[p.a] = 0;
       --marked;
     }
   }
@@ -540,19 +540,19 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
                VecX* u1, double* err, double* torque1) {
   const int n = c.m.n_dof;
   Workspace& ws = c.ws;
-  ++ws.trial_steps;
-  for (auto& k : ws.rk_k) k.resize(2 * n);
-  ws.rk_tmp.resize(2 * n);
-  VecX& zz = ws.ed_zz;
-  VecX& uu = ws.ed_uu;
-  VecX& udot = ws.ed_udot;
+  ++ws.ed.trial_steps;
+  for (auto& k : ws.ed.rk_k) k.resize(2 * n);
+  ws.ed.rk_tmp.resize(2 * n);
+  VecX& zz = ws.ed.zz;
+  VecX& uu = ws.ed.uu;
+  VecX& udot = ws.ed.udot;
   double torque = 0;
   const int n_pairs = static_cast<int>(ws.candidates.size());
-  growTo(&ws.ed_imp_n, n_pairs);
-  growTo(&ws.ed_imp_t, n_pairs);
-  ws.ed_imp_n.head(n_pairs).setZero();
-  ws.ed_imp_t.head(n_pairs).setZero();
-  ws.ed_torque_impulse = 0;
+  growTo(&ws.ed.imp_n, n_pairs);
+  growTo(&ws.ed.imp_t, n_pairs);
+  ws.ed.imp_n.head(n_pairs).setZero();
+  ws.ed.imp_t.head(n_pairs).setZero();
+  ws.ed.torque_impulse = 0;
   zz.resize(n);
   uu.resize(n);
   for (int s = 0; s < 7; ++s) {
@@ -563,7 +563,7 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
     int n_j = 0;
     for (int j = 0; j < s; ++j) {
       if (kA[s][j] == 0.0) continue;
-      k_j[n_j] = ws.rk_k[j].data();
+      k_j[n_j] = ws.ed.rk_k[j].data();
       a_j[n_j++] = h * kA[s][j];
     }
     const double* z0p = z0.data();
@@ -578,7 +578,7 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
       uu[i] = ui;
     }
     if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false, SeparatedPairs::kNone)) return false;
-    double* k_s = ws.rk_k[s].data();
+    double* k_s = ws.ed.rk_k[s].data();
     for (int i = 0; i < n; ++i) {
       k_s[i] = uu[i];
       k_s[n + i] = udot[i];
@@ -587,10 +587,10 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
     if (s < 6 && kA[6][s] != 0.0) {
       const double b = h * kA[6][s];
       for (int i = 0; i < n_pairs; ++i) {
-        ws.ed_imp_n[i] += b * ws.ed_fn[i];
-        ws.ed_imp_t[i] += b * ws.ed_ft[i];
+        ws.ed.imp_n[i] += b * ws.ed.fn[i];
+        ws.ed.imp_t[i] += b * ws.ed.ft[i];
       }
-      ws.ed_torque_impulse += b * torque;
+      ws.ed.torque_impulse += b * torque;
     }
   }
   // Stage 7 is the 5th-order solution (FSAL).
@@ -599,14 +599,14 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   *torque1 = torque;
   // Free teeth: the exact end state replaces the Runge-Kutta one; their dofs are left out of
   // the error estimate (own_error = 0).
-  std::vector<std::uint8_t>& own_error = ws.ed_own_error;  // per dof: in the error estimate
+  std::vector<std::uint8_t>& own_error = ws.ed.own_error;  // per dof: in the error estimate
   own_error.assign(n, 1);
   const int n_exact = markExactTeeth(c);
   if (n_exact > 0) {
     for (size_t k = 0; k < c.m.teeth.size(); ++k) {
-      if (!ws.ed_tooth_exact[k]) continue;
+      if (!ws.ed.tooth_exact[k]) continue;
       const ToothModel& tm = c.m.teeth[k];
-      propagateTooth(&ws.ed_prop[k], h, z0.segment(tm.dof_offset, tm.n_modes),
+      propagateTooth(&ws.ed.prop[k], h, z0.segment(tm.dof_offset, tm.n_modes),
                      u0.segment(tm.dof_offset, tm.n_modes), z1->segment(tm.dof_offset, tm.n_modes),
                      u1->segment(tm.dof_offset, tm.n_modes));
       std::fill_n(own_error.begin() + tm.dof_offset, tm.n_modes, 0);
@@ -620,7 +620,7 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
     if (!own_error[i < n ? i : i - n]) continue;
     ++n_err;
     double ei = 0.0;
-    for (int s = 0; s < 7; ++s) ei += kE[s] * ws.rk_k[s][i];
+    for (int s = 0; s < 7; ++s) ei += kE[s] * ws.ed.rk_k[s][i];
     ei *= h;
     const double y = i < n ? std::max(std::abs(z0[i]), std::abs(zz[i]))
                            : std::max(std::abs(u0[i - n]), std::abs(uu[i - n]));
@@ -860,7 +860,7 @@ bool projectConstraints(const Ctx& c, double t) {
           mem.slip_sign == 0 && cp.friction > 0 && mem.state == ContactState::kStick;
       if (!normal && !tangent) continue;
       // This contact at the current (already corrected) state.
-      ws.ed_memo.valid = false;  // the stations move
+      ws.ed.memo.valid = false;  // the stations move
       ContactGeom g;
       const PairId& pair = ws.candidates[i];
       if (pair.kind == PairKind::kToothKernel)
@@ -965,7 +965,7 @@ bool inCompliantContact(const ContactGeom& g, const PairMemory& mem) {
 }
 
 // Normal force [N] and its rate [N/s] of every pair in compliant contact, from the last rhs()
-// call, made at the state (z, u) at time t [s] with accelerations udot (ws.geoms, ws.ed_fn), into
+// call, made at the state (z, u) at time t [s] with accelerations udot (ws.geoms, ws.ed.fn), into
 // f and r (per geom, zero for other pairs); `on` flags those pairs. Returns whether there is any.
 bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u, const VecX& udot,
                             std::vector<double>* f, std::vector<double>* r,
@@ -982,7 +982,7 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
     if (!inCompliantContact(g, mem)) continue;
     any = true;
     (*on)[i] = 1;
-    (*f)[i] = ws.ed_fn[i];
+    (*f)[i] = ws.ed.fn[i];
     (*r)[i] = compliantForceRate(c, g, mem, z, u, udot, t);
   }
   return any;
@@ -990,7 +990,7 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
 
 // Located maxima of the compliant normal forces over an accepted step of length h [s] from
 // (t0, z0, u0) to (z1, u1), before the index sets are switched. A force that rises at the start
-// and falls at the end of the step (values and rates from ws.ed_pk_* at both ends) has an
+// and falls at the end of the step (values and rates from ws.ed.pk_* at both ends) has an
 // interior maximum: the cubic Hermite interpolant predicts its time, one Dormand-Prince step from
 // the start gives the state there, and the force and its rate at that state narrow the bracket,
 // until the prediction matches the probed force to 1e-2 x tolerance (at most 4 probes). Every
@@ -998,36 +998,36 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
 // (A sticking |F_T| is a multiplier without a closed-form rate: its peak stays sampled at step
 // ends and at located events.) A maximum at a step boundary (a kink from an impact elsewhere)
 // is an end value, recorded with the step.
-// end_evaluated: the last rhs() call was at (z1, u1), so ws.geoms and ws.ed_udot_ev hold the end.
+// end_evaluated: the last rhs() call was at (z1, u1), so ws.geoms and ws.ed.udot_ev hold the end.
 void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0,
                       const VecX& z1, const VecX& u1, bool end_evaluated) {
   Workspace& ws = c.ws;
   double torque_unused = 0, err_unused = 0;
   // Values and rates at the step end.
   if (!end_evaluated &&
-      !rhs(c, t0 + h, z1, u1, &ws.ed_udot_ev, &torque_unused, false, SeparatedPairs::kNone))
+      !rhs(c, t0 + h, z1, u1, &ws.ed.udot_ev, &torque_unused, false, SeparatedPairs::kNone))
     return;
-  std::vector<std::uint8_t>& on_end = ws.ed_pk_on_end;
-  compliantForceSnapshot(c, t0 + h, z1, u1, ws.ed_udot_ev, &ws.ed_pk_f1, &ws.ed_pk_r1, &on_end);
-  const size_t n_geoms = std::min(ws.ed_pk_on.size(), on_end.size());
+  std::vector<std::uint8_t>& on_end = ws.ed.pk_on_end;
+  compliantForceSnapshot(c, t0 + h, z1, u1, ws.ed.udot_ev, &ws.ed.pk_f1, &ws.ed.pk_r1, &on_end);
+  const size_t n_geoms = std::min(ws.ed.pk_on.size(), on_end.size());
   // The probe steps overwrite the step's contact impulses and drum torque impulse: kept here.
   bool saved = false;
   double torque_impulse_saved = 0;
   const double rel_tol = 1e-2 * c.m.integrator.tolerance;
   for (size_t i = 0; i < n_geoms; ++i) {
-    if (!ws.ed_pk_on[i] || !on_end[i]) continue;
+    if (!ws.ed.pk_on[i] || !on_end[i]) continue;
     // Bracket [a, b] of the step (from its start) with a rising and a falling end. A force at
     // zero at an end (the episode opens or closes there, where F ~ delta^{3/2} has a zero rate)
     // counts as rising from the start or falling to the end.
     double a = 0, b = h;
-    double fa = ws.ed_pk_f0[i], ra = ws.ed_pk_r0[i], fb = ws.ed_pk_f1[i], rb = ws.ed_pk_r1[i];
+    double fa = ws.ed.pk_f0[i], ra = ws.ed.pk_r0[i], fb = ws.ed.pk_f1[i], rb = ws.ed.pk_r1[i];
     const bool rising = ra > 0 || (fa <= 0 && fb > 0);
     const bool falling = rb < 0 || (fb <= 0 && fa > 0);
     if (!(rising && falling)) continue;
     if (!saved) {
-      ws.ed_imp_n_saved = ws.ed_imp_n;
-      ws.ed_imp_t_saved = ws.ed_imp_t;
-      torque_impulse_saved = ws.ed_torque_impulse;
+      ws.ed.imp_n_saved = ws.ed.imp_n;
+      ws.ed.imp_t_saved = ws.ed.imp_t;
+      torque_impulse_saved = ws.ed.torque_impulse;
       saved = true;
     }
     for (int probe = 0; probe < 4; ++probe) {
@@ -1036,18 +1036,18 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
       const double f_pred = -hermiteMinimum(-fa, -ra, -fb, -rb, b - a, &s_max);
       const double tp = a + s_max * (b - a);
       // The state there, one step from the start, and its forces.
-      if (!dopriStep(c, t0, tp, z0, u0, &ws.ed_zt, &ws.ed_ut, &err_unused, &torque_unused) ||
-          !rhs(c, t0 + tp, ws.ed_zt, ws.ed_ut, &ws.ed_pk_udot, &torque_unused, false,
+      if (!dopriStep(c, t0, tp, z0, u0, &ws.ed.zt, &ws.ed.ut, &err_unused, &torque_unused) ||
+          !rhs(c, t0 + tp, ws.ed.zt, ws.ed.ut, &ws.ed.pk_udot, &torque_unused, false,
                SeparatedPairs::kNone))
         break;
       const ContactGeom& g = ws.geoms[i];
       PairMemory& mem = ws.memory[pairKey(g.pair)];
-      const double fp = ws.ed_fn[i];
-      recordForce(c.m, &c.d, g, fp, ws.ed_ft[i], t0 + tp);
+      const double fp = ws.ed.fn[i];
+      recordForce(c.m, &c.d, g, fp, ws.ed.ft[i], t0 + tp);
       mem.episode_peak_N = std::max(mem.episode_peak_N, fp);
       if (std::abs(f_pred - fp) <= rel_tol * fp) break;
       // Its rate; the bracket shrinks to the side where the force still rises.
-      const double rp = compliantForceRate(c, g, mem, ws.ed_zt, ws.ed_ut, ws.ed_pk_udot, t0 + tp);
+      const double rp = compliantForceRate(c, g, mem, ws.ed.zt, ws.ed.ut, ws.ed.pk_udot, t0 + tp);
       if (rp > 0) {
         a = tp;
         fa = fp;
@@ -1062,9 +1062,9 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
     }
   }
   if (saved) {
-    ws.ed_imp_n = ws.ed_imp_n_saved;
-    ws.ed_imp_t = ws.ed_imp_t_saved;
-    ws.ed_torque_impulse = torque_impulse_saved;
+    ws.ed.imp_n = ws.ed.imp_n_saved;
+    ws.ed.imp_t = ws.ed.imp_t_saved;
+    ws.ed.torque_impulse = torque_impulse_saved;
   }
 }
 
@@ -1082,11 +1082,11 @@ double armValue(Arm arm, double v, double v0) { return arm == Arm::kAtZero ? v :
 // (armed below its start, at the start itself) or no crossing inside.
 double earliestCrossing(const Workspace& ws, double lo, double hi, const std::vector<double>& v_lo,
                         const std::vector<double>& v_hi, double w_lo, double w_hi, int* sel) {
-  const std::vector<double>& ev0 = ws.ed_ev0;
+  const std::vector<double>& ev0 = ws.ed.ev0;
   double x = hi;
   *sel = -1;
   for (size_t i = 0; i < v_hi.size(); ++i) {
-    const Arm a = static_cast<Arm>(ws.ed_arm[i]);
+    const Arm a = static_cast<Arm>(ws.ed.arm[i]);
     if (a == Arm::kOff || !armFires(a, v_hi[i], ev0[i])) continue;
     const double f_lo = w_lo * armValue(a, v_lo[i], ev0[i]);
     const double f_hi = w_hi * armValue(a, v_hi[i], ev0[i]);
@@ -1107,24 +1107,24 @@ double earliestCrossing(const Workspace& ws, double lo, double hi, const std::ve
   return x;
 }
 
-// Locates the first event of a step from the data's time: some armed function (ws.ed_arm,
-// values ws.ed_ev0 at the start) has fired at step length hi_s (values ev_hi; its state, impulses
-// and torque impulse in ws.ed_z_hi, ...) and none at 0. Narrows the bracket [lo, hi] until
+// Locates the first event of a step from the data's time: some armed function (ws.ed.arm,
+// values ws.ed.ev0 at the start) has fired at step length hi_s (values ev_hi; its state, impulses
+// and torque impulse in ws.ed.z_hi, ...) and none at 0. Narrows the bracket [lo, hi] until
 // hi - lo <= t_tol by re-stepping from the start: Illinois regula falsi on the function
 // that fired earliest by linear interpolation, bisection when a fired function has no positive
 // value at lo (an armed-below-start function at the start) or the bracket stopped halving;
 // trial points keep t_tol / 2 from the ends so that the bracket closes from both sides. Sets
-// *h_take to hi, with its state in ws.ed_z_hi, ws.ed_u_hi, ws.ed_imp_n_hi, ws.ed_imp_t_hi,
-// ws.ed_torque_impulse_hi and its values in ws.ed_ev_hi; returns whether the last evaluation
+// *h_take to hi, with its state in ws.ed.z_hi, ws.ed.u_hi, ws.ed.imp_n_hi, ws.ed.imp_t_hi,
+// ws.ed.torque_impulse_hi and its values in ws.ed.ev_hi; returns whether the last evaluation
 // (ws.geoms, forces) was at hi.
 bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, double t_tol,
                  double* h_take) {
   Workspace& ws = c.ws;
-  const std::vector<double>& ev0 = ws.ed_ev0;
-  const std::vector<std::uint8_t>& arm = ws.ed_arm;
-  std::vector<double>& v_lo = ws.ed_ev_lo;
-  std::vector<double>& v_hi = ws.ed_ev_hi;
-  std::vector<double>& v_mid = ws.ed_evm;
+  const std::vector<double>& ev0 = ws.ed.ev0;
+  const std::vector<std::uint8_t>& arm = ws.ed.arm;
+  std::vector<double>& v_lo = ws.ed.ev_lo;
+  std::vector<double>& v_hi = ws.ed.ev_hi;
+  std::vector<double>& v_mid = ws.ed.evm;
   v_lo = ev0;
   v_hi = ev_hi;
   double lo = 0, hi = hi_s;
@@ -1143,8 +1143,8 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
     width_before[2] = width_before[1];
     width_before[1] = width_before[0];
     width_before[0] = hi - lo;
-    dopriStep(c, c.d.t_s, x, c.d.z, c.d.u, &ws.ed_zt, &ws.ed_ut, &err, &tq);
-    eventValues(c, c.d.t_s + x, ws.ed_zt, ws.ed_ut, &v_mid);
+    dopriStep(c, c.d.t_s, x, c.d.z, c.d.u, &ws.ed.zt, &ws.ed.ut, &err, &tq);
+    eventValues(c, c.d.t_s + x, ws.ed.zt, ws.ed.ut, &v_mid);
     bool fired = false;
     for (size_t i = 0; i < v_mid.size() && v_mid.size() == ev0.size() && !fired; ++i)
       fired = armFires(static_cast<Arm>(arm[i]), v_mid[i], ev0[i]);
@@ -1161,11 +1161,11 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
       if (kept == 1) w_lo *= scale(v_hi);
       hi = x;
       v_hi = v_mid;
-      ws.ed_z_hi = ws.ed_zt;
-      ws.ed_u_hi = ws.ed_ut;
-      ws.ed_imp_n_hi = ws.ed_imp_n;
-      ws.ed_imp_t_hi = ws.ed_imp_t;
-      ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
+      ws.ed.z_hi = ws.ed.zt;
+      ws.ed.u_hi = ws.ed.ut;
+      ws.ed.imp_n_hi = ws.ed.imp_n;
+      ws.ed.imp_t_hi = ws.ed.imp_t;
+      ws.ed.torque_impulse_hi = ws.ed.torque_impulse;
       w_hi = 1;
       kept = 1;
     } else {
@@ -1199,13 +1199,13 @@ struct StepPlan {
   bool end_evaluated = true;  // the last rhs() call was at the step's end state
 };
 
-// Whether any armed function fired at values b (ws.ed_arm, start values ws.ed_ev0); function
+// Whether any armed function fired at values b (ws.ed.arm, start values ws.ed.ev0); function
 // `deep` (if given) only counts when it went below -depth.
 bool anyFired(const Workspace& ws, const std::vector<double>& b, size_t deep = SIZE_MAX,
               double depth = 0) {
-  if (b.size() != ws.ed_ev0.size()) return false;
+  if (b.size() != ws.ed.ev0.size()) return false;
   for (size_t i = 0; i < b.size(); ++i)
-    if (armFires(static_cast<Arm>(ws.ed_arm[i]), i == deep ? b[i] + depth : b[i], ws.ed_ev0[i]))
+    if (armFires(static_cast<Arm>(ws.ed.arm[i]), i == deep ? b[i] + depth : b[i], ws.ed.ev0[i]))
       return true;
   return false;
 }
@@ -1217,8 +1217,8 @@ void prepareCandidates(const Ctx& c, StepPlan* plan) {
   Data* d = &c.d;
   Workspace& ws = c.ws;
   // A time step since the last event-driven one rewrote the geometry and forces.
-  if (ws.ts_in_contact_step != -2) ws.ed_memo.valid = false;
-  ws.ts_in_contact_step = -2;  // time stepping's list of pairs in contact is stale from here
+  if (ws.ts.in_contact_step != -2) ws.ed.memo.valid = false;
+  ws.ts.in_contact_step = -2;  // time stepping's list of pairs in contact is stale from here
   plan->margin_m = std::max(m.broadphase_margin_m, 1e-6);
   // (Stations only of the teeth that a kernel can reach: evaluateAll computes what it needs.)
   layoutStations(m, &ws);
@@ -1279,7 +1279,7 @@ void openTouchingContacts(const Ctx& c) {
 void planStep(const Ctx& c, double v_bound_mps, StepPlan* plan) {
   const Model& m = c.m;
   const Data& d = c.d;
-  double h = c.ws.ed_h > 0 ? c.ws.ed_h : std::min(m.integrator.max_step_s, 1e-6);
+  double h = c.ws.ed.h > 0 ? c.ws.ed.h : std::min(m.integrator.max_step_s, 1e-6);
   h = std::min({h, m.integrator.max_step_s, plan->margin_m / v_bound_mps});
   // A step cut short to land on t_end (or on the end of a drum ramp) must not shrink the
   // step-size proposal for the steps after it.
@@ -1300,17 +1300,17 @@ void planStep(const Ctx& c, double v_bound_mps, StepPlan* plan) {
 void armEvents(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   const Data& d = c.d;
-  eventValues(c, d.t_s, d.z, d.u, &ws.ed_ev0, &ws.ed_rate0, plan->h_s);
+  eventValues(c, d.t_s, d.z, d.u, &ws.ed.ev0, &ws.ed.rate0, plan->h_s);
   // Compliant normal forces and their rates at the start, for the located peaks.
-  plan->peaks_on = compliantForceSnapshot(c, d.t_s, d.z, d.u, ws.ed_udot_ev, &ws.ed_pk_f0,
-                                          &ws.ed_pk_r0, &ws.ed_pk_on);
-  const std::vector<double>& ev0 = ws.ed_ev0;
-  ws.ed_arm.assign(ev0.size(), static_cast<std::uint8_t>(Arm::kOff));
+  plan->peaks_on = compliantForceSnapshot(c, d.t_s, d.z, d.u, ws.ed.udot_ev, &ws.ed.pk_f0,
+                                          &ws.ed.pk_r0, &ws.ed.pk_on);
+  const std::vector<double>& ev0 = ws.ed.ev0;
+  ws.ed.arm.assign(ev0.size(), static_cast<std::uint8_t>(Arm::kOff));
   for (size_t i = 0; i < ev0.size(); ++i) {
     if (ev0[i] > 0) {
-      ws.ed_arm[i] = static_cast<std::uint8_t>(Arm::kAtZero);
-    } else if (ws.ed_rate0[i] > 0) {  // NaN (rate unknown) stays off
-      ws.ed_arm[i] = static_cast<std::uint8_t>(Arm::kBelowStart);
+      ws.ed.arm[i] = static_cast<std::uint8_t>(Arm::kAtZero);
+    } else if (ws.ed.rate0[i] > 0) {  // NaN (rate unknown) stays off
+      ws.ed.arm[i] = static_cast<std::uint8_t>(Arm::kBelowStart);
     }
   }
 }
@@ -1325,18 +1325,18 @@ double growthFactor(double err) {
 }
 
 // Stage 5: adaptive Dormand-Prince steps from the step start until the error is within the
-// tolerance; the end state in ws.ed_z1, ws.ed_u1. False after too many rejections.
+// tolerance; the end state in ws.ed.z1, ws.ed.u1. False after too many rejections.
 bool integrateAdaptive(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   Data* d = &c.d;
   const int n = c.m.n_dof;
-  ws.ed_udot_end.resize(n);
-  ws.ed_z1.resize(n);
-  ws.ed_u1.resize(n);
+  ws.ed.udot_end.resize(n);
+  ws.ed.z1.resize(n);
+  ws.ed.u1.resize(n);
   double err = 0, torque1 = 0;
   double& h = plan->h_s;
   for (int attempt = 0;; ++attempt) {
-    if (!dopriStep(c, d->t_s, h, d->z, d->u, &ws.ed_z1, &ws.ed_u1, &err, &torque1)) err = kInf;
+    if (!dopriStep(c, d->t_s, h, d->z, d->u, &ws.ed.z1, &ws.ed.u1, &err, &torque1)) err = kInf;
     if (err <= 1.0) break;
     plan->rejected = true;
     ++d->stats.rejected_steps;
@@ -1356,35 +1356,35 @@ bool integrateAdaptive(const Ctx& c, StepPlan* plan) {
 void detectGrazes(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   const Data& d = c.d;
-  const std::vector<double>& ev0 = ws.ed_ev0;
-  const std::vector<double>& ev1 = ws.ed_ev1;
+  const std::vector<double>& ev0 = ws.ed.ev0;
+  const std::vector<double>& ev1 = ws.ed.ev1;
   const double h = plan->h_s;
   const double depth_m = c.m.integrator.tolerance * 1e-2;
   double et, tq;
   for (size_t i = 0; i < ws.geoms.size() && !plan->event; ++i) {
     const size_t j = 4 * i;
-    if (static_cast<Arm>(ws.ed_arm[j]) != Arm::kAtZero ||
+    if (static_cast<Arm>(ws.ed.arm[j]) != Arm::kAtZero ||
         isActive(ws.memory[pairKey(ws.geoms[i].pair)]))
       continue;
-    if (!(ws.ed_rate0[j] < 0 && ws.ed_rate1[j] > 0)) continue;  // no interior minimum
+    if (!(ws.ed.rate0[j] < 0 && ws.ed.rate1[j] > 0)) continue;  // no interior minimum
     double s_min = 0;
-    const double g_min = hermiteMinimum(ev0[j], ws.ed_rate0[j], ev1[j], ws.ed_rate1[j], h, &s_min);
+    const double g_min = hermiteMinimum(ev0[j], ws.ed.rate0[j], ev1[j], ws.ed.rate1[j], h, &s_min);
     if (!(g_min < std::max(depth_m, 1e-3 * (ev0[j] + ev1[j])))) continue;
     // The probe step overwrites the step's contact impulses and drum torque impulse; they are
     // restored unless the event is confirmed (then the located step recomputes them).
-    ws.ed_imp_n_saved = ws.ed_imp_n;
-    ws.ed_imp_t_saved = ws.ed_imp_t;
-    const double torque_impulse_saved = ws.ed_torque_impulse;
+    ws.ed.imp_n_saved = ws.ed.imp_n;
+    ws.ed.imp_t_saved = ws.ed.imp_t;
+    const double torque_impulse_saved = ws.ed.torque_impulse;
     plan->end_evaluated = false;
-    dopriStep(c, d.t_s, s_min * h, d.z, d.u, &ws.ed_zt, &ws.ed_ut, &et, &tq);
-    eventValues(c, d.t_s + s_min * h, ws.ed_zt, ws.ed_ut, &ws.ed_evm);
-    if (anyFired(ws, ws.ed_evm, j, depth_m)) {
+    dopriStep(c, d.t_s, s_min * h, d.z, d.u, &ws.ed.zt, &ws.ed.ut, &et, &tq);
+    eventValues(c, d.t_s + s_min * h, ws.ed.zt, ws.ed.ut, &ws.ed.evm);
+    if (anyFired(ws, ws.ed.evm, j, depth_m)) {
       plan->event = true;
       plan->h_fired_s = s_min * h;
     } else {
-      ws.ed_imp_n = ws.ed_imp_n_saved;
-      ws.ed_imp_t = ws.ed_imp_t_saved;
-      ws.ed_torque_impulse = torque_impulse_saved;
+      ws.ed.imp_n = ws.ed.imp_n_saved;
+      ws.ed.imp_t = ws.ed.imp_t_saved;
+      ws.ed.torque_impulse = torque_impulse_saved;
     }
   }
 }
@@ -1394,41 +1394,41 @@ void detectGrazes(const Ctx& c, StepPlan* plan) {
 void detectEvents(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   const int n = c.m.n_dof;
-  eventValues(c, c.d.t_s + plan->h_s, ws.ed_z1, ws.ed_u1, &ws.ed_ev1, &ws.ed_rate1, plan->h_s);
+  eventValues(c, c.d.t_s + plan->h_s, ws.ed.z1, ws.ed.u1, &ws.ed.ev1, &ws.ed.rate1, plan->h_s);
   plan->h_take_s = plan->h_s;
   plan->h_fired_s = plan->h_s;
-  plan->event = anyFired(ws, ws.ed_ev1);
-  ws.ed_zt.resize(n);
-  ws.ed_ut.resize(n);
+  plan->event = anyFired(ws, ws.ed.ev1);
+  ws.ed.zt.resize(n);
+  ws.ed.ut.resize(n);
   plan->end_evaluated = true;
-  if (!plan->event && ws.ed_ev1.size() == ws.ed_ev0.size()) detectGrazes(c, plan);
+  if (!plan->event && ws.ed.ev1.size() == ws.ed.ev0.size()) detectGrazes(c, plan);
 }
 
 // Stage 7: the first crossing (re-stepping from the start each time) to the tolerance, from
-// the values at the fired end (ws.ed_ev1, or the graze probe's); the step's end state, impulses
+// the values at the fired end (ws.ed.ev1, or the graze probe's); the step's end state, impulses
 // and end values become the located ones.
 void locateFirstEvent(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   const double t_tol = std::max(1e-15, 1e-3 * c.m.integrator.tolerance * 1e-3);
   const bool at_end = plan->h_fired_s == plan->h_s;
-  ws.ed_z_hi = at_end ? ws.ed_z1 : ws.ed_zt;
-  ws.ed_u_hi = at_end ? ws.ed_u1 : ws.ed_ut;
-  ws.ed_imp_n_hi = ws.ed_imp_n;  // the step's, or the confirmed graze probe's
-  ws.ed_imp_t_hi = ws.ed_imp_t;
-  ws.ed_torque_impulse_hi = ws.ed_torque_impulse;
+  ws.ed.z_hi = at_end ? ws.ed.z1 : ws.ed.zt;
+  ws.ed.u_hi = at_end ? ws.ed.u1 : ws.ed.ut;
+  ws.ed.imp_n_hi = ws.ed.imp_n;  // the step's, or the confirmed graze probe's
+  ws.ed.imp_t_hi = ws.ed.imp_t;
+  ws.ed.torque_impulse_hi = ws.ed.torque_impulse;
   const bool at_hi =
-      locateEvent(c, plan->h_fired_s, at_end ? ws.ed_ev1 : ws.ed_evm, t_tol, &plan->h_take_s);
+      locateEvent(c, plan->h_fired_s, at_end ? ws.ed.ev1 : ws.ed.evm, t_tol, &plan->h_take_s);
   // The state at the located end, and its values (geometry and forces) unless the last
   // evaluation was there.
-  ws.ed_z1 = ws.ed_z_hi;
-  ws.ed_u1 = ws.ed_u_hi;
-  ws.ed_imp_n = ws.ed_imp_n_hi;
-  ws.ed_imp_t = ws.ed_imp_t_hi;
-  ws.ed_torque_impulse = ws.ed_torque_impulse_hi;
+  ws.ed.z1 = ws.ed.z_hi;
+  ws.ed.u1 = ws.ed.u_hi;
+  ws.ed.imp_n = ws.ed.imp_n_hi;
+  ws.ed.imp_t = ws.ed.imp_t_hi;
+  ws.ed.torque_impulse = ws.ed.torque_impulse_hi;
   if (at_hi) {
-    ws.ed_ev1 = ws.ed_ev_hi;
+    ws.ed.ev1 = ws.ed.ev_hi;
   } else {
-    eventValues(c, c.d.t_s + plan->h_take_s, ws.ed_z1, ws.ed_u1, &ws.ed_ev1);
+    eventValues(c, c.d.t_s + plan->h_take_s, ws.ed.z1, ws.ed.u1, &ws.ed.ev1);
   }
   plan->end_evaluated = true;
 }
@@ -1442,25 +1442,25 @@ void acceptStep(const Ctx& c, const StepPlan& plan) {
   const Drive end = driveAt(m, *d, plan.h_take_s);
   // (The start's momentum is the last step's end value unless something moved the state.)
   double H0 = 0, unused_energy = 0;
-  if (!ws.ed_end_values.lookup(*d, &unused_energy, &H0))
+  if (!ws.ed.end_values.lookup(*d, &unused_energy, &H0))
     H0 = angularMomentumOf(m, d->z, d->u, d->omega_radps);
-  const double H1 = angularMomentumOf(m, ws.ed_z1, ws.ed_u1, end.omega_radps);
-  d->stats.drive_work_J += mid.omega_radps * (H1 - H0 - ws.ed_torque_impulse);
+  const double H1 = angularMomentumOf(m, ws.ed.z1, ws.ed.u1, end.omega_radps);
+  d->stats.drive_work_J += mid.omega_radps * (H1 - H0 - ws.ed.torque_impulse);
   const int n_geoms = static_cast<int>(ws.candidates.size());
-  growTo(&ws.ed_imp_n_step, n_geoms);
-  growTo(&ws.ed_imp_t_step, n_geoms);
-  ws.ed_imp_n_step.head(n_geoms) = ws.ed_imp_n.head(n_geoms);
-  ws.ed_imp_t_step.head(n_geoms) = ws.ed_imp_t.head(n_geoms);
-  d->z = ws.ed_z1;
-  d->u = ws.ed_u1;
+  growTo(&ws.ed.imp_n_step, n_geoms);
+  growTo(&ws.ed.imp_t_step, n_geoms);
+  ws.ed.imp_n_step.head(n_geoms) = ws.ed.imp_n.head(n_geoms);
+  ws.ed.imp_t_step.head(n_geoms) = ws.ed.imp_t.head(n_geoms);
+  d->z = ws.ed.z1;
+  d->u = ws.ed.u1;
   d->t_s = end.t_s;
   d->theta_rad = end.theta_rad;
   d->omega_radps = end.omega_radps;
   d->alpha_radps2 = end.alpha_radps2;
   ++d->steps;
-  ws.ed_end_values.store(*d, 0.0, H1);
+  ws.ed.end_values.store(*d, 0.0, H1);
   if (!plan.event)
-    ws.ed_h = plan.truncated && !plan.rejected && plan.h_next_s < plan.h_wanted_s ? plan.h_wanted_s
+    ws.ed.h = plan.truncated && !plan.rejected && plan.h_next_s < plan.h_wanted_s ? plan.h_wanted_s
                                                                                   : plan.h_next_s;
 }
 
@@ -1472,9 +1472,9 @@ void recordStepForces(const Ctx& c) {
   Workspace& ws = c.ws;
   const double t = d->t_s;
   double torque1 = 0;
-  rhs(c, t, d->z, d->u, &ws.ed_udot_end, &torque1, true);
-  const VecX& imp_n = ws.ed_imp_n_step;
-  const VecX& imp_t = ws.ed_imp_t_step;
+  rhs(c, t, d->z, d->u, &ws.ed.udot_end, &torque1, true);
+  const VecX& imp_n = ws.ed.imp_n_step;
+  const VecX& imp_t = ws.ed.imp_t_step;
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
     PairMemory& mem = ws.memory[pairKey(g.pair)];
@@ -1502,7 +1502,7 @@ void switchPair(const Ctx& c, size_t i, double e_net, bool* rigid_impact,
   const double t = d->t_s;
   const size_t j = 4 * i;
   auto fired = [&](size_t k) {
-    return armFires(static_cast<Arm>(ws.ed_arm[k]), ws.ed_ev1[k], ws.ed_ev0[k]);
+    return armFires(static_cast<Arm>(ws.ed.arm[k]), ws.ed.ev1[k], ws.ed.ev0[k]);
   };
   const ContactGeom& g = ws.geoms[i];
   PairMemory& mem = ws.memory[pairKey(g.pair)];
@@ -1550,13 +1550,13 @@ void switchModes(const Ctx& c, const StepPlan& plan) {
   const double t = d->t_s;
   const double e_net = mechanicalEnergy(c.m, *d) - d->stats.drive_work_J;
   bool rigid_impact = false;
-  std::vector<int>& forced_slip = ws.ed_forced_slip;
+  std::vector<int>& forced_slip = ws.ed.forced_slip;
   forced_slip.clear();
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const size_t j = 4 * i;
-    if (static_cast<Arm>(ws.ed_arm[j]) == Arm::kOff &&
-        static_cast<Arm>(ws.ed_arm[j + 1]) == Arm::kOff &&
-        static_cast<Arm>(ws.ed_arm[j + 2]) == Arm::kOff)
+    if (static_cast<Arm>(ws.ed.arm[j]) == Arm::kOff &&
+        static_cast<Arm>(ws.ed.arm[j + 1]) == Arm::kOff &&
+        static_cast<Arm>(ws.ed.arm[j + 2]) == Arm::kOff)
       continue;
     switchPair(c, i, e_net, &rigid_impact, &forced_slip);
   }
@@ -1578,7 +1578,7 @@ void finishStep(const Ctx& c, const StepPlan& plan, long attached_before) {
   const bool projected = projectConstraints(c, d->t_s);
   double torque1 = 0;
   if (plan.event || projected || attached_before != attachedCount(*d))
-    rhs(c, d->t_s, d->z, d->u, &ws.ed_udot_end, &torque1, true);
+    rhs(c, d->t_s, d->z, d->u, &ws.ed.udot_end, &torque1, true);
   publishContacts(d, &ws);
 }
 
@@ -1600,7 +1600,7 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   if (plan.event) locateFirstEvent(c, &plan);
   // Located maxima of the compliant forces over the step, under the step's index sets.
   if (plan.peaks_on)
-    locateForcePeaks(c, d->t_s, plan.h_take_s, d->z, d->u, c.ws.ed_z1, c.ws.ed_u1,
+    locateForcePeaks(c, d->t_s, plan.h_take_s, d->z, d->u, c.ws.ed.z1, c.ws.ed.u1,
                      plan.end_evaluated);
   acceptStep(c, plan);
   recordStepForces(c);

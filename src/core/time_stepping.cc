@@ -17,44 +17,44 @@ namespace {
 // (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega or h changes
 // (a recovery crosses an interval with smaller steps).
 void updateIterationMatrices(const Model& m, double omega, double h, Workspace* ws) {
-  if (ws->iteration_omega == omega && ws->iteration_h == h &&
-      ws->iteration_inverse.size() == m.teeth.size())
+  if (ws->ts.iteration_omega == omega && ws->ts.iteration_h == h &&
+      ws->ts.iteration_inverse.size() == m.teeth.size())
     return;
   const double th = m.integrator.theta;
   const size_t T = m.teeth.size();
-  ws->iteration_inverse.resize(T);
-  ws->iteration_stiffness.resize(T);
-  ws->iteration_matrix.resize(T);
-  ws->iteration_lu.resize(T);
+  ws->ts.iteration_inverse.resize(T);
+  ws->ts.iteration_stiffness.resize(T);
+  ws->ts.iteration_matrix.resize(T);
+  ws->ts.iteration_lu.resize(T);
   for (size_t k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
     const int n = tm.n_modes;
     // K(Omega) = Lambda + Omega^2 (K_G - I), written into storage of a fixed size per tooth so
     // that a drum ramp (new Omega every step) allocates nothing.
-    MatX& K = ws->iteration_stiffness[k];
+    MatX& K = ws->ts.iteration_stiffness[k];
     K.resize(n, n);
     if (tm.beam_model == ToothBeamModel::kLargeDeflection) {
       // The rod's implicit part is its constant elastic stiffness; its mass depends on q, so
       // updateLdIterationMatrices builds the matrix at every step's midpoint.
       K = tm.ld_K;
-      ws->iteration_matrix[k].resize(n, n);
-      ws->iteration_inverse[k].resize(n, n);
+      ws->ts.iteration_matrix[k].resize(n, n);
+      ws->ts.iteration_inverse[k].resize(n, n);
       continue;
     }
     K = (omega * omega) * tm.K_G;
     K.diagonal().array() =
         (omega * omega) * (tm.K_G.diagonal().array() - 1.0) + tm.omega0_sq.array();
-    MatX& W = ws->iteration_matrix[k];
+    MatX& W = ws->ts.iteration_matrix[k];
     W.resize(n, n);
     W = (h * h * th * th) * K;
     W.diagonal().array() += 1.0 + h * th * tm.damping_coeff.array();
-    ws->iteration_inverse[k].resize(n, n);
+    ws->ts.iteration_inverse[k].resize(n, n);
     if (n == 0) continue;
-    ws->iteration_lu[k].compute(W);
-    ws->iteration_inverse[k] = ws->iteration_lu[k].inverse();
+    ws->ts.iteration_lu[k].compute(W);
+    ws->ts.iteration_inverse[k] = ws->ts.iteration_lu[k].inverse();
   }
-  ws->iteration_omega = omega;
-  ws->iteration_h = h;
+  ws->ts.iteration_omega = omega;
+  ws->ts.iteration_h = h;
 }
 
 // Largest speed of any material point, to widen the broad phase over one step [m/s].
@@ -161,7 +161,7 @@ struct TsStep {
   bool have_energy_after = false;   // energy_after is computed
   bool solved = true;               // every contact problem of the step was solved
 
-  PairMemory& memoryOf(size_t c) const { return ws.memory.entry(ws.ts_candidate_memory[c]).second; }
+  PairMemory& memoryOf(size_t c) const { return ws.memory.entry(ws.ts.candidate_memory[c]).second; }
   // Energy minus drive work at the step end, the energy computed on first use.
   double energyNetAfter() {
     if (!have_energy_after) energy_after = energyOf(m, *d, d->z, d->u, d->omega_radps);
@@ -180,7 +180,7 @@ void beginStep(TsStep* s) {
   s->mid = driveAt(m, *d, 0.5 * s->h);
   s->end = driveAt(m, *d, s->h);
   updateIterationMatrices(m, s->mid.omega_radps, s->h, &s->ws);
-  s->have_energy_before = s->ws.ts_end_values.lookup(*d, &s->energy_before, &s->H_before);
+  s->have_energy_before = s->ws.ts.end_values.lookup(*d, &s->energy_before, &s->H_before);
   if (!s->have_energy_before) s->H_before = angularMomentumOf(m, d->z, d->u, d->omega_radps);
   s->drive_work_before_J = d->stats.drive_work_J;
 }
@@ -194,20 +194,20 @@ void detectContacts(TsStep* s) {
   const Model& m = s->m;
   const Data& d = *s->d;
   Workspace& ws = s->ws;
-  ws.z_mid = d.z + 0.5 * s->h * d.u;
-  updateLdIterationMatrices(m, ws.z_mid, s->h, &ws);
+  ws.ts.z_mid = d.z + 0.5 * s->h * d.u;
+  updateLdIterationMatrices(m, ws.ts.z_mid, s->h, &ws);
   // Tooth stations only for the teeth that can meet a kernel (computed by the broad phase).
   layoutStations(m, &ws);
-  broadPhase(m, ws.z_mid, m.broadphase_margin_m + 2.0 * s->h * speedBound(m, d), &ws,
+  broadPhase(m, ws.ts.z_mid, m.broadphase_margin_m + 2.0 * s->h * speedBound(m, d), &ws,
              &s->mid.theta_rad);
   ws.geoms.resize(ws.candidates.size());
-  ws.ts_candidate_memory.resize(ws.candidates.size());
+  ws.ts.candidate_memory.resize(ws.candidates.size());
   for (size_t c = 0; c < ws.candidates.size(); ++c)
-    ws.ts_candidate_memory[c] = ws.memory.indexOf(pairKey(ws.candidates[c]));
+    ws.ts.candidate_memory[c] = ws.memory.indexOf(pairKey(ws.candidates[c]));
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
     const bool separated = s->memoryOf(c).state == ContactState::kSeparated;
     evaluateContact(
-        m, ws.z_mid, d.u, s->mid, ws.candidates[c], &ws, &ws.geoms[c],
+        m, ws.ts.z_mid, d.u, s->mid, ws.candidates[c], &ws, &ws.geoms[c],
         separated ? 0.25 * m.broadphase_margin_m : std::numeric_limits<double>::infinity(),
         separated);
   }
@@ -223,24 +223,24 @@ void freeVelocity(TsStep* s) {
   const int T = static_cast<int>(m.teeth.size());
   Drive forcing = s->mid;
   forcing.alpha_radps2 = (s->end.omega_radps - d.omega_radps) / h;
-  smoothForces(m, d, ws.z_mid, d.u, forcing, &ws.forces);
+  smoothForces(m, d, ws.ts.z_mid, d.u, forcing, &ws.forces);
   for (int k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
     auto f = ws.forces.segment(tm.dof_offset, tm.n_modes);
     f.noalias() -=
-        (h * (th - 0.5)) * (ws.iteration_stiffness[k] * d.u.segment(tm.dof_offset, tm.n_modes));
+        (h * (th - 0.5)) * (ws.ts.iteration_stiffness[k] * d.u.segment(tm.dof_offset, tm.n_modes));
   }
-  ws.u_free = d.u;
+  ws.ts.u_free = d.u;
   for (int k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
     if (tm.n_modes == 0) continue;
-    ws.u_free.segment(tm.dof_offset, tm.n_modes).noalias() +=
-        h * (ws.iteration_inverse[k] * ws.forces.segment(tm.dof_offset, tm.n_modes));
+    ws.ts.u_free.segment(tm.dof_offset, tm.n_modes).noalias() +=
+        h * (ws.ts.iteration_inverse[k] * ws.forces.segment(tm.dof_offset, tm.n_modes));
   }
   for (const KernelModel& k : m.kernels) {
-    ws.u_free.segment<2>(k.dof_offset) += h / k.mass_kg * ws.forces.segment<2>(k.dof_offset);
-    ws.u_free[k.dof_offset + 2] += h / k.inertia_kgm2 * ws.forces[k.dof_offset + 2];
+    ws.ts.u_free.segment<2>(k.dof_offset) += h / k.mass_kg * ws.forces.segment<2>(k.dof_offset);
+    ws.ts.u_free[k.dof_offset + 2] += h / k.inertia_kgm2 * ws.forces[k.dof_offset + 2];
   }
 }
 
@@ -291,7 +291,7 @@ void contactTargets(TsStep* s) {
     double bn = g.wtilde_n, bt = g.wtilde_t;
     for (const BodyJac& side : g.side) {
       if (side.body < 0 || side.w_n.size() == 0) continue;
-      const auto uf = ws.u_free.segment(bodyDofOffset(m, side.body), side.w_n.size());
+      const auto uf = ws.ts.u_free.segment(bodyDofOffset(m, side.body), side.w_n.size());
       bn += side.w_n.dot(uf);
       bt += side.w_t.dot(uf);
     }
@@ -350,11 +350,11 @@ bool dropRestitutionIfWorkGained(Workspace* ws) {
 // separation speeds, and again plastically if Newton's law gained energy.
 void solveImpulses(TsStep* s) {
   Workspace& ws = s->ws;
-  s->solved = solveContactIslands(s->m, &ws.iteration_inverse, &ws);
+  s->solved = solveContactIslands(s->m, &ws.ts.iteration_inverse, &ws);
   if (capSeparationSpeeds(s))
-    s->solved = solveContactIslands(s->m, &ws.iteration_inverse, &ws) && s->solved;
+    s->solved = solveContactIslands(s->m, &ws.ts.iteration_inverse, &ws) && s->solved;
   if (dropRestitutionIfWorkGained(&ws))
-    s->solved = solveContactIslands(s->m, &ws.iteration_inverse, &ws) && s->solved;
+    s->solved = solveContactIslands(s->m, &ws.ts.iteration_inverse, &ws) && s->solved;
 }
 
 // Stage 7: the energy at the step start (still the state in d), when an episode begins; then
@@ -373,13 +373,13 @@ void applyImpulses(TsStep* s) {
     s->energy_before = energyOf(m, *d, d->z, d->u, d->omega_radps);
   s->energy_net_before = s->energy_before - s->drive_work_before_J;
   ws.u_old = d->u;
-  d->u = ws.u_free;
+  d->u = ws.ts.u_free;
   for (int i = 0; i < k; ++i) {
     const ContactGeom& g = ws.geoms[ws.active[i]];
     const double pn = ws.lambda[2 * i], pt = ws.lambda[2 * i + 1];
     for (const BodyJac& side : g.side) {
-      applyInverseMass(m, &ws.iteration_inverse, side.body, side.w_n, pn, &d->u);
-      applyInverseMass(m, &ws.iteration_inverse, side.body, side.w_t, pt, &d->u);
+      applyInverseMass(m, &ws.ts.iteration_inverse, side.body, side.w_n, pn, &d->u);
+      applyInverseMass(m, &ws.ts.iteration_inverse, side.body, side.w_t, pt, &d->u);
     }
   }
   const double th = m.integrator.theta;
@@ -482,15 +482,15 @@ void updateTouchingPair(TsStep* s, const ContactGeom& g, PairMemory* mem, int ro
 }
 
 // Stage 9: contact states, episodes, events and statistics of every candidate pair. Pairs in
-// contact at the previous step end are kept by this integrator in ws.ts_in_contact (pair-table
+// contact at the previous step end are kept by this integrator in ws.ts.in_contact (pair-table
 // indices). Any other history of the workspace (a reset, event-driven steps) leaves it stale:
 // then every pair's memory is scanned once, as a rebuild.
 void updateContactStates(TsStep* s) {
   const Model& m = s->m;
   Data* d = s->d;
   Workspace& ws = s->ws;
-  std::vector<int>& in_contact = ws.ts_in_contact;
-  if (ws.ts_in_contact_step != d->steps - 1) {
+  std::vector<int>& in_contact = ws.ts.in_contact;
+  if (ws.ts.in_contact_step != d->steps - 1) {
     in_contact.clear();
     for (size_t e = 0; e < ws.memory.size(); ++e) {
       PairMemory& mem = ws.memory.entry(static_cast<int>(e)).second;
@@ -534,9 +534,9 @@ void updateContactStates(TsStep* s) {
   for (size_t c = 0; c < ws.candidates.size(); ++c) {
     PairMemory& mem = s->memoryOf(c);
     mem.seen = false;
-    if (mem.state != ContactState::kSeparated) in_contact.push_back(ws.ts_candidate_memory[c]);
+    if (mem.state != ContactState::kSeparated) in_contact.push_back(ws.ts.candidate_memory[c]);
   }
-  ws.ts_in_contact_step = d->steps;
+  ws.ts.in_contact_step = d->steps;
 }
 
 // Stage 10: pedicels that reached their detachment force break; the end values for the next
@@ -546,17 +546,17 @@ void updateContactStates(TsStep* s) {
 void finishStep(TsStep* s) {
   Data* d = s->d;
   Workspace& ws = s->ws;
-  if (!s->have_energy_after) ws.ts_attached_before = d->kernel_attached;
+  if (!s->have_energy_after) ws.ts.attached_before = d->kernel_attached;
   updatePedicels(s->m, d);
-  if (!s->have_energy_after && d->kernel_attached != ws.ts_attached_before) {
-    std::swap(d->kernel_attached, ws.ts_attached_before);
+  if (!s->have_energy_after && d->kernel_attached != ws.ts.attached_before) {
+    std::swap(d->kernel_attached, ws.ts.attached_before);
     s->energyNetAfter();
-    std::swap(d->kernel_attached, ws.ts_attached_before);
+    std::swap(d->kernel_attached, ws.ts.attached_before);
   }
   if (s->have_energy_after)
-    ws.ts_end_values.store(*d, s->energy_after, s->H_after);
+    ws.ts.end_values.store(*d, s->energy_after, s->H_after);
   else
-    ws.ts_end_values.invalidate();
+    ws.ts.end_values.invalidate();
   publishContacts(d, &ws);
 }
 
