@@ -20,7 +20,7 @@ namespace {
 // the Zeno speed). Afterwards it is moved back to that depth when it sinks a slop deeper, and
 // onto the surface when it rises half a slop above it while pressed, by the smallest mass-weighted
 // position change along its normal; velocities are unchanged. Together with the activation
-// of a pressed contact up to a slop of clearance (timeSteppingStep), a resting contact neither
+// of a pressed contact up to a slop of clearance (assembleContactRows), a resting contact neither
 // sinks nor opens by drift: opening made resting kernels chatter, an impact every few steps.
 // The potential energy restored is at most what the sinking took. Gauss-Seidel (a kernel on a
 // kernel on the floor): each contact is evaluated after the previous one's correction, for up
