@@ -56,27 +56,26 @@ void prepareCandidates(const Ctx& c, StepPlan* plan) {
 // One event-driven step: from the data's time to the next event, the step-size law's step, or
 // t_end_s, whichever comes first.
 StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
-  using namespace event_driven;  // NOLINT: the stages of this folder (context.h)
-  Ctx c{m, *d, *d->ws};
-  StepPlan plan;
+  event_driven::Ctx c{m, *d, *d->ws};
+  event_driven::StepPlan plan;
   plan.t_end_s = t_end_s;
-  const double v_bound_mps = motionBound(c);
-  prepareCandidates(c, &plan);
-  openTouchingContacts(c);
-  planStep(c, v_bound_mps, &plan);
-  armEvents(c, &plan);
-  if (!integrateAdaptive(c, &plan)) return StepStatus::kFailed;
-  detectEvents(c, &plan);
-  if (plan.event) locateFirstEvent(c, &plan);
+  const double v_bound_mps = event_driven::motionBound(c);
+  event_driven::prepareCandidates(c, &plan);
+  event_driven::openTouchingContacts(c);
+  event_driven::planStep(c, v_bound_mps, &plan);
+  event_driven::armEvents(c, &plan);
+  if (!event_driven::integrateAdaptive(c, &plan)) return StepStatus::kFailed;
+  event_driven::detectEvents(c, &plan);
+  if (plan.event) event_driven::locateFirstEvent(c, &plan);
   // Located maxima of the compliant forces over the step, under the step's index sets.
   if (plan.peaks_on)
-    locateForcePeaks(c, d->t_s, plan.h_take_s, d->z, d->u, c.ws.ed.z1, c.ws.ed.u1,
-                     plan.end_evaluated);
-  acceptStep(c, plan);
-  recordStepForces(c);
-  const long attached_before = attachedCount(*d);
-  switchModes(c, plan);
-  finishStep(c, plan, attached_before);
+    event_driven::locateForcePeaks(c, d->t_s, plan.h_take_s, d->z, d->u, c.ws.ed.z1, c.ws.ed.u1,
+                                   plan.end_evaluated);
+  event_driven::acceptStep(c, plan);
+  event_driven::recordStepForces(c);
+  const long attached_before = event_driven::attachedCount(*d);
+  event_driven::switchModes(c, plan);
+  event_driven::finishStep(c, plan, attached_before);
   return StepStatus::kOk;
 }
 

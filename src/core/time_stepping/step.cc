@@ -131,18 +131,17 @@ void finishStep(TsStep* s) {
 
 // One Moreau-Jean time step of length h.
 StepStatus timeSteppingStep(const Model& m, Data* d, double h) {
-  using namespace time_stepping;  // NOLINT: the stages of this folder (context.h)
-  TsStep s{m, d, *d->ws, h, Drive{}, Drive{}};
-  beginStep(&s);
-  detectContacts(&s);
-  freeVelocity(&s);
-  assembleContactRows(&s);
-  contactTargets(&s);
-  solveImpulses(&s);
-  applyImpulses(&s);
-  advanceClock(&s);
-  updateContactStates(&s);
-  finishStep(&s);
+  time_stepping::TsStep s{m, d, *d->ws, h, Drive{}, Drive{}};
+  time_stepping::beginStep(&s);
+  time_stepping::detectContacts(&s);
+  time_stepping::freeVelocity(&s);
+  time_stepping::assembleContactRows(&s);
+  time_stepping::contactTargets(&s);
+  time_stepping::solveImpulses(&s);
+  time_stepping::applyImpulses(&s);
+  time_stepping::advanceClock(&s);
+  time_stepping::updateContactStates(&s);
+  time_stepping::finishStep(&s);
   return s.solved ? StepStatus::kOk : StepStatus::kRecovered;
 }
 
