@@ -353,7 +353,7 @@ integrator, scene 7 a feature of the core):
   event only fired on a change from > 0 to <= 0, so it was not armed. A flight shorter than one
   step was caught a step late, by the start-of-step contact check: the kernel chattered at the
   step rate and sank into the plate by the distance it fell in the rest of that step. Fix
-  (`src/core/event_driven.cc`, `eventDrivenStep()`): each event function is armed per step; a
+  (`src/core/event_driven/events.cc`, `armEvents()`): each event function is armed per step; a
   gap function at or below zero whose rate points to opening (a pair that just bounced apart,
   a compliant contact that just closed) is armed to fire when it falls below its start value
   again. `eventValues()` now also returns the gap rates (dg_N/dt of every pair whose geometry
@@ -388,8 +388,8 @@ integrator, scene 7 a feature of the core):
   dissipates nothing). Moreau-Jean time stepping constrains the normal velocity at the
   midpoint, not the gap; the second-order term of the rolling it drops moves a pressed
   contact's gap down and up in turn, with a net sinking of about 1e-12 m per step: 8.2e-4 m
-  after 750 s at h = 1 us (the penetration bound is 4e-5 m). Fix (`src/core/time_stepping.cc`,
-  `keepClosedContactDepths()` and the activation in `timeSteppingStep()`): after the position
+  after 750 s at h = 1 us (the penetration bound is 4e-5 m). Fix (`src/core/time_stepping/`,
+  `keepClosedContactDepths()` and the activation in `assembleContactRows()`): after the position
   update every rigid contact that carried an impulse is evaluated at the end state; its impact
   step records its depth (at least one slop, h x zeno_velocity). Afterwards a contact that sank
   a slop deeper is moved back to that depth, and one that rose half a slop above the surface
@@ -409,7 +409,7 @@ integrator, scene 7 a feature of the core):
   kernel-kernel pair exactly only within 1 um, and as a bound (with no rate) beyond. A spinning
   kernel whose long end dips below a wall for a microsecond, inside a free-flight step of
   1e-4 s, is tens of micrometres clear at both ends of the step: the graze check had no rates
-  to interpolate, and the contact was missed. Fix (`src/core/event_driven.cc`,
+  to interpolate, and the contact was missed. Fix (`src/core/event_driven/evaluate.cc`,
   `evaluateAll()`): at both ends of a step such a pair is evaluated exactly when it lies within
   twice the distance its kernels can cover in the step at their present speeds (centre speed
   plus spin times the long semi-axis); a pair farther than that cannot close within the step.

@@ -4,7 +4,8 @@
 //   node: drum_speed_cmd -> ThreshingSimNode::onDrumSpeedCommand (validate, stage)
 //   node: applyStaged at the next step boundary -> setDrumTarget (drive.cc: the target)
 //   integrators: driveAt / timeToTarget (drive.cc: the ramp law over a step), used by
-//   event_driven.cc (planStep, acceptStep), time_stepping.cc (beginStep) and async/.
+//   event_driven/ (planStep in step_size.cc, acceptStep in accept.cc), time_stepping/
+//   (beginStep in step.cc) and async/.
 #pragma once
 
 #include "threshing_sim/core/data.h"

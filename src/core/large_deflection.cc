@@ -371,10 +371,10 @@ void updateLdIterationMatrices(const Model& m, const VecX& z_mid, double h, Work
     LdMat M;
     const double* q = z_mid.data() + tm.dof_offset;
     ldDynamics(tm, cfg, q, q, 0.0, 0.0, &M, nullptr, nullptr, nullptr);
-    MatX& W = ws->iteration_matrix[k];
+    MatX& W = ws->ts.iteration_matrix[k];
     W = M + (h * th) * tm.ld_D + (h * h * th * th) * tm.ld_K;
-    ws->iteration_lu[k].compute(W);
-    ws->iteration_inverse[k] = ws->iteration_lu[k].inverse();
+    ws->ts.iteration_lu[k].compute(W);
+    ws->ts.iteration_inverse[k] = ws->ts.iteration_lu[k].inverse();
   }
 }
 

@@ -133,11 +133,8 @@ double huntCrossleyFactor(double e) {
   return factor;
 }
 
-}  // namespace
-
-void compileModel(Model* model) {
-  Model& m = *model;
-  // Drum and global values.
+// The drum and the global values: checked.
+void checkGlobals(const Model& m) {
   requirePositive("drum.radius", m.drum.radius_m);
   requireFinite("drum.speed", m.drum.initial_speed_radps);
   requireFinite("drum.angle", m.drum.initial_angle_rad);
@@ -153,43 +150,56 @@ void compileModel(Model* model) {
   requirePositive("integrator.zeno_velocity", m.integrator.zeno_velocity_mps);
   if (!(m.integrator.theta >= 0.5 && m.integrator.theta <= 1.0))
     fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
+}
 
-  // Teeth: modal data, and their modal coordinates first in the generalised vector.
-  // Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff: use modes: 0.
-  int offset = 0;
+// Tooth k: checked, its mode count chosen (automatic modes), its modal data and residual
+// flexibility compiled. Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff:
+// use modes: 0.
+void compileToothAt(Model* model, size_t k) {
+  Model& m = *model;
+  if (m.teeth[k].n_stations > 65)
+    fail("teeth." + std::to_string(k) + ".stations", "must be <= 65", m.teeth[k].n_stations);
+  if (m.teeth[k].youngs_modulus_Pa > 1e13)
+    fail("teeth." + std::to_string(k) + ".youngs_modulus",
+         "must be <= 1e13 Pa (use modes: 0 for a rigid tooth)", m.teeth[k].youngs_modulus_Pa);
+  ToothModel& t = m.teeth[k];
+  const bool rod = t.beam_model == ToothBeamModel::kLargeDeflection;
+  if (t.n_modes == kAutoModes || t.modes_auto) {
+    t.modes_auto = true;
+    t.contact_time_s = shortestContactTime(m, t);
+    // A large-deflection rod's `modes` are the Ritz shape functions of its section angle, not
+    // bending modes: kLdAutoShapes resolve its statics to 1e-7 L (docs/large_deflection.md).
+    t.n_modes = rod ? kLdAutoShapes : chooseModeCount(m, t, t.contact_time_s);
+  }
+  // The rod truncates no modes: there is no residual flexibility to correct.
+  if (rod) t.static_correction = false;
+  try {
+    compileTooth(m.drum.radius_m, &m.teeth[k]);
+    compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, &m.teeth[k]);
+  } catch (const std::invalid_argument& e) {
+    // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
+    std::string what = e.what();
+    if (what.rfind("tooth.", 0) == 0) what = what.substr(6);
+    throw std::invalid_argument("teeth." + std::to_string(k) + "." + what);
+  }
+}
+
+// Teeth: modal data, and their modal coordinates first in the generalised vector, from
+// *offset on (advanced past them).
+void compileTeeth(Model* model, int* offset) {
+  Model& m = *model;
   m.has_large_deflection = false;
   for (size_t k = 0; k < m.teeth.size(); ++k) {
-    if (m.teeth[k].n_stations > 65)
-      fail("teeth." + std::to_string(k) + ".stations", "must be <= 65", m.teeth[k].n_stations);
-    if (m.teeth[k].youngs_modulus_Pa > 1e13)
-      fail("teeth." + std::to_string(k) + ".youngs_modulus",
-           "must be <= 1e13 Pa (use modes: 0 for a rigid tooth)", m.teeth[k].youngs_modulus_Pa);
-    ToothModel& t = m.teeth[k];
-    const bool rod = t.beam_model == ToothBeamModel::kLargeDeflection;
-    if (t.n_modes == kAutoModes || t.modes_auto) {
-      t.modes_auto = true;
-      t.contact_time_s = shortestContactTime(m, t);
-      // A large-deflection rod's `modes` are the Ritz shape functions of its section angle, not
-      // bending modes: kLdAutoShapes resolve its statics to 1e-7 L (docs/large_deflection.md).
-      t.n_modes = rod ? kLdAutoShapes : chooseModeCount(m, t, t.contact_time_s);
-    }
-    // The rod truncates no modes: there is no residual flexibility to correct.
-    if (rod) t.static_correction = false;
-    try {
-      compileTooth(m.drum.radius_m, &m.teeth[k]);
-      compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, &m.teeth[k]);
-    } catch (const std::invalid_argument& e) {
-      // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
-      std::string what = e.what();
-      if (what.rfind("tooth.", 0) == 0) what = what.substr(6);
-      throw std::invalid_argument("teeth." + std::to_string(k) + "." + what);
-    }
-    m.teeth[k].dof_offset = offset;
-    offset += m.teeth[k].n_modes;
+    compileToothAt(model, k);
+    m.teeth[k].dof_offset = *offset;
+    *offset += m.teeth[k].n_modes;
     if (m.teeth[k].beam_model == ToothBeamModel::kLargeDeflection) m.has_large_deflection = true;
   }
-  // The island-local scheme advances free teeth by their exact linear modal solution and
-  // bounds their sweep by the modal deflection: it has no large-deflection rod.
+}
+
+// The island-local scheme advances free teeth by their exact linear modal solution and bounds
+// their sweep by the modal deflection: it has no large-deflection rod.
+void rejectIslandsWithRods(const Model& m) {
   for (size_t k = 0; k < m.teeth.size() && m.integrator.islands; ++k) {
     if (m.teeth[k].beam_model != ToothBeamModel::kLargeDeflection) continue;
     throw std::invalid_argument(
@@ -197,49 +207,60 @@ void compileModel(Model* model) {
         ".model: large_deflection (the island scheme has modal teeth only); set "
         "integrator.islands: false");
   }
+}
 
-  // Kernels: uniform elliptic disc inertia, then (c_x, c_y, psi) each.
+// Kernel i (fields named from f, "kernels.<i>."): checked, its pedicel's rest length (a
+// negative one means "the distance at the start") and its uniform elliptic disc inertia.
+void compileKernel(KernelModel* kernel, const std::string& f) {
+  KernelModel& k = *kernel;
+  requirePositive(f + "mass", k.mass_kg);
+  requireFinite(f + "position[0]", k.initial_position_m.x());
+  requireFinite(f + "position[1]", k.initial_position_m.y());
+  requireFinite(f + "angle", k.initial_angle_rad);
+  requireFinite(f + "velocity[0]", k.initial_velocity_mps.x());
+  requireFinite(f + "velocity[1]", k.initial_velocity_mps.y());
+  requireFinite(f + "angular_velocity", k.initial_angular_velocity_radps);
+  requirePositive(f + "semi_axes[0]", k.semi_axis_a_m);
+  requirePositive(f + "semi_axes[1]", k.semi_axis_b_m);
+  if (k.semi_axis_b_m > k.semi_axis_a_m)
+    fail(f + "semi_axes", "a must be >= b; b is", k.semi_axis_b_m);
+  requirePositive(f + "youngs_modulus", k.youngs_modulus_Pa);
+  if (!(k.poisson_ratio >= 0.0 && k.poisson_ratio < 0.5))
+    fail(f + "poisson_ratio", "must be in [0, 0.5)", k.poisson_ratio);
+  if (k.pedicel.present) {
+    requirePositive(f + "pedicel.stiffness", k.pedicel.stiffness_Npm);
+    requirePositive(f + "pedicel.detachment_force", k.pedicel.detachment_force_N);
+    if (!(k.pedicel.damping_Nspm >= 0.0))
+      fail(f + "pedicel.damping", "must be >= 0", k.pedicel.damping_Nspm);
+    // A negative rest length means "the distance at the start".
+    if (k.pedicel.rest_length_m < 0.0) {
+      const double c = std::cos(k.initial_angle_rad), s = std::sin(k.initial_angle_rad);
+      const Vec2 p_WP =
+          k.initial_position_m + Vec2(c * k.pedicel.p_KP_K.x() - s * k.pedicel.p_KP_K.y(),
+                                      s * k.pedicel.p_KP_K.x() + c * k.pedicel.p_KP_K.y());
+      k.pedicel.rest_length_m = (p_WP - k.pedicel.p_WA_W).norm();
+    }
+  }
+  k.inertia_kgm2 =
+      k.mass_kg * (k.semi_axis_a_m * k.semi_axis_a_m + k.semi_axis_b_m * k.semi_axis_b_m) / 4.0;
+  if (!(k.inertia_kgm2 > 0.0))
+    fail(f + "mass", "gives a polar inertia that underflows to 0; mass", k.mass_kg);
+}
+
+// Kernels: uniform elliptic disc inertia, then (c_x, c_y, psi) each, from *offset on.
+void compileKernels(Model* model, int* offset) {
+  Model& m = *model;
   for (size_t i = 0; i < m.kernels.size(); ++i) {
     KernelModel& k = m.kernels[i];
-    const std::string f = "kernels." + std::to_string(i) + ".";
-    requirePositive(f + "mass", k.mass_kg);
-    requireFinite(f + "position[0]", k.initial_position_m.x());
-    requireFinite(f + "position[1]", k.initial_position_m.y());
-    requireFinite(f + "angle", k.initial_angle_rad);
-    requireFinite(f + "velocity[0]", k.initial_velocity_mps.x());
-    requireFinite(f + "velocity[1]", k.initial_velocity_mps.y());
-    requireFinite(f + "angular_velocity", k.initial_angular_velocity_radps);
-    requirePositive(f + "semi_axes[0]", k.semi_axis_a_m);
-    requirePositive(f + "semi_axes[1]", k.semi_axis_b_m);
-    if (k.semi_axis_b_m > k.semi_axis_a_m)
-      fail(f + "semi_axes", "a must be >= b; b is", k.semi_axis_b_m);
-    requirePositive(f + "youngs_modulus", k.youngs_modulus_Pa);
-    if (!(k.poisson_ratio >= 0.0 && k.poisson_ratio < 0.5))
-      fail(f + "poisson_ratio", "must be in [0, 0.5)", k.poisson_ratio);
-    if (k.pedicel.present) {
-      requirePositive(f + "pedicel.stiffness", k.pedicel.stiffness_Npm);
-      requirePositive(f + "pedicel.detachment_force", k.pedicel.detachment_force_N);
-      if (!(k.pedicel.damping_Nspm >= 0.0))
-        fail(f + "pedicel.damping", "must be >= 0", k.pedicel.damping_Nspm);
-      // A negative rest length means "the distance at the start".
-      if (k.pedicel.rest_length_m < 0.0) {
-        const double c = std::cos(k.initial_angle_rad), s = std::sin(k.initial_angle_rad);
-        const Vec2 p_WP =
-            k.initial_position_m + Vec2(c * k.pedicel.p_KP_K.x() - s * k.pedicel.p_KP_K.y(),
-                                        s * k.pedicel.p_KP_K.x() + c * k.pedicel.p_KP_K.y());
-        k.pedicel.rest_length_m = (p_WP - k.pedicel.p_WA_W).norm();
-      }
-    }
-    k.inertia_kgm2 =
-        k.mass_kg * (k.semi_axis_a_m * k.semi_axis_a_m + k.semi_axis_b_m * k.semi_axis_b_m) / 4.0;
-    if (!(k.inertia_kgm2 > 0.0))
-      fail(f + "mass", "gives a polar inertia that underflows to 0; mass", k.mass_kg);
-    k.dof_offset = offset;
-    offset += 3;
+    compileKernel(&k, "kernels." + std::to_string(i) + ".");
+    k.dof_offset = *offset;
+    *offset += 3;
   }
-  m.n_dof = offset;
+}
 
-  // Obstacles: unit normals, positive sizes.
+// Obstacles: unit normals, positive sizes.
+void compileObstacles(Model* model) {
+  Model& m = *model;
   for (size_t j = 0; j < m.obstacles.size(); ++j) {
     ObstacleModel& o = m.obstacles[j];
     const std::string f = "obstacles." + std::to_string(j) + ".";
@@ -256,8 +277,11 @@ void compileModel(Model* model) {
     }
     requirePositive(f + "youngs_modulus", o.youngs_modulus_Pa);
   }
+}
 
-  // Contact laws: Hunt-Crossley factor matched to each restitution coefficient.
+// Contact laws: Hunt-Crossley factor matched to each restitution coefficient.
+void compileContactLaws(Model* model) {
+  Model& m = *model;
   const char* names[3] = {"contact.tooth_kernel", "contact.kernel_kernel",
                           "contact.kernel_obstacle"};
   for (int p = 0; p < 3; ++p) {
@@ -268,6 +292,21 @@ void compileModel(Model* model) {
       fail(std::string(names[p]) + ".friction", "must be >= 0", c.friction);
     c.hc_damping_factor = huntCrossleyFactor(c.restitution);
   }
+}
+
+}  // namespace
+
+void compileModel(Model* model) {
+  Model& m = *model;
+  checkGlobals(m);
+  // Generalised coordinates: the teeth's modal coordinates first, then the kernels'.
+  int offset = 0;
+  compileTeeth(model, &offset);
+  rejectIslandsWithRods(m);
+  compileKernels(model, &offset);
+  m.n_dof = offset;
+  compileObstacles(model);
+  compileContactLaws(model);
   m.compiled = true;
 }
 

@@ -293,8 +293,8 @@ void resetBodies(const Model& m, Data* d) {
   d->ws->memory.reserve(n_kernels * (m.teeth.size() + 16) + 64);
   d->ws->prev_active.clear();
   internal::prepareBroadPhase(m, d->ws.get());
-  d->ws->ts_in_contact.clear();
-  d->ws->ts_in_contact_step = -2;
+  d->ws->ts.in_contact.clear();
+  d->ws->ts.in_contact_step = -2;
   d->ws->geoms.clear();
   d->contacts.clear();
   d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);
@@ -320,10 +320,10 @@ void resetData(const Model& model, Data* data) {
   // Events are appended while stepping: room for many before the vector must grow.
   data->events.reserve(4096);
   clearStats(&data->stats);
-  data->ws->iteration_omega = -1;
-  data->ws->ed_h = 0;
+  data->ws->ts.iteration_omega = -1;
+  data->ws->ed.h = 0;
   // The free-tooth propagators are rebuilt for this model on first use.
-  for (internal::ToothPropagator& prop : data->ws->ed_prop) prop.n_modes = -1;
+  for (internal::ToothPropagator& prop : data->ws->ed.prop) prop.n_modes = -1;
   // The large-deflection caches are keyed on q and z only: forget another model's.
   data->ws->ld_cfg_q.clear();
   data->ws->ld_minv_valid = false;
@@ -341,7 +341,7 @@ void resetBodiesKeepTime(const Model& model, Data* data) {
   data->stats.failure = FailureInfo();
   data->stats.drive_work_J = 0;
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);
-  data->ws->ed_h = 0;
+  data->ws->ed.h = 0;
 }
 
 StepStatus step(const Model& model, Data* data) {
@@ -375,7 +375,7 @@ constexpr int kMaxStalledSteps = 100;
 
 // Work done since the step and trial-step counters were at steps0, trials0.
 long workSince(const Data& d, long steps0, long trials0) {
-  return (d.steps - steps0) + (d.ws->trial_steps - trials0);
+  return (d.steps - steps0) + (d.ws->ed.trial_steps - trials0);
 }
 
 StepStatus fail(Data* d, FailureCause cause, double t_end_s, long work, long budget) {
@@ -394,7 +394,7 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
   if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s);
   const long budget = static_cast<long>(
       std::min(1e15, kBaseWork + kWorkPerSecond * std::max(0.0, t_end_s - data->t_s)));
-  const long steps_start = data->steps, trials_start = data->ws->trial_steps;
+  const long steps_start = data->steps, trials_start = data->ws->ed.trial_steps;
   int stalled = 0;
   while (true) {
     const bool ts = model.integrator.type == IntegratorType::kTimeStepping;

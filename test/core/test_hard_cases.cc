@@ -19,7 +19,7 @@
 // docs/stability.md lists the fixes these scenes needed.
 //
 // Tolerances are stated where they are used. Two scales recur: the event-driven integrator's
-// error scale is tolerance x (1e-2 m or 1 m/s) per step (src/core/event_driven.cc), and time
+// error scale is tolerance x (1e-2 m or 1 m/s) per step (src/core/event_driven/dopri.cc), and time
 // stepping is first order, so its positions are off by O(h v) and event times by O(h).
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -226,7 +226,7 @@ TEST(Simulator, HertzImpactMatchesClosedFormEventDriven) {
   }
 }
 
-// The same impact with the peak located (event_driven.cc, locateForcePeaks): the force's
+// The same impact with the peak located (event_driven/peaks.cc, locateForcePeaks): the force's
 // maximum inside a step is found from its rate at the step ends and probed states, so the peak
 // follows the tolerance instead of the step grid (~30 steps per contact, which alone give
 // 1e-4). With e = 1 the maximum is at half the contact time. Asserted: at tolerance 1e-8 the

@@ -174,7 +174,7 @@ void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vect
   const Model& sm = isl.model;
   Data& sd = isl.data;
   resetData(sm, &sd);
-  sd.ws->ed_memo.valid = false;  // the slot's model now holds other bodies
+  sd.ws->ed.memo.valid = false;  // the slot's model now holds other bodies
   sd.t_s = d->t_s;
   sd.theta_rad = d->theta_rad;
   sd.omega_radps = d->omega_radps;

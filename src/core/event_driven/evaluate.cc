@@ -1,0 +1,104 @@
+// The event-driven integrator (docs/model.md §7-9): the geometry of every candidate pair at a
+// state, as much of it as the caller needs.
+#include <algorithm>
+#include <cmath>
+
+#include "context.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace event_driven {
+
+namespace {
+
+// Starting point of a tooth pair's closest point at time t_s [s] [m]: the last one (-1: none),
+// moved on linearly by the rate between the last two where they are 1e-12 s or more apart and
+// the move is within 1e-3 of the tooth's length.
+double warmStart(const Model& m, const PairMemory& mem, const PairId& p, double t_s) {
+  double x = mem.warm_x_m;
+  if (x < 0.0 || mem.warm_x_prev_m < 0.0) return x;
+  const double dt = mem.warm_t_s - mem.warm_t_prev_s;
+  if (!(std::abs(dt) >= 1e-12)) return x;
+  const double move = (mem.warm_x_m - mem.warm_x_prev_m) / dt * (t_s - mem.warm_t_s);
+  const double L = m.teeth[p.a].length_m;
+  if (std::abs(move) <= 1e-3 * L) x = std::clamp(x + move, 0.0, L);
+  return x;
+}
+
+}  // namespace
+
+// Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
+// says (a far pair gets only a lower bound of its gap). Under kSign, a separated kernel pair
+// (kernel-obstacle, kernel-kernel) is evaluated exactly when its gap bound is within 1 um or
+// within twice what its bodies can cover in horizon_s [s] at their present speeds: a pair
+// whose gap falls to zero and rises again inside a step of that length (a spinning kernel
+// grazing a wall) is then exact, with its rate, at both ends of the step, as the graze check
+// needs; a pair beyond that reach cannot close within the step.
+void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
+                 SeparatedPairs separated, double horizon_s) {
+  c.ws.ed.memo.valid = false;  // ws.geoms and the stations change
+  // Stations only of the teeth that have a candidate pair that will be evaluated (candidates
+  // are sorted by kind, tooth pairs first, by tooth).
+  // A tooth whose evaluated pairs are all in contact with a warm start (evaluateContact) needs
+  // none: the warm start computes the two stations around its points itself.
+  layoutStations(c.m, &c.ws);
+  int last_tooth = -1;
+  for (const PairId& p : c.ws.candidates) {
+    if (p.kind != PairKind::kToothKernel) break;
+    if (p.a == last_tooth) continue;
+    const PairMemory& mem = c.ws.memory[pairKey(p)];
+    const bool separated_pair = mem.state == ContactState::kSeparated;
+    if (separated == SeparatedPairs::kNone && separated_pair) continue;
+    if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0 &&
+        c.m.teeth[p.a].beam_model == ToothBeamModel::kModal)
+      continue;
+    updateToothStations(c.m, z, dr.theta_rad, p.a, &c.ws);
+    last_tooth = p.a;
+  }
+  c.ws.geoms.resize(c.ws.candidates.size());
+  const double near_m = 0.25 * c.m.broadphase_margin_m;
+  for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
+    const PairId& p = c.ws.candidates[i];
+    ContactGeom& g = c.ws.geoms[i];
+    double far_m = kInf;
+    bool tight = false;
+    PairMemory& mem = c.ws.memory[pairKey(p)];
+    // Tooth pairs in contact start the narrow phase from their last closest point (moved on
+    // in time by the rate between the last two); a separated one records its closest point for
+    // when its contact begins.
+    double x_warm = -1;
+    double* warm = p.kind == PairKind::kToothKernel ? &x_warm : nullptr;
+    if (warm && mem.state != ContactState::kSeparated) x_warm = warmStart(c.m, mem, p, dr.t_s);
+    if (mem.state == ContactState::kSeparated) {
+      mem.warm_x_m = -1;
+      if (separated == SeparatedPairs::kNone) {
+        // Not evaluated: marked far with no finite bound.
+        g.pair = p;
+        g.params = &c.m.contact[static_cast<int>(p.kind)];
+        g.far = true;
+        g.gap_m = kInf;
+        continue;
+      }
+      const bool tooth = p.kind == PairKind::kToothKernel;
+      if (separated == SeparatedPairs::kSign && !tooth) {
+        double speed_mps = kernelSpeedBound(c.m, u, p.a);
+        if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
+        far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);
+      } else {
+        far_m = near_m;
+      }
+      tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
+    }
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm);
+    if (warm && !g.far) {
+      mem.warm_x_prev_m = mem.warm_x_m;
+      mem.warm_t_prev_s = mem.warm_t_s;
+      mem.warm_x_m = g.tooth_x_m;
+      mem.warm_t_s = dr.t_s;
+    }
+  }
+}
+
+}  // namespace event_driven
+}  // namespace internal
+}  // namespace threshing_sim

@@ -1,0 +1,161 @@
+// The two global integrators' state and scratch memory, held by Workspace (internal.h) as
+// `ed` (event-driven) and `ts` (time stepping), and the small types they keep: a state's
+// remembered values, a free tooth's exact propagator, the right-hand side's memo.
+// Not installed; nothing outside src/core includes it.
+#pragma once
+
+#include <Eigen/LU>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/model.h"
+
+namespace threshing_sim {
+namespace internal {
+
+// Energy and angular momentum of one state, remembered with a copy of the state so that the
+// next step can reuse them only if the state is bit for bit the same (nothing moved it).
+class StateValues {
+ public:
+  void store(const Data& d, double energy_J, double momentum_kgm2ps) {
+    z_ = d.z;
+    u_ = d.u;
+    attached_ = d.kernel_attached;
+    omega_radps_ = d.omega_radps;
+    energy_J_ = energy_J;
+    momentum_kgm2ps_ = momentum_kgm2ps;
+    valid_ = true;
+  }
+  void invalidate() { valid_ = false; }
+  bool lookup(const Data& d, double* energy_J, double* momentum_kgm2ps) const {
+    if (!valid_ || d.omega_radps != omega_radps_ || d.z.size() != z_.size() ||
+        d.u.size() != u_.size() || d.kernel_attached != attached_ ||
+        (z_.size() > 0 &&  // empty vectors have no storage: no memcmp on a null pointer
+         (std::memcmp(d.z.data(), z_.data(), sizeof(double) * z_.size()) != 0 ||
+          std::memcmp(d.u.data(), u_.data(), sizeof(double) * u_.size()) != 0)))
+      return false;
+    *energy_J = energy_J_;
+    *momentum_kgm2ps = momentum_kgm2ps_;
+    return true;
+  }
+
+ private:
+  VecX z_, u_;                          // the state [m or -, m/s or -]
+  std::vector<std::uint8_t> attached_;  // its pedicels [-]
+  double omega_radps_ = 0;              // its drum speed [rad/s]
+  double energy_J_ = 0;                 // mechanical energy [J]
+  double momentum_kgm2ps_ = 0;          // teeth's angular momentum [kg m^2/s]
+  bool valid_ = false;                  // something is stored
+};
+
+// Exact propagator of one tooth's free linear modal equations at a constant drum speed:
+// y = [q; qdot] obeys y' = A y with A = [0 I; -S -D], S = Lambda + Omega^2 (K_G - I) and
+// D = diag(2 zeta omega_i), so y(t + h) = V diag(exp(lambda_i h)) V^-1 y(t) (decomposed in
+// balanced coordinates, see buildToothPropagator). Built once per drum speed; propagating is O(n^2)
+// and allocates nothing. q is in sqrt(kg) m, qdot in sqrt(kg) m/s, so V and V^-1 mix those units.
+struct ToothPropagator {
+  double omega_radps = std::numeric_limits<double>::quiet_NaN();  // drum speed built at [rad/s]
+  int n_modes = -1;         // n of the tooth it was built for [-]
+  bool valid = false;       // the eigendecomposition reproduces A (else: Dormand-Prince) [-]
+  Eigen::VectorXcd lambda;  // eigenvalues of A, 2n [1/s]
+  Eigen::MatrixXcd V;       // right eigenvectors of A as columns, 2n x 2n [mixed]
+  Eigen::MatrixXcd V_inv;   // V^-1, 2n x 2n [mixed]
+  Eigen::VectorXcd c;       // scratch: modal amplitudes V^-1 y, then scaled, 2n [mixed]
+};
+
+// The inputs of the event-driven integrator's last right-hand side evaluation, so that a call
+// with the same inputs (the step end, evaluated again as the next step's start, by the event
+// functions and the statistics) reuses its results, which stay in the workspace until any
+// other evaluation clears `valid`.
+struct RhsMemo {
+  // What the right-hand side reads of one candidate's pair memory.
+  struct PairState {
+    int state = 0;        // ContactState [-]
+    bool closed = false;  // rigid normal closed [-]
+    int slip_sign = 0;    // slip direction [-]
+    double v_in_mps = 0;  // compliant approach speed [m/s]
+    double hertz_K = 0;   // compliant Hertz constant [N/m^{3/2}]
+  };
+  bool valid = false;                  // the workspace holds that evaluation's results [-]
+  const Model* model = nullptr;        // model it was made for
+  double t_s = 0, theta_rad = 0;       // time [s] and drum angle [rad]
+  double omega_radps = 0;              // drum speed [rad/s]
+  double alpha_radps2 = 0;             // drum acceleration [rad/s^2]
+  VecX z, u;                           // state [m or -, m/s or -]
+  std::vector<std::uint8_t> attached;  // pedicels [-]
+  std::vector<PairId> candidates;      // candidate pairs [-]
+  std::vector<PairState> pairs;        // their memory, in that order
+  int n_separated = 0;                 // separated candidates among them [-]
+  int n_separated_other = 0;           // of which not tooth pairs [-]
+  int separated = 0;                   // how separated pairs were evaluated (SeparatedPairs) [-]
+  double horizon_s = 0;                // the event functions' horizon [s]
+  VecX udot;                           // accelerations [m/s^2 or modal 1/s^2]
+  double torque = 0;                   // contact torque on the drum [N m]
+};
+
+}  // namespace internal
+
+// The event-driven integrator's state carried across steps and its scratch
+// (src/core/event_driven/); grows to the largest sizes seen, then is reused.
+struct EventDrivenScratch {
+  long trial_steps = 0;       // Dormand-Prince trial steps since construction, the work advanceTo()
+                              // counts against its budget [-]
+  VecX rk_k[7], rk_tmp;       // Runge-Kutta stage derivatives [z; u] and scratch
+  double h = 0;               // last accepted step size [s]
+  VecX fn, ft;                // contact forces per geom at the last rhs [N]
+  VecX imp_n, imp_t;          // their integrals over the last trial step [N s]
+  double torque_impulse = 0;  // integral of the drum contact torque [N m s]
+  // Scratch, reused so that a step allocates nothing after warm-up.
+  VecX z1, u1, zt, ut;                   // trial end states [m or -, m/s or -]
+  VecX zz, uu, udot;                     // Runge-Kutta stage state and acceleration
+  VecX udot_end, udot_ev;                // accelerations at the step end / event checks
+  VecX imp_n_step, imp_t_step;           // impulses of the accepted step per geom [N s]
+  std::vector<double> ev0, ev1, evm;     // event function values (see eventValues)
+  std::vector<double> rate0, rate1;      // their rates at the step ends [unit / s]
+  std::vector<std::uint8_t> arm;         // arming of each function over the step
+  std::vector<double> ev_lo, ev_hi;      // event location: values at the bracket's ends
+  VecX z_hi, u_hi;                       // and the state at its upper end
+  VecX imp_n_hi, imp_t_hi;               // with the impulses up to it [N s]
+  double torque_impulse_hi = 0;          // and the drum torque impulse [N m s]
+  VecX imp_n_saved, imp_t_saved;         // impulses kept across a graze probe [N s]
+  std::vector<int> forced_slip;          // geoms forced into slip by a stick-slip event
+  std::vector<std::pair<int, int>> idx;  // constraint rows: (active contact, 0 N / 1 T)
+  MatX A;                                // constraint matrix of those rows (grow-only)
+  VecX rc, lam;                          // its right-hand side and solution
+  std::vector<int> row_perm, col_perm;   // pivoting of the elimination
+  // Exact propagation of free teeth (IntegratorParams::exact_free_teeth).
+  std::vector<internal::ToothPropagator> prop;  // per tooth, keyed on the drum speed
+  std::vector<std::uint8_t> tooth_exact;        // per tooth: exact over the current trial [-]
+  std::vector<std::uint8_t> own_error;          // per dof: counted in the error estimate [-]
+  // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
+  // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
+  std::vector<double> pk_f0, pk_r0, pk_f1, pk_r1;
+  std::vector<std::uint8_t> pk_on, pk_on_end;
+  // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
+  VecX pk_udot;
+  internal::RhsMemo memo;            // the last right-hand side's inputs
+  internal::StateValues end_values;  // momentum at the last step end (the energy slot unused)
+};
+
+// The time-stepping integrator's state carried across steps and its scratch
+// (src/core/time_stepping/).
+struct TimeSteppingScratch {
+  VecX z_mid, u_free;                   // midpoint configuration, free velocity [m or -, m/s or -]
+  std::vector<MatX> iteration_inverse;  // (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues end_values;     // energy and momentum at the last end
+  std::vector<int> candidate_memory;    // pair-table index of each candidate
+  std::vector<int> in_contact;          // pairs in contact at the last step end
+  long in_contact_step = -2;            // Data::steps when that list was made
+  std::vector<std::uint8_t> attached_before;            // pedicels before this step's breaks [-]
+  std::vector<MatX> iteration_stiffness;                // K(Omega) of each tooth [1/s^2]
+  std::vector<MatX> iteration_matrix;                   // I + h theta D + h^2 theta^2 K [-]
+  std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
+  double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
+  double iteration_h = -1;      // and the step [s]
+};
+
+}  // namespace threshing_sim
