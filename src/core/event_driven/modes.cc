@@ -13,20 +13,6 @@ namespace event_driven {
 
 namespace {
 
-// The free accelerations Minv f of the smooth forces ws.forces, body by body, into ws.du.
-void freeAccelerationByBody(const Ctx& c, const std::vector<MatX>* minv) {
-  const Model& m = c.m;
-  Workspace& ws = c.ws;
-  ws.du.setZero(m.n_dof);
-  for (size_t b = 0; b < m.teeth.size() + m.kernels.size(); ++b) {
-    const int off = bodyDofOffset(m, static_cast<int>(b));
-    const int n = bodyDofCount(m, static_cast<int>(b));
-    if (n == 0) continue;
-    SmallVec fb = ws.forces.segment(off, n);
-    applyInverseMass(m, minv, static_cast<int>(b), fb, 1.0, &ws.du);
-  }
-}
-
 // The rows of the mode problem, into ws.active / ws.rows: contacts in compliant contact (a
 // known normal) and closed rigid ones; a sliding contact keeps its direction, a slow one may
 // stick, one in forced_slip slides as its memory says.
@@ -139,7 +125,8 @@ bool updateModes(const Ctx& c, double t, const std::vector<int>& forced_slip) {
   smoothForces(m, d, d.z, d.u, dr, &ws.forces);
   evaluateAll(c, d.z, d.u, dr);
   const std::vector<MatX>* minv = toothInverseMass(m, d.z, &ws);
-  freeAccelerationByBody(c, minv);
+  // The free accelerations Minv f of the smooth forces (as rhs() computes them).
+  freeAcceleration(m, minv, ws.forces, &ws.du);
   assembleModeRows(c, forced_slip);
   modeTargets(c, dr);
   if (!solveContactIslands(m, minv, &ws)) return false;
