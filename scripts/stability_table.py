@@ -378,7 +378,7 @@ integrator, scene 7 a feature of the core):
   tip deflects beyond 0.1 L (the "validity warning" check of the table prints the largest
   ratio), outside the small-deflection range of the linear (Euler-Bernoulli,
   first-order foreshortening) beam model. The core now checks |w(L)| / L after every step
-  (`src/core/simulator.cc`); the first time it exceeds `deflection_validity` (scene key,
+  (`checkToothDeflection`, `src/core/episodes.cc`); the first time it exceeds `deflection_validity` (scene key,
   default 0.1) one warning is recorded in `stats.warnings` with the tooth, the ratio and the
   time (`stats.deflection_warning_time_s`), and `stats.max_tip_deflection_ratio` keeps the
   largest ratio. `simulate` prints the warning in its summary (and `max_tip_deflection_ratio`,

@@ -21,6 +21,7 @@
 #include "contact/smooth_forces.h"
 #include "contact/stations.h"
 #include "drive.h"
+#include "episodes.h"
 #include "integrator_scratch.h"
 #include "small_vec.h"
 #include "threshing_sim/core/beam.h"
@@ -150,21 +151,7 @@ double angularMomentumOf(const Model& m, const VecX& z, const VecX& u, double om
 // One tooth's angular momentum about the drum axis [kg m^2/s].
 double toothAngularMomentum(const ToothModel& tm, const Eigen::Ref<const VecX>& q,
                             const Eigen::Ref<const VecX>& qd, double omega);
-// Tracks the largest tip deflection over L and warns once when it leaves the model's range.
-void checkToothDeflection(const Model& m, Data* d);
-// Records peak force statistics for one contact at time t.
-void recordForce(const Model& m, Data* d, const ContactGeom& g, double fn, double ft, double t);
-// Opens / closes contact episodes and emits ContactEvents.
-void beginEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, double t,
-                  double energy_net);
-void endEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, double t,
-                double energy_net);
-void emitTransition(Data* d, const PairId& pair, ContactState from, ContactState to, double t,
-                    const ContactGeom& g);
-// Fills data.contacts from the current geoms and memory.
-void publishContacts(Data* d, Workspace* ws);
-// Detaches pedicels whose force passed the threshold.
-void updatePedicels(const Model& m, Data* d);
+// Episodes, events, force statistics, pedicels, the deflection check: episodes.h.
 
 // --- the integrators -------------------------------------------------------------------------
 StepStatus timeSteppingStep(const Model& m, Data* d, double h_s);
