@@ -262,17 +262,20 @@ void refineClosestPoint(const ToothModel& tm, CentrelineProbe* slopeAt, ContactG
   double xb = x0;
   Proximity pa, pb;
   closestPointSecant(tm, slopeAt, x0, 0.0, tm.length_m, &xb, &pa, &pb);
-  // The secant may leave the polyline's neighbourhood for another stationary point of the
-  // distance, a farther one (a strongly bent rod pressed against an elongated kernel: the
-  // iteration ran to the root, and the pair, 0.36 mm deep, read 59.5 mm apart for one step, so
-  // that it opened and closed every 1e-11 s). Then the search is kept to one station interval
-  // about the polyline's point, and failing that the polyline's point itself is taken.
+  // The secant may run off to another stationary point of the distance, far from the
+  // polyline's (a strongly bent rod pressed against an elongated kernel: the iteration ran to
+  // the root, and the pair, 0.36 mm deep, read 59.5 mm apart for one step, so that it opened
+  // and closed every 1e-11 s). A point farther than the polyline's by more than the tooth's
+  // radius is such a run-off (a converged point lies within the polyline's chord error of it;
+  // a deep overlap may move it by micrometres, which is kept): then the search is kept to one
+  // station interval about the polyline's point, and failing that that point itself is taken.
   const double d0_m = pa.distance_m;  // the first evaluation was at x0
-  if (pb.distance_m > d0_m + 1e-9 * tm.length_m) {
+  const double run_off_m = d0_m + 0.5 * tm.diameter_m;
+  if (pb.distance_m > run_off_m) {
     const double dx = tm.length_m / std::max(1, tm.n_stations - 1);
     closestPointSecant(tm, slopeAt, x0, std::max(0.0, x0 - dx), std::min(tm.length_m, x0 + dx), &xb,
                        &pa, &pb);
-    if (pb.distance_m > d0_m + 1e-9 * tm.length_m) {
+    if (pb.distance_m > run_off_m) {
       xb = x0;
       (*slopeAt)(xb, &pb);
     }
