@@ -147,6 +147,81 @@ void checkChunkRecords(const std::string& chunk,
   }
 }
 
+// What a pass over a bag's records found, for the checks across records.
+struct BagScan {
+  std::set<std::uint64_t> record_starts;        // byte offsets of the top-level records
+  std::set<std::uint64_t> chunk_starts;         // offsets of the records in the last chunk
+  std::set<std::uint64_t> connections;          // connection ids defined
+  std::set<std::uint64_t> indexed_connections;  // connection ids named by index records
+  std::vector<std::uint64_t> chunk_positions;   // chunk_pos of every chunk info
+  std::uint64_t index_pos = kAbsent;            // the bag header's index_pos
+};
+
+// Reads n bytes of the stream into a string.
+std::string readBytes(std::ifstream& in, std::uint64_t n) {
+  std::string bytes(n, '\0');
+  in.read(&bytes[0], static_cast<std::streamsize>(n));
+  return bytes;
+}
+
+// The data of one top-level record (header h, data_len bytes, the stream at its data): a chunk
+// uncompressed with its declared size and its records within it, a connection's header within
+// its record, a chunk info's and an index record's counts equal to their data.
+void checkRecordData(std::ifstream& in, const RecordHeader& h, std::uint64_t data_len,
+                     const std::function<void(const std::string&)>& refuse, BagScan* scan) {
+  if (h.op == 0x03) scan->index_pos = h.index_pos;
+  if (h.op == 0x06) scan->chunk_positions.push_back(h.chunk_pos);
+  if (h.op == 0x05) {
+    if (h.compression != "none")
+      refuse("compressed chunk (" + h.compression +
+             ") not read; decompress the bag first (rosbag decompress)");
+    if (h.size != data_len || h.size > kMaxChunkBytes)
+      refuse("chunk declares " + std::to_string(h.size) + " bytes for " + std::to_string(data_len) +
+             " bytes of data");
+    checkChunkRecords(readBytes(in, data_len), refuse, &scan->chunk_starts, &scan->connections);
+  } else if (h.op == 0x07) {
+    // A connection record's data is itself a header (topic, type, md5sum, definition).
+    if (data_len > (16u << 20)) refuse("connection record too large");
+    RecordHeader connection;
+    if (!parseHeader(readBytes(in, data_len), &connection))
+      refuse("connection header field beyond its record");
+    scan->connections.insert(h.conn);
+  } else if (h.op == 0x06) {
+    // Chunk info: `count` (connection id, message count) pairs, which rosbag reads as many.
+    if (h.ver != 1 || h.count > (1u << 20) || h.count * 8 != data_len)
+      refuse("chunk info declares " + std::to_string(h.count) + " connections for " +
+             std::to_string(data_len) + " bytes of data");
+  } else if (h.op == 0x04) {
+    // Index data: `count` entries of (time 8 bytes, offset 4 bytes) into the chunk before it,
+    // which rosbag reads as many (a larger count read offsets from beyond the record).
+    if (data_len > (64u << 20)) refuse("index record too large");
+    if (h.ver != 1 || h.count * 12 != data_len)
+      refuse("index record declares " + std::to_string(h.count) + " entries for " +
+             std::to_string(data_len) + " bytes of data");
+    scan->indexed_connections.insert(h.conn);
+    const std::string index = readBytes(in, data_len);
+    for (size_t e = 0; e + 12 <= index.size(); e += 12)
+      if (scan->chunk_starts.count(u32(reinterpret_cast<const unsigned char*>(&index[e + 8]))) == 0)
+        refuse("index entry points between the records of its chunk");
+  }
+}
+
+// rosbag seeks to the bag header's index_pos and to every chunk_pos and reads a record there:
+// each must start one; every connection an index names must be defined.
+void checkCrossReferences(const BagScan& scan,
+                          const std::function<void(const std::string&)>& refuse) {
+  if (scan.index_pos != kAbsent && scan.index_pos != 0 &&
+      scan.record_starts.count(scan.index_pos) == 0)
+    refuse("the bag header's index_pos " + std::to_string(scan.index_pos) + " starts no record");
+  for (const std::uint64_t c : scan.chunk_positions)
+    if (scan.record_starts.count(c) == 0)
+      refuse("a chunk info's chunk_pos " + std::to_string(c) + " starts no record");
+  for (const std::uint64_t c : scan.indexed_connections)
+    if (scan.connections.count(c) == 0)
+      refuse("an index record names connection " + std::to_string(c) +
+             ", which no connection record defines");
+}
+
 // The record structure of a bag (format 2.0) before rosbag reads it: every header and data
 // length within the file, every header field within its header, every chunk uncompressed with
 // its declared size equal to its data (at most kMaxChunkBytes) and its records within it.
@@ -171,76 +246,26 @@ void checkBagLengths(const std::string& path) {
                                 ": " + what);
   };
   unsigned char len4[4];
-  std::set<std::uint64_t> record_starts, chunk_starts, connections, indexed_connections;
-  std::vector<std::uint64_t> chunk_positions;
-  std::uint64_t index_pos = kAbsent;
+  BagScan scan;
   while (pos < file_size) {
     if (file_size - pos < 8) refuse("record cut off");
     in.read(reinterpret_cast<char*>(len4), 4);
     const std::uint64_t header_len = u32(len4);
     if (pos + 8 + header_len > file_size) refuse("header length beyond the end of the file");
-    std::string header(header_len, '\0');
-    in.read(&header[0], static_cast<std::streamsize>(header_len));
+    const std::string header = readBytes(in, header_len);
     in.read(reinterpret_cast<char*>(len4), 4);
     const std::uint64_t data_len = u32(len4);
     if (pos + 8 + header_len + data_len > file_size)
       refuse("data length beyond the end of the file");
     RecordHeader h;
     if (!parseHeader(header, &h)) refuse("header field beyond its header");
-    record_starts.insert(pos);
-    if (h.op == 0x03) index_pos = h.index_pos;
-    if (h.op == 0x06) chunk_positions.push_back(h.chunk_pos);
-    if (h.op == 0x05) {
-      if (h.compression != "none")
-        refuse("compressed chunk (" + h.compression +
-               ") not read; decompress the bag first (rosbag decompress)");
-      if (h.size != data_len || h.size > kMaxChunkBytes)
-        refuse("chunk declares " + std::to_string(h.size) + " bytes for " +
-               std::to_string(data_len) + " bytes of data");
-      std::string chunk(data_len, '\0');
-      in.read(&chunk[0], static_cast<std::streamsize>(data_len));
-      checkChunkRecords(chunk, refuse, &chunk_starts, &connections);
-    } else if (h.op == 0x07) {
-      // A connection record's data is itself a header (topic, type, md5sum, definition).
-      if (data_len > (16u << 20)) refuse("connection record too large");
-      std::string data(data_len, '\0');
-      in.read(&data[0], static_cast<std::streamsize>(data_len));
-      RecordHeader connection;
-      if (!parseHeader(data, &connection)) refuse("connection header field beyond its record");
-      connections.insert(h.conn);
-    } else if (h.op == 0x06) {
-      // Chunk info: `count` (connection id, message count) pairs, which rosbag reads as many.
-      if (h.ver != 1 || h.count > (1u << 20) || h.count * 8 != data_len)
-        refuse("chunk info declares " + std::to_string(h.count) + " connections for " +
-               std::to_string(data_len) + " bytes of data");
-    } else if (h.op == 0x04) {
-      // Index data: `count` entries of (time 8 bytes, offset 4 bytes) into the chunk before it,
-      // which rosbag reads as many (a larger count read offsets from beyond the record).
-      if (data_len > (64u << 20)) refuse("index record too large");
-      if (h.ver != 1 || h.count * 12 != data_len)
-        refuse("index record declares " + std::to_string(h.count) + " entries for " +
-               std::to_string(data_len) + " bytes of data");
-      indexed_connections.insert(h.conn);
-      std::string index(data_len, '\0');
-      in.read(&index[0], static_cast<std::streamsize>(data_len));
-      for (size_t e = 0; e + 12 <= index.size(); e += 12)
-        if (chunk_starts.count(u32(reinterpret_cast<const unsigned char*>(&index[e + 8]))) == 0)
-          refuse("index entry points between the records of its chunk");
-    }
+    scan.record_starts.insert(pos);
+    checkRecordData(in, h, data_len, refuse, &scan);
     pos += 8 + header_len + data_len;
     in.seekg(static_cast<std::streamoff>(pos));
   }
-  // rosbag seeks to these offsets and reads a record there: each must start one.
-  pos = 13;
-  if (index_pos != kAbsent && index_pos != 0 && record_starts.count(index_pos) == 0)
-    refuse("the bag header's index_pos " + std::to_string(index_pos) + " starts no record");
-  for (const std::uint64_t c : chunk_positions)
-    if (record_starts.count(c) == 0)
-      refuse("a chunk info's chunk_pos " + std::to_string(c) + " starts no record");
-  for (const std::uint64_t c : indexed_connections)
-    if (connections.count(c) == 0)
-      refuse("an index record names connection " + std::to_string(c) +
-             ", which no connection record defines");
+  pos = 13;  // the cross-reference messages name the bag header's record
+  checkCrossReferences(scan, refuse);
 }
 
 }  // namespace

@@ -871,24 +871,52 @@ YAML::Node loadSceneYaml(const std::string& path) {
 // Walks the path from the root on a copy of the tree: list components must be in range, map
 // components must be schema keys; a missing section is created, a missing list item or optional
 // section is not. The copy replaces the tree only when the whole assignment succeeded.
+// The key path and the value of an assignment "key.path=value" (the value is YAML, so lists
+// and mappings work); refuses a missing '=', an empty side or a value that is not YAML.
+YAML::Node parseAssignment(const std::string& assignment, std::string* key_path,
+                           std::string* value_text) {
+  const size_t equals = assignment.find('=');
+  if (equals == std::string::npos) refuseOverride(assignment, "", "expected key.path=value");
+  *key_path = trim(assignment.substr(0, equals));
+  *value_text = trim(assignment.substr(equals + 1));
+  if (key_path->empty()) refuseOverride(assignment, "", "empty key path");
+  if (value_text->empty()) refuseOverride(assignment, *key_path, "empty value");
+  try {
+    return YAML::Load(*value_text);
+  } catch (const YAML::ParserException& e) {
+    refuseOverride(assignment, *key_path, "value is not valid YAML (" + e.msg + ")");
+  }
+  return YAML::Node();
+}
+
+// Descends from a mapping into its section `part` (at `path`, of schema kind spec.kind) on the
+// way to `next_part`: a missing section is created, other missing containers are refused.
+void descendIntoSection(const std::string& assignment, const KeySpec& spec, const std::string& path,
+                        const std::string& part, const std::string& next_part, YAML::Node* node) {
+  const auto refuse = [&](const std::string& at, const std::string& what) {
+    refuseOverride(assignment, at, what);
+  };
+  const YAML::Node& current = *node;
+  const YAML::Node child = current[part];
+  const bool absent = !child.IsDefined() || child.IsNull();
+  if (spec.kind == KeyKind::kValue) refuse(path, "is a value, not a section");
+  if (absent && spec.kind == KeyKind::kList) {
+    refuse(joinPath(path, next_part), "index out of range (" + path + " has no entries)");
+  }
+  if (absent && spec.kind == KeyKind::kOptionalSection) {
+    refuse(path,
+           "is absent; set the whole " + part + " first (e.g. " + path + "={anchor: [x, y]})");
+  }
+  if (absent) (*node)[part] = YAML::Node(YAML::NodeType::Map);
+  node->reset((*node)[part]);
+}
+
 void applyOverride(YAML::Node* root, const std::string& assignment) {
   const auto refuse = [&](const std::string& path, const std::string& what) {
     refuseOverride(assignment, path, what);
   };
-  const size_t equals = assignment.find('=');
-  if (equals == std::string::npos) refuse("", "expected key.path=value");
-  const std::string key_path = trim(assignment.substr(0, equals));
-  const std::string value_text = trim(assignment.substr(equals + 1));
-  if (key_path.empty()) refuse("", "empty key path");
-  if (value_text.empty()) refuse(key_path, "empty value");
-
-  // The value is YAML, so lists and mappings work.
-  YAML::Node value;
-  try {
-    value = YAML::Load(value_text);
-  } catch (const YAML::ParserException& e) {
-    refuse(key_path, "value is not valid YAML (" + e.msg + ")");
-  }
+  std::string key_path, value_text;
+  const YAML::Node value = parseAssignment(assignment, &key_path, &value_text);
 
   // Walk the copy.
   const std::vector<std::string> parts = splitKeyPath(assignment, key_path);
@@ -942,20 +970,7 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
       continue;
     }
 
-    // Descend; a missing section is created, other missing containers are refused.
-    const YAML::Node& current = node;
-    const YAML::Node child = current[part];
-    const bool absent = !child.IsDefined() || child.IsNull();
-    if (spec->kind == KeyKind::kValue) refuse(path, "is a value, not a section");
-    if (absent && spec->kind == KeyKind::kList) {
-      refuse(joinPath(path, parts[i + 1]), "index out of range (" + path + " has no entries)");
-    }
-    if (absent && spec->kind == KeyKind::kOptionalSection) {
-      refuse(path,
-             "is absent; set the whole " + part + " first (e.g. " + path + "={anchor: [x, y]})");
-    }
-    if (absent) node[part] = YAML::Node(YAML::NodeType::Map);
-    node.reset(node[part]);
+    descendIntoSection(assignment, *spec, path, part, parts[i + 1], &node);
   }
   root->reset(tree);
 }
