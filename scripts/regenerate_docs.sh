@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every measured figure and table of README.md and docs/ from a Release build. Each
 # section's page is in scripts/tslib/markdown.py (SECTIONS):
+#   scene-reference  scripts/scene_reference.sh               (docs/scene_reference.md)
 #   default-timing   scripts/time_default_scene.py            (README, "Headline figures")
 #   default-output   simulate config/default_scene.yaml        (README, "Headline figures")
 #   node-rtf         scripts/measure_node_rtf.sh               (docs/ros_interface.md)
@@ -28,7 +29,7 @@ PY=/usr/bin/python3
 BIN="$ROOT/.build/ws/devel/lib/threshing_sim"
 parts=("$@")
 [ ${#parts[@]} -gt 0 ] ||
-  parts=(default-timing default-output node-rtf profile free-teeth stability findings bench)
+  parts=(scene-reference default-timing default-output node-rtf profile free-teeth stability findings bench)
 
 bash scripts/setup.sh
 # The instruction counts need valgrind (not part of the build's set-up).
@@ -38,6 +39,7 @@ fi
 for part in "${parts[@]}"; do
   echo "regenerate_docs: $part ($(date -u +%H:%M:%S))"
   case "$part" in
+    scene-reference) bash scripts/scene_reference.sh ;;
     default-timing) $PY scripts/time_default_scene.py | $PY scripts/readme_section.py "$part" ;;
     default-output) "$BIN/simulate" config/default_scene.yaml |
                       $PY scripts/readme_section.py "$part" --fence "" ;;

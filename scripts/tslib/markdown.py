@@ -13,7 +13,7 @@ SECTIONS = {
     "sweep-overhead-readme": "README.md",   # scripts/sweep_overhead.py --docs
     "node-rtf": "docs/ros_interface.md",    # scripts/measure_node_rtf.sh
     "record-recipe": "docs/ros_interface.md",  # hand-written; test_recipe runs it
-    "scene-reference": "docs/scene_reference.md",  # hand-written; the loader test checks it
+    "scene-reference": "docs/scene_reference.md",  # scripts/scene_reference.sh
     "profile": "docs/performance.md",       # scripts/profile_core.sh
     "profile-streams": "docs/performance.md",  # scripts/profile_core.sh --streams
     "free-teeth": "docs/performance.md",    # scripts/compare_free_teeth.py --callgrind

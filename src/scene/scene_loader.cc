@@ -19,6 +19,7 @@
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/geometry.h"
 #include "threshing_sim/core/overlap.h"
+#include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
 namespace {
@@ -49,119 +50,429 @@ struct Bound {
 // No range (sections, lists, words).
 const Bound kNoRange{};
 
+// The kernel stream generator's parameters (scene section `stream`); the member values are the
+// section's defaults.
+struct StreamSpec {
+  int count = 0;                      // kernels [-] (required)
+  double rate_Hz = 0;                 // kernels per second of drum time [1/s] (required)
+  double start_s = 5e-4;              // arrival of the first kernel [s]
+  int seed = 1;                       // seed of the scatter [-]
+  double depth_m = 0.005;             // centre depth inside the tip circle [m]
+  double position_scatter_m = 0.001;  // +- radial and along-path scatter [m]
+  double angle_scatter_rad = 0.5;     // +- orientation scatter [rad]
+  double pedicel_length_m = 0.003;    // pedicel from the kernel's end to its anchor [m]
+  Vec2 mass_kg{2.4e-5, 3.1e-5};       // mass range [kg] (paddy 24-31 mg, docs/model.md §10)
+  Vec2 detach_N{0.27, 2.6};           // detachment force range [N] (rice, docs/model.md §10)
+  KernelModel base;                   // semi-axes, material, pedicel law
+};
+
+// Contact defaults from docs/model.md §10: rice-nylon, rice-rice, wheat-steel.
+const ContactParams kContactDefaults[3] = {
+    {ContactLaw::kCompliant, 0.48, 0.53},
+    {ContactLaw::kRigid, 0.34, 0.66},
+    {ContactLaw::kRigid, 0.47, 0.50},
+};
+
+// The values a key takes when a scene leaves it out: default-constructed core structs, the
+// contact defaults above and the stream generator's defaults. The loader starts from the same
+// objects, so a default is written once.
+struct SchemaDefaults {
+  Model model;
+  ToothModel tooth;
+  KernelModel kernel;
+  PedicelModel pedicel;
+  ObstacleModel obstacle;
+  StreamSpec stream;
+  DamageThresholds damage;
+};
+
+// A number for the reference: the fewest significant digits that read back as the same double,
+// written plainly from 1e-3 to 1e6 (200, 0.0013) and with a short exponent outside (5e-4, 3e9).
+std::string num(double value) {
+  char text[40];
+  int digits = 1;
+  for (; digits < 17; ++digits) {
+    std::snprintf(text, sizeof(text), "%.*g", digits, value);
+    if (std::strtod(text, nullptr) == value) break;
+  }
+  const double magnitude = std::abs(value);
+  if (value == 0 || (magnitude >= 1e-3 && magnitude < 1e6)) {
+    const int decimals =
+        value == 0 ? 0
+                   : std::max(0, digits - 1 - static_cast<int>(std::floor(std::log10(magnitude))));
+    std::snprintf(text, sizeof(text), "%.*f", decimals, value);
+    return text;
+  }
+  std::snprintf(text, sizeof(text), "%.*e", digits - 1, value);
+  std::string out = text;  // 3e+09 -> 3e9, 1e-06 -> 1e-6
+  const size_t e = out.find('e');
+  std::string exponent = out.substr(e + 1);
+  const bool negative = exponent[0] == '-';
+  exponent.erase(0, exponent.find_first_not_of("+-0"));
+  return out.substr(0, e) + "e" + (negative ? "-" : "") + exponent;
+}
+std::string pair(const Vec2& v) { return "[" + num(v.x()) + ", " + num(v.y()) + "]"; }
+
+// The words of the scene file for the core's enumerations and switches (readers and the
+// reference use the same ones).
+const char* const kAutoModesWord = "auto";  // teeth.*.modes when absent: chosen by compileModel
+std::string toothModelWord(ToothBeamModel m) {
+  return m == ToothBeamModel::kLargeDeflection ? "large_deflection" : "modal";
+}
+std::string lawWord(ContactLaw law) { return law == ContactLaw::kRigid ? "rigid" : "compliant"; }
+std::string integratorWord(IntegratorType t) {
+  return t == IntegratorType::kTimeStepping ? "time_stepping" : "event_driven";
+}
+std::string onOff(bool on) { return on ? "on" : "off"; }
+std::string trueFalse(bool on) { return on ? "true" : "false"; }
+std::string freeTeethWord(bool exact) { return exact ? "exact" : "integrated"; }
+
+// A key's default as the reference prints it, from the defaults above; nullptr: none (sections).
+using DefaultText = std::string (*)(const SchemaDefaults&);
+const DefaultText kNoDefault = nullptr;
+
 struct KeySpec {
   const char* path;
   KeyKind kind;
-  const char* type;  // number, integer, [x, y], word, section, list
-  const char* unit;  // SI unit ("" = dimensionless or none)
-  Bound range;       // accepted values of a number, integer or of each number of a pair
+  const char* type;             // number, integer, [x, y], word, section, list
+  const char* unit;             // SI unit ("" = dimensionless or none)
+  Bound range;                  // accepted values of a number, integer or of each number of a pair
+  DefaultText default_text;     // the value when the key is absent (kNoDefault: a section)
+  const char* doc;              // what the key means
+  const char* words = nullptr;  // a word key's accepted words, ", "-separated
 };
 
 // The one table of scene keys and their ranges: the readers below take each range from here
 // (Section::number, integer, vec2), and `simulate --print-schema` prints it
-// (docs/scene_ranges.md is its output).
+// (docs/scene_reference.md's key table is its output).
 const KeySpec kSchema[] = {
-    {"drum", KeyKind::kSection, "section", "", kNoRange},
-    {"drum.radius", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false}},
-    {"drum.speed", KeyKind::kValue, "number", "rad/s", Bound{-1e4, 1e4, false, false}},
-    {"drum.max_acceleration", KeyKind::kValue, "number", "rad/s^2", Bound{0.0, 1e7, true, false}},
-    {"drum.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
-    {"teeth", KeyKind::kList, "list", "", kNoRange},
-    {"teeth.*.mount_angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
-    {"teeth.*.length", KeyKind::kValue, "number", "m", Bound{1e-5, 10.0, false, false}},
-    {"teeth.*.diameter", KeyKind::kValue, "number", "m", Bound{1e-5, 1.0, false, false}},
-    {"teeth.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
-    {"teeth.*.density", KeyKind::kValue, "number", "kg/m^3", Bound{1.0, 1e5, false, false}},
-    {"teeth.*.modes", KeyKind::kValue, "integer or auto", "", Bound{0.0, kMaxModes, false, false}},
-    {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true}},
-    {"teeth.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
-    {"teeth.*.stations", KeyKind::kValue, "integer", "", Bound{2.0, 65.0, false, false}},
-    {"teeth.*.model", KeyKind::kValue, "word", "", kNoRange},
-    {"teeth.*.static_correction", KeyKind::kValue, "word", "", kNoRange},
-    {"kernels", KeyKind::kList, "list", "", kNoRange},
-    {"kernels.*.position", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
-    {"kernels.*.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false}},
-    {"kernels.*.velocity", KeyKind::kValue, "[x, y]", "m/s", Bound{-1e3, 1e3, false, false}},
+    {"drum", KeyKind::kSection, "section", "", kNoRange, kNoDefault,
+     "The rotating drum that carries the teeth."},
+    {"drum.radius", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.drum.radius_m); },
+     "Distance R from the drum axis to each tooth root."},
+    {"drum.speed", KeyKind::kValue, "number", "rad/s", Bound{-1e4, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.drum.initial_speed_radps); },
+     "Initial drum speed Omega(0), also the initial target speed; positive is counter-clockwise."},
+    {"drum.max_acceleration", KeyKind::kValue, "number", "rad/s^2", Bound{0.0, 1e7, true, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return num(d.model.drum.max_acceleration_radps2);
+     },
+     "Bound on the drum's angular acceleration when it follows a new target speed."},
+    {"drum.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.drum.initial_angle_rad); },
+     "Initial drum angle theta(0)."},
+    {"teeth", KeyKind::kList, "list", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "[]"; },
+     "The flexible teeth: Euler-Bernoulli cantilevers of round section on the drum."},
+    {"teeth.*.mount_angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.mount_angle_rad); },
+     "Angle alpha of the tooth root and axis in the drum frame."},
+    {"teeth.*.length", KeyKind::kValue, "number", "m", Bound{1e-5, 10.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.length_m); },
+     "Free length L of the tooth."},
+    {"teeth.*.diameter", KeyKind::kValue, "number", "m", Bound{1e-5, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.diameter_m); },
+     "Diameter d of the round section; the contact capsule radius is d/2."},
+    {"teeth.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.youngs_modulus_Pa); },
+     "Young's modulus E of the tooth material."},
+    {"teeth.*.density", KeyKind::kValue, "number", "kg/m^3", Bound{1.0, 1e5, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.density_kgpm3); },
+     "Density rho of the tooth material."},
+    {"teeth.*.modes", KeyKind::kValue, "integer or auto", "", Bound{0.0, kMaxModes, false, false},
+     [](const SchemaDefaults&) -> std::string { return kAutoModesWord; },
+     "Number of retained bending modes; 0 makes the tooth rigid; `auto` chooses it from the "
+     "contact time and the tolerance (README \"Converged tooth forces\"). For a large-deflection "
+     "tooth: its Ritz shape functions, at most 12 (`auto`: 6)."},
+    {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.damping_ratio); },
+     "Modal damping ratio zeta, the same for every mode."},
+    {"teeth.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.poisson_ratio); },
+     "Poisson's ratio of the tooth material (Hertz contact law)."},
+    {"teeth.*.stations", KeyKind::kValue, "integer", "", Bound{2.0, 65.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.tooth.n_stations); },
+     "Number of centreline points sampled for contact detection."},
+    {"teeth.*.model", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults& d) -> std::string { return toothModelWord(d.tooth.beam_model); },
+     "`modal`: assumed modes (linear, valid to about 0.1 L of tip deflection). `large_deflection`: "
+     "a geometrically exact planar rod for soft teeth, whose `modes` are its Ritz shape functions "
+     "(event-driven or time stepping, global scheme only; "
+     "[large_deflection.md](large_deflection.md)).",
+     "modal, large_deflection"},
+    {"teeth.*.static_correction", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults& d) -> std::string { return onOff(d.tooth.static_correction); },
+     "Residual flexibility of the truncated modes in series with the contact (README \"Converged "
+     "tooth forces\"); `off`: the retained modes only. A large-deflection tooth has none.",
+     "on, off"},
+    {"kernels", KeyKind::kList, "list", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "[]"; },
+     "The grain kernels: rigid ellipses in the drum plane."},
+    {"kernels.*.position", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; },
+     "Initial centre c(0) in the world frame (origin on the drum axis, gravity along -Y)."},
+    {"kernels.*.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.initial_angle_rad); },
+     "Initial angle psi(0) of the major axis from world X."},
+    {"kernels.*.velocity", KeyKind::kValue, "[x, y]", "m/s", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.kernel.initial_velocity_mps); },
+     "Initial velocity of the centre."},
     {"kernels.*.angular_velocity", KeyKind::kValue, "number", "rad/s",
-     Bound{-1e5, 1e5, false, false}},
-    {"kernels.*.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false}},
-    {"kernels.*.mass", KeyKind::kValue, "number", "kg", Bound{1e-12, 1e3, false, false}},
-    {"kernels.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
-    {"kernels.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
-    {"kernels.*.pedicel", KeyKind::kOptionalSection, "section", "", kNoRange},
-    {"kernels.*.pedicel.anchor", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
+     Bound{-1e5, 1e5, false, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return num(d.kernel.initial_angular_velocity_radps);
+     },
+     "Initial angular velocity dpsi/dt."},
+    {"kernels.*.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return pair(Vec2(d.kernel.semi_axis_a_m, d.kernel.semi_axis_b_m));
+     },
+     "Semi-major and semi-minor axes of the ellipse. Needs a >= b."},
+    {"kernels.*.mass", KeyKind::kValue, "number", "kg", Bound{1e-12, 1e3, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.mass_kg); },
+     "Kernel mass; the polar inertia is m (a² + b²) / 4 (uniform elliptic disc)."},
+    {"kernels.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.youngs_modulus_Pa); },
+     "Young's modulus E of the kernel (Hertz contact law)."},
+    {"kernels.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.poisson_ratio); },
+     "Poisson's ratio of the kernel."},
+    {"kernels.*.pedicel", KeyKind::kOptionalSection, "section", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "absent"; },
+     "Stem holding the kernel to the panicle: a spring-damper from a fixed anchor to a point on "
+     "the kernel that breaks for good when its force exceeds the detachment force. Absent means a "
+     "free kernel. An override can only set keys inside it once it exists (`--set "
+     "kernels.0.pedicel={anchor: [x, y]}` creates it)."},
+    {"kernels.*.pedicel.anchor", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; },
+     "Fixed anchor point in the world frame."},
     {"kernels.*.pedicel.attach_point", KeyKind::kValue, "[x, y]", "m",
-     Bound{-1.0, 1.0, false, false}},
-    {"kernels.*.pedicel.stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false}},
-    {"kernels.*.pedicel.damping", KeyKind::kValue, "number", "N s/m",
-     Bound{0.0, 1e6, false, false}},
+     Bound{-1.0, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.pedicel.p_KP_K); },
+     "Attachment point in the kernel frame (origin at the centre, x along the major axis). Must "
+     "lie inside the kernel: (x/a)² + (y/b)² <= 1."},
+    {"kernels.*.pedicel.stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.stiffness_Npm); },
+     "Spring stiffness k."},
+    {"kernels.*.pedicel.damping", KeyKind::kValue, "number", "N s/m", Bound{0.0, 1e6, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.damping_Nspm); },
+     "Damping coefficient c."},
     {"kernels.*.pedicel.rest_length", KeyKind::kValue, "number", "m",
-     Bound{-1.0, 10.0, false, false}},
+     Bound{-1.0, 10.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.rest_length_m); },
+     "Rest length l0. The default -1 makes the pedicel start unloaded; a value >= 0 sets l0 "
+     "explicitly (the stem then starts stretched or compressed)."},
     {"kernels.*.pedicel.detachment_force", KeyKind::kValue, "number", "N",
-     Bound{0.0, 1e6, true, false}},
-    {"stream", KeyKind::kOptionalSection, "section", "", kNoRange},
-    {"stream.count", KeyKind::kValue, "integer", "", Bound{1.0, 10000.0, false, false}},
-    {"stream.rate", KeyKind::kValue, "number", "Hz", Bound{0.0, 1e7, true, false}},
-    {"stream.start", KeyKind::kValue, "number", "s", Bound{0.0, 1e4, false, false}},
-    {"stream.seed", KeyKind::kValue, "integer", "", Bound{0.0, 2147483647.0, false, false}},
-    {"stream.depth", KeyKind::kValue, "number", "m", Bound{-10.0, 10.0, false, false}},
-    {"stream.position_scatter", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false}},
-    {"stream.angle_scatter", KeyKind::kValue, "number", "rad", Bound{0.0, 10.0, false, false}},
-    {"stream.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false}},
-    {"stream.mass_range", KeyKind::kValue, "[lo, hi]", "kg", Bound{1e-12, 1e3, false, false}},
-    {"stream.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
-    {"stream.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
-    {"stream.pedicel_length", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false}},
-    {"stream.pedicel_stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false}},
-    {"stream.pedicel_damping", KeyKind::kValue, "number", "N s/m", Bound{0.0, 1e6, false, false}},
+     Bound{0.0, 1e6, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.detachment_force_N); },
+     "Spring-damper force at which the pedicel breaks (rice: 0.27 to 2.6 N)."},
+    {"stream", KeyKind::kOptionalSection, "section", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "absent"; },
+     "A stream of kernels on pedicels that tooth 0 meets at a set rate, generated at load time "
+     "with seeded scatter and appended after the `kernels` list (see \"Kernel stream\" below). "
+     "Needs at least one tooth and a non-zero `drum.speed`."},
+    {"stream.count", KeyKind::kValue, "integer", "", Bound{1.0, 10000.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; }, "Number of kernels."},
+    {"stream.rate", KeyKind::kValue, "number", "Hz", Bound{0.0, 1e7, true, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; },
+     "Kernels met per second: the axis of tooth 0 passes kernel j's nominal centre at `start + j / "
+     "rate`. The whole stream must pass before the next tooth reaches the first kernel's place."},
+    {"stream.start", KeyKind::kValue, "number", "s", Bound{0.0, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.stream.start_s); },
+     "When the axis of tooth 0 passes the first kernel's nominal centre."},
+    {"stream.seed", KeyKind::kValue, "integer", "", Bound{0.0, 2147483647.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.stream.seed); },
+     "Seed of the scatter; the same seed gives the same kernels on every platform."},
+    {"stream.depth", KeyKind::kValue, "number", "m", Bound{-10.0, 10.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.stream.depth_m); },
+     "Nominal kernel centres lie this far inside the circle of radius R + L (the tips of tooth 0's "
+     "axis)."},
+    {"stream.position_scatter", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.stream.position_scatter_m); },
+     "Half-width of the uniform scatter of each centre, radially and along the path."},
+    {"stream.angle_scatter", KeyKind::kValue, "number", "rad", Bound{0.0, 10.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.stream.angle_scatter_rad); },
+     "Half-width of the uniform scatter of each kernel's long axis about the radial direction."},
+    {"stream.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return pair(Vec2(d.kernel.semi_axis_a_m, d.kernel.semi_axis_b_m));
+     },
+     "Semi-axes of every kernel of the stream. Needs a >= b."},
+    {"stream.mass_range", KeyKind::kValue, "[lo, hi]", "kg", Bound{1e-12, 1e3, false, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.stream.mass_kg); },
+     "Each kernel's mass is uniform in this range (paddy 24 to 31 mg). Needs lo <= hi."},
+    {"stream.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.youngs_modulus_Pa); },
+     "Young's modulus of every kernel."},
+    {"stream.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.poisson_ratio); },
+     "Poisson's ratio of every kernel."},
+    {"stream.pedicel_length", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.stream.pedicel_length_m); },
+     "Each pedicel runs this far outward from the kernel's outer end; its rest length is that "
+     "initial distance (it starts unloaded)."},
+    {"stream.pedicel_stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.stiffness_Npm); },
+     "Pedicel spring stiffness."},
+    {"stream.pedicel_damping", KeyKind::kValue, "number", "N s/m", Bound{0.0, 1e6, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.damping_Nspm); },
+     "Pedicel damping coefficient."},
     {"stream.detachment_force_range", KeyKind::kValue, "[lo, hi]", "N",
-     Bound{0.0, 1e6, true, false}},
-    {"obstacles", KeyKind::kList, "list", "", kNoRange},
-    {"obstacles.*.type", KeyKind::kValue, "word", "", kNoRange},
-    {"obstacles.*.point", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
-    {"obstacles.*.normal", KeyKind::kValue, "[x, y]", "", Bound{-1e3, 1e3, false, false}},
-    {"obstacles.*.point_b", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
-    {"obstacles.*.center", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false}},
-    {"obstacles.*.radius", KeyKind::kValue, "number", "m", Bound{0.0, 1e3, false, false}},
-    {"obstacles.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false}},
-    {"obstacles.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true}},
-    {"contact", KeyKind::kSection, "section", "", kNoRange},
-    {"contact.tooth_kernel", KeyKind::kSection, "section", "", kNoRange},
-    {"contact.tooth_kernel.law", KeyKind::kValue, "word", "", kNoRange},
+     Bound{0.0, 1e6, true, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.stream.detach_N); },
+     "Each pedicel's detachment force is uniform in this range (rice: 0.27 to 2.6 N). Needs lo <= "
+     "hi."},
+    {"obstacles", KeyKind::kList, "list", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "[]"; },
+     "Fixed obstacles: plane (half-plane), circle (concave bar), segment (plate). Each type takes "
+     "only its own keys."},
+    {"obstacles.*.type", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "required"; }, "Obstacle shape.",
+     "plane, circle, segment"},
+    {"obstacles.*.point", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required (plane, segment)"; },
+     "Plane: a point on its boundary line. Segment: end A."},
+    {"obstacles.*.normal", KeyKind::kValue, "[x, y]", "", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required (plane)"; },
+     "Plane only: outward normal pointing to the free side; normalised by the loader. Must not be "
+     "zero."},
+    {"obstacles.*.point_b", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required (segment)"; },
+     "Segment only: end B. Must differ from `point`."},
+    {"obstacles.*.center", KeyKind::kValue, "[x, y]", "m", Bound{-1e3, 1e3, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required (circle)"; },
+     "Circle only: centre."},
+    {"obstacles.*.radius", KeyKind::kValue, "number", "m", Bound{0.0, 1e3, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.obstacle.radius_m); },
+     "Circle: radius. Segment: half-thickness (0 is a line). A circle needs > 0."},
+    {"obstacles.*.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.obstacle.youngs_modulus_Pa); },
+     "Young's modulus of the obstacle (Hertz contact law)."},
+    {"obstacles.*.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true},
+     [](const SchemaDefaults& d) -> std::string { return num(d.obstacle.poisson_ratio); },
+     "Poisson's ratio of the obstacle."},
+    {"contact", KeyKind::kSection, "section", "", kNoRange, kNoDefault,
+     "Contact laws per pair kind."},
+    {"contact.tooth_kernel", KeyKind::kSection, "section", "", kNoRange, kNoDefault,
+     "Tooth-kernel contacts. Defaults: rice-nylon (docs/model.md §10)."},
+    {"contact.tooth_kernel.law", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return lawWord(kContactDefaults[0].law); },
+     "`compliant`: Hertz force with Hunt-Crossley damping (converges as modes are added). `rigid`: "
+     "impulse at impact, then multipliers (the paper's method; needs a modal truncation whose "
+     "shortest period is long against the contact time).",
+     "compliant, rigid"},
     {"contact.tooth_kernel.restitution", KeyKind::kValue, "number", "",
-     Bound{0.0, 1.0, false, false}},
+     Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kContactDefaults[0].restitution); },
+     "Coefficient of restitution e (Newton, or the target of Hunt-Crossley)."},
     {"contact.tooth_kernel.friction", KeyKind::kValue, "number", "",
-     Bound{0.0, 100.0, false, false}},
-    {"contact.kernel_kernel", KeyKind::kSection, "section", "", kNoRange},
-    {"contact.kernel_kernel.law", KeyKind::kValue, "word", "", kNoRange},
+     Bound{0.0, 100.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kContactDefaults[0].friction); },
+     "Coulomb friction coefficient mu (static = kinetic)."},
+    {"contact.kernel_kernel", KeyKind::kSection, "section", "", kNoRange, kNoDefault,
+     "Kernel-kernel contacts. Defaults: rice-rice."},
+    {"contact.kernel_kernel.law", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return lawWord(kContactDefaults[1].law); },
+     "As for `contact.tooth_kernel.law`.", "compliant, rigid"},
     {"contact.kernel_kernel.restitution", KeyKind::kValue, "number", "",
-     Bound{0.0, 1.0, false, false}},
+     Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kContactDefaults[1].restitution); },
+     "Coefficient of restitution."},
     {"contact.kernel_kernel.friction", KeyKind::kValue, "number", "",
-     Bound{0.0, 100.0, false, false}},
-    {"contact.kernel_obstacle", KeyKind::kSection, "section", "", kNoRange},
-    {"contact.kernel_obstacle.law", KeyKind::kValue, "word", "", kNoRange},
+     Bound{0.0, 100.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kContactDefaults[1].friction); },
+     "Coulomb friction coefficient."},
+    {"contact.kernel_obstacle", KeyKind::kSection, "section", "", kNoRange, kNoDefault,
+     "Kernel-obstacle contacts. Defaults: wheat-steel (no rice-steel restitution is published; "
+     "rice-steel friction is 0.35 to 0.59)."},
+    {"contact.kernel_obstacle.law", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return lawWord(kContactDefaults[2].law); },
+     "As for `contact.tooth_kernel.law`.", "compliant, rigid"},
     {"contact.kernel_obstacle.restitution", KeyKind::kValue, "number", "",
-     Bound{0.0, 1.0, false, false}},
+     Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kContactDefaults[2].restitution); },
+     "Coefficient of restitution."},
     {"contact.kernel_obstacle.friction", KeyKind::kValue, "number", "",
-     Bound{0.0, 100.0, false, false}},
-    {"contact.hc_min_impact_speed", KeyKind::kValue, "number", "m/s", Bound{0.0, 1e3, true, false}},
-    {"gravity", KeyKind::kValue, "[x, y]", "m/s^2", Bound{-1e4, 1e4, false, false}},
-    {"integrator", KeyKind::kSection, "section", "", kNoRange},
-    {"integrator.type", KeyKind::kValue, "word", "", kNoRange},
-    {"integrator.tolerance", KeyKind::kValue, "number", "", Bound{1e-13, 0.1, false, false}},
-    {"integrator.dt", KeyKind::kValue, "number", "s", Bound{1e-9, 1e-2, false, false}},
-    {"integrator.theta", KeyKind::kValue, "number", "", Bound{0.5, 1.0, false, false}},
-    {"integrator.zeno_velocity", KeyKind::kValue, "number", "m/s", Bound{0.0, 1e3, true, false}},
-    {"integrator.max_step", KeyKind::kValue, "number", "s", Bound{1e-9, 1.0, false, false}},
-    {"integrator.free_teeth", KeyKind::kValue, "word", "", kNoRange},
-    {"integrator.islands", KeyKind::kValue, "word", "", kNoRange},
-    {"duration", KeyKind::kValue, "number", "s", Bound{0.0, 1e5, true, false}},
-    {"broadphase_margin", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false}},
-    {"macro_collision_gap", KeyKind::kValue, "number", "s", Bound{0.0, 1e3, true, false}},
-    {"deflection_validity", KeyKind::kValue, "number", "", Bound{0.0, 1.0, true, false}},
-    {"damage", KeyKind::kSection, "section", "", kNoRange},
-    {"damage.plastic_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false}},
-    {"damage.fracture_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false}},
+     Bound{0.0, 100.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kContactDefaults[2].friction); },
+     "Coulomb friction coefficient."},
+    {"contact.hc_min_impact_speed", KeyKind::kValue, "number", "m/s", Bound{0.0, 1e3, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.hc_min_impact_speed_mps); },
+     "Floor on the impact speed v_in in the Hunt-Crossley damping chi = c* / v_in, so that very "
+     "slow contacts are not over-damped."},
+    {"gravity", KeyKind::kValue, "[x, y]", "m/s^2", Bound{-1e4, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.model.gravity_mps2); },
+     "Gravitational acceleration in the world frame (acts on the kernels)."},
+    {"integrator", KeyKind::kSection, "section", "", kNoRange, kNoDefault, "Time integration."},
+    {"integrator.type", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults& d) -> std::string { return integratorWord(d.model.integrator.type); },
+     "`event_driven`: adaptive smooth steps with located contact events (accurate to the "
+     "tolerance). `time_stepping`: Moreau-Jean with a fixed step (robust, first order).",
+     "event_driven, time_stepping"},
+    {"integrator.tolerance", KeyKind::kValue, "number", "", Bound{1e-13, 0.1, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.integrator.tolerance); },
+     "Event-driven: local error and event-location tolerance."},
+    {"integrator.dt", KeyKind::kValue, "number", "s", Bound{1e-9, 1e-2, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.integrator.dt_s); },
+     "Time stepping: the fixed step h."},
+    {"integrator.theta", KeyKind::kValue, "number", "", Bound{0.5, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.integrator.theta); },
+     "Time stepping: theta of the Moreau-Jean theta-method."},
+    {"integrator.zeno_velocity", KeyKind::kValue, "number", "m/s", Bound{0.0, 1e3, true, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return num(d.model.integrator.zeno_velocity_mps);
+     },
+     "Impacts slower than this are plastic; event-driven: they close the contact (stops Zeno "
+     "accumulations). Time stepping: a closed rigid contact sinking `dt` × this below its impact "
+     "depth is moved back to it."},
+    {"integrator.max_step", KeyKind::kValue, "number", "s", Bound{1e-9, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.integrator.max_step_s); },
+     "Event-driven: largest smooth step."},
+    {"integrator.free_teeth", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults& d) -> std::string {
+       return freeTeethWord(d.model.integrator.exact_free_teeth);
+     },
+     "Event-driven: `exact` advances a tooth that touches nothing, while the drum turns at "
+     "constant speed, by the exact solution of its linear modal equations (eigendecomposition of "
+     "the tooth's state matrix, built once per drum speed) and leaves its modes out of the error "
+     "control; `integrated` integrates every tooth with Dormand-Prince.",
+     "exact, integrated"},
+    {"integrator.islands", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults& d) -> std::string { return trueFalse(d.model.integrator.islands); },
+     "Both integrators: `true` runs the asynchronous island-local scheme (lone bodies on their own "
+     "clocks in closed form or with their own small integrator, only bodies that can touch "
+     "integrated together, each island on its own; see [architecture.md](architecture.md)); "
+     "`false` advances every body with every step and event (the reference).",
+     "true, false"},
+    {"duration", KeyKind::kValue, "number", "s", Bound{0.0, 1e5, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.duration_s); },
+     "Length of a run (`simulate` runs to it)."},
+    {"broadphase_margin", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.broadphase_margin_m); },
+     "Pairs farther apart than this are not examined by the narrow phase."},
+    {"macro_collision_gap", KeyKind::kValue, "number", "s", Bound{0.0, 1e3, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.macro_collision_gap_s); },
+     "Contact episodes of one pair belong to the same macro-collision while each starts less than "
+     "this after the previous one ended; each episode (compliant law) or impact (rigid law) is one "
+     "sub-collision."},
+    {"deflection_validity", KeyKind::kValue, "number", "", Bound{0.0, 1.0, true, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return num(d.model.deflection_validity_fraction);
+     },
+     "Validity range of the small-deflection beam model as a fraction of the tooth length: once a "
+     "tooth tip deflects by more than this times L, the run records one warning (`stats.warnings`, "
+     "`simulate`'s summary, the node's `/diagnostics` at WARN level) with the time and the ratio; "
+     "`max_tip_deflection_ratio` in the JSON summary is the largest \\|w(L)\\|/L of the run."},
+    {"damage", KeyKind::kSection, "section", "", kNoRange, kNoDefault,
+     "Damage thresholds for the per-kernel outcomes (not part of the physics)."},
+    {"damage.plastic_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.damage.plastic_force_N); },
+     "A kernel whose largest contact force reaches this is damaged (plastic deformation)."},
+    {"damage.fracture_force", KeyKind::kValue, "number", "N", Bound{0.0, 1e6, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.damage.fracture_force_N); },
+     "A kernel whose largest contact force reaches this is fractured (brittle fracture). Must be "
+     ">= `damage.plastic_force`."},
 };
 
 // Keys allowed on each obstacle type.
@@ -174,13 +485,6 @@ const std::vector<std::string> kSegmentKeys = {"type",   "point",          "poin
 
 // Names of the contact sections, indexed by PairKind.
 const char* const kPairKeys[3] = {"tooth_kernel", "kernel_kernel", "kernel_obstacle"};
-
-// Contact defaults from docs/model.md §10: rice-nylon, rice-rice, wheat-steel.
-const ContactParams kContactDefaults[3] = {
-    {ContactLaw::kCompliant, 0.48, 0.53},
-    {ContactLaw::kRigid, 0.34, 0.66},
-    {ContactLaw::kRigid, 0.47, 0.50},
-};
 
 // The schema entry for a pattern such as "teeth.*.length", or nullptr.
 const KeySpec* findKey(const std::string& pattern) {
@@ -250,6 +554,17 @@ std::string show(double value) {
 }
 std::string show(const Vec2& v) { return "[" + show(v.x()) + ", " + show(v.y()) + "]"; }
 
+// "a, b, c" -> {a, b, c} (a schema entry's words).
+std::vector<std::string> splitWords(const std::string& text) {
+  std::vector<std::string> words;
+  for (size_t start = 0; start <= text.size();) {
+    const size_t comma = std::min(text.find(", ", start), text.size());
+    words.push_back(text.substr(start, comma - start));
+    start = comma + 2;
+  }
+  return words;
+}
+
 std::string joinWords(const std::vector<std::string>& words) {
   std::string out;
   for (const std::string& w : words) out += (out.empty() ? "" : ", ") + w;
@@ -295,8 +610,8 @@ std::string unknownKey(const std::string& key, const std::vector<std::string>& k
 // Reading values with their bounds.
 
 std::string Bound::text() const {
-  if (std::isinf(hi)) return (lo_open ? "> " : ">= ") + show(lo);
-  return std::string("in ") + (lo_open ? "(" : "[") + show(lo) + ", " + show(hi) +
+  if (std::isinf(hi)) return (lo_open ? "> " : ">= ") + num(lo);
+  return std::string("in ") + (lo_open ? "(" : "[") + num(lo) + ", " + num(hi) +
          (hi_open ? ")" : "]");
 }
 
@@ -396,17 +711,25 @@ class Section {
     return v;
   }
 
+  // The schema words of a word key of this section.
+  std::vector<std::string> wordsOf(const std::string& key) const {
+    const KeySpec* spec = findKey(patternOf(path(key)));
+    return spec != nullptr && spec->words != nullptr ? splitWords(spec->words)
+                                                     : std::vector<std::string>();
+  }
+
   // The schema range of a key of this section ("teeth.3" + "length" -> "teeth.*.length").
   const Bound& rangeOf(const std::string& key) const {
     const KeySpec* spec = findKey(patternOf(path(key)));
     return spec != nullptr ? spec->range : kNoRange;
   }
 
-  // One of a fixed set of words.
-  std::string word(const std::string& key, const std::string& fallback, const std::string& what,
-                   const std::vector<std::string>& allowed) const {
+  // One of the key's schema words.
+  std::string word(const std::string& key, const std::string& fallback,
+                   const std::string& what) const {
     if (!has(key)) return fallback;
     const YAML::Node n = node(key);
+    const std::vector<std::string> allowed = wordsOf(key);
     if (!n.IsScalar() || std::find(allowed.begin(), allowed.end(), n.Scalar()) == allowed.end()) {
       const std::string got = n.IsScalar() ? "'" + n.Scalar() + "'" : show(n);
       fail(path(key),
@@ -456,18 +779,18 @@ ToothModel readTooth(const Section& s) {
   // modes: auto (the default) lets compileModel choose the count (model.cc, chooseModeCount).
   const bool auto_modes =
       !s.has("modes") || (s.node("modes").IsScalar() && s.node("modes").Tag() != "!" &&
-                          s.node("modes").Scalar() == "auto");
+                          s.node("modes").Scalar() == kAutoModesWord);
   t.n_modes = auto_modes ? kAutoModes : s.integer("modes", t.n_modes);
   t.damping_ratio = s.number("damping_ratio", t.damping_ratio);
   t.poisson_ratio = s.number("poisson_ratio", t.poisson_ratio);
   t.n_stations = s.integer("stations", t.n_stations);
   // modal: assumed modes (small deflection); large_deflection: the exact planar rod, whose
   // `modes` are its Ritz shape functions (docs/large_deflection.md).
-  const std::string model = s.word("model", "modal", "tooth model", {"modal", "large_deflection"});
+  const std::string model = s.word("model", toothModelWord(t.beam_model), "tooth model");
   t.beam_model =
       model == "large_deflection" ? ToothBeamModel::kLargeDeflection : ToothBeamModel::kModal;
   t.static_correction =
-      s.word("static_correction", "on", "static correction", {"on", "off"}) == "on";
+      s.word("static_correction", onOff(t.static_correction), "static correction") == "on";
   return t;
 }
 
@@ -523,7 +846,7 @@ KernelModel readKernel(const Section& s) {
 ObstacleModel readObstacle(const YAML::Node& node, const std::string& path) {
   const Section any(node, path, childKeys("obstacles.*"));
   any.require("type");
-  const std::string type = any.word("type", "", "obstacle type", {"plane", "circle", "segment"});
+  const std::string type = any.word("type", "", "obstacle type");
   ObstacleModel o;
   if (type == "plane") {
     const Section s(node, path, kPlaneKeys, "a plane obstacle");
@@ -567,8 +890,7 @@ void readContact(const Section& scene, Model* model) {
     const std::string key = kPairKeys[kind];
     const Section pair = s.section(key, "contact." + key);
     ContactParams p = kContactDefaults[kind];
-    const std::string law = pair.word("law", p.law == ContactLaw::kRigid ? "rigid" : "compliant",
-                                      "contact law", {"compliant", "rigid"});
+    const std::string law = pair.word("law", lawWord(p.law), "contact law");
     p.law = law == "rigid" ? ContactLaw::kRigid : ContactLaw::kCompliant;
     p.restitution = pair.number("restitution", p.restitution);
     p.friction = pair.number("friction", p.friction);
@@ -579,9 +901,7 @@ void readContact(const Section& scene, Model* model) {
 
 void readIntegrator(const Section& scene, IntegratorParams* integrator) {
   const Section s = scene.section("integrator", "integrator");
-  const std::string type = s.word(
-      "type", integrator->type == IntegratorType::kTimeStepping ? "time_stepping" : "event_driven",
-      "integrator type", {"event_driven", "time_stepping"});
+  const std::string type = s.word("type", integratorWord(integrator->type), "integrator type");
   integrator->type =
       type == "time_stepping" ? IntegratorType::kTimeStepping : IntegratorType::kEventDriven;
   integrator->tolerance = s.number("tolerance", integrator->tolerance);
@@ -590,11 +910,10 @@ void readIntegrator(const Section& scene, IntegratorParams* integrator) {
   integrator->zeno_velocity_mps = s.number("zeno_velocity", integrator->zeno_velocity_mps);
   integrator->max_step_s = s.number("max_step", integrator->max_step_s);
   const std::string free_teeth =
-      s.word("free_teeth", integrator->exact_free_teeth ? "exact" : "integrated",
-             "free tooth propagation", {"exact", "integrated"});
+      s.word("free_teeth", freeTeethWord(integrator->exact_free_teeth), "free tooth propagation");
   integrator->exact_free_teeth = free_teeth == "exact";
-  const std::string islands = s.word("islands", integrator->islands ? "true" : "false",
-                                     "island-local scheme", {"true", "false"});
+  const std::string islands =
+      s.word("islands", trueFalse(integrator->islands), "island-local scheme");
   integrator->islands = islands == "true";
 }
 
@@ -674,31 +993,18 @@ double angleToNextTooth(const Model& model, double direction) {
 }
 
 // The stream's parameters, and the kernel every draw starts from.
-struct StreamSpec {
-  int count = 0;                  // kernels [-]
-  double rate_Hz = 0;             // kernels per second of drum time [1/s]
-  double start_s = 0;             // arrival of the first kernel [s]
-  int seed = 1;                   // seed of the scatter [-]
-  double depth_m = 0;             // centre depth inside the tip circle [m]
-  double position_scatter_m = 0;  // +- radial and along-path scatter [m]
-  double angle_scatter_rad = 0;   // +- orientation scatter [rad]
-  double pedicel_length_m = 0;    // pedicel from the kernel's end to its anchor [m]
-  Vec2 mass_kg;                   // mass range [kg]
-  Vec2 detach_N;                  // detachment force range [N]
-  KernelModel base;               // semi-axes, material, pedicel law
-};
 
 StreamSpec readStreamSpec(const Section& s) {
   StreamSpec spec;
   s.require("count");
   s.require("rate");
-  spec.count = s.integer("count", 1);
-  spec.rate_Hz = s.number("rate", 1.0);
-  spec.start_s = s.number("start", 5e-4);
-  spec.seed = s.integer("seed", 1);
-  spec.depth_m = s.number("depth", 0.005);
-  spec.position_scatter_m = s.number("position_scatter", 0.001);
-  spec.angle_scatter_rad = s.number("angle_scatter", 0.5);
+  spec.count = s.integer("count", spec.count);
+  spec.rate_Hz = s.number("rate", spec.rate_Hz);
+  spec.start_s = s.number("start", spec.start_s);
+  spec.seed = s.integer("seed", spec.seed);
+  spec.depth_m = s.number("depth", spec.depth_m);
+  spec.position_scatter_m = s.number("position_scatter", spec.position_scatter_m);
+  spec.angle_scatter_rad = s.number("angle_scatter", spec.angle_scatter_rad);
   KernelModel& base = spec.base;
   const Vec2 axes = s.vec2("semi_axes", Vec2(base.semi_axis_a_m, base.semi_axis_b_m));
   if (axes.minCoeff() <= 0 || axes.x() < axes.y()) {
@@ -707,16 +1013,16 @@ StreamSpec readStreamSpec(const Section& s) {
   }
   base.semi_axis_a_m = axes.x();
   base.semi_axis_b_m = axes.y();
-  spec.mass_kg = positiveRange(s, "mass_range", Vec2(2.4e-5, 3.1e-5));
+  spec.mass_kg = positiveRange(s, "mass_range", spec.mass_kg);
   base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa);
   base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio);
-  spec.pedicel_length_m = s.number("pedicel_length", 0.003);
+  spec.pedicel_length_m = s.number("pedicel_length", spec.pedicel_length_m);
   base.pedicel.present = true;
   base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm);
   base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm);
   base.pedicel.rest_length_m = -1.0;
   base.pedicel.p_KP_K = Vec2(base.semi_axis_a_m, 0.0);
-  spec.detach_N = positiveRange(s, "detachment_force_range", Vec2(0.27, 2.6));
+  spec.detach_N = positiveRange(s, "detachment_force_range", spec.detach_N);
   return spec;
 }
 
@@ -1062,14 +1368,29 @@ Model loadScene(const std::string& path, const std::vector<std::string>& overrid
 }
 
 std::string sceneSchemaTable() {
+  const SchemaDefaults defaults;
   std::string out =
-      "| key path | type | unit | range |\n"
-      "|---|---|---|---|\n";
+      "| key path | type | unit | default | range | meaning |\n"
+      "|---|---|---|---|---|---|\n";
   for (const KeySpec& spec : kSchema) {
     const bool ranged = !std::isinf(spec.range.lo) || !std::isinf(spec.range.hi);
-    out += std::string("| `") + spec.path + "` | " + spec.type + " | " + spec.unit + " | " +
-           (ranged ? spec.range.text() : "") + " |\n";
+    const std::string dflt = spec.default_text ? spec.default_text(defaults) : "";
+    std::string range = ranged ? spec.range.text() : "";
+    if (spec.words != nullptr) {
+      for (const std::string& w : splitWords(spec.words))
+        range += (range.empty() ? "`" : ", `") + w + "`";
+    }
+    out += std::string("| `") + spec.path + "` | " + spec.type + " | " + spec.unit + " | " + dflt +
+           " | " + range + " | " + spec.doc + " |\n";
   }
+  return out;
+}
+
+std::vector<std::pair<std::string, std::string>> sceneSchemaDefaults() {
+  const SchemaDefaults defaults;
+  std::vector<std::pair<std::string, std::string>> out;
+  for (const KeySpec& spec : kSchema)
+    out.emplace_back(spec.path, spec.default_text ? spec.default_text(defaults) : "");
   return out;
 }
 

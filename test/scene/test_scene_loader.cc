@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iomanip>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -232,7 +233,7 @@ TEST(SceneLoader, RefusesBadValues) {
       // Non-positive sizes, moduli and times.
       {"kernels.0.mass=-1", {"kernels.0.mass", "in [1e-12, 1000]", "-1"}},
       {"kernels.0.mass=0", {"kernels.0.mass", "0"}},
-      {"teeth.0.length=0", {"teeth.0.length", "in [1e-05, 10]", "0"}},
+      {"teeth.0.length=0", {"teeth.0.length", "in [1e-5, 10]", "0"}},
       {"teeth.0.diameter=-0.01", {"teeth.0.diameter", "-0.01"}},
       {"teeth.0.youngs_modulus=0", {"teeth.0.youngs_modulus", "0"}},
       {"teeth.0.density=-1140", {"teeth.0.density", "-1140"}},
@@ -274,7 +275,7 @@ TEST(SceneLoader, RefusesBadValues) {
       // Semi-axes.
       {"kernels.0.semi_axes=[1.0e-3, 2.0e-3]",
        {"kernels.0.semi_axes", "a must be >= b", "[1.0e-3, 2.0e-3]"}},
-      {"kernels.0.semi_axes=[1.0e-3, 0]", {"kernels.0.semi_axes", "in [1e-06, 1]", "[1.0e-3, 0]"}},
+      {"kernels.0.semi_axes=[1.0e-3, 0]", {"kernels.0.semi_axes", "in [1e-6, 1]", "[1.0e-3, 0]"}},
       // Ratios and coefficients.
       {"contact.tooth_kernel.restitution=1.5", {"contact.tooth_kernel.restitution", "1.5"}},
       {"contact.kernel_obstacle.restitution=-0.1", {"contact.kernel_obstacle.restitution", "-0.1"}},
@@ -459,13 +460,91 @@ TEST(SceneLoader, ReferenceDocumentsEveryKey) {
   std::vector<std::string> documented;
   bool inside = false;
   for (std::string line; std::getline(file, line);) {
-    if (line.rfind("<!-- scene-reference:", 0) == 0) inside = true;
+    if (line.rfind("<!-- scene-reference -->", 0) == 0) inside = true;
     if (line.rfind("<!-- scene-reference-end", 0) == 0) inside = false;
     if (!inside || line.rfind("| `", 0) != 0) continue;
     const size_t end = line.find('`', 3);
     documented.push_back(line.substr(3, end - 3));
   }
   EXPECT_EQ(documented, sceneKeyPaths());
+}
+
+// The schema's defaults are the loader's: for every key with a default, a scene that leaves the
+// key out and one that sets it to the default the reference prints load to the same Model.
+// Minimal scenes: a tooth, a kernel on a pedicel and one obstacle of each type; a tooth and a
+// stream (stream.* keys).
+const char kMinimalScene[] = R"(
+teeth: [{}]
+kernels: [{position: [0.0, 0.3], pedicel: {anchor: [0.0, 0.31]}}]
+obstacles:
+  - {type: plane, point: [0.0, -0.5], normal: [0.0, 1.0]}
+  - {type: circle, center: [0.3, -0.3]}
+  - {type: segment, point: [-0.4, -0.4], point_b: [-0.3, -0.4]}
+)";
+const char kMinimalStream[] = R"(
+teeth: [{}]
+stream: {count: 3, rate: 2000}
+)";
+
+// Everything a scene key sets in a Model (and its damage thresholds), printed exactly.
+std::string fingerprint(const YAML::Node& root) {
+  const Model m = modelFromYaml(root);
+  const DamageThresholds dmg = damageFromYaml(root);
+  std::ostringstream o;
+  o << std::setprecision(17);
+  const auto v2 = [&](const Vec2& v) { o << v.x() << ',' << v.y() << ' '; };
+  o << m.drum.radius_m << ' ' << m.drum.initial_speed_radps << ' ' << m.drum.initial_angle_rad
+    << ' ' << m.drum.max_acceleration_radps2 << '\n';
+  for (const ToothModel& t : m.teeth)
+    o << t.mount_angle_rad << ' ' << t.length_m << ' ' << t.diameter_m << ' ' << t.youngs_modulus_Pa
+      << ' ' << t.poisson_ratio << ' ' << t.density_kgpm3 << ' ' << t.n_modes << ' '
+      << t.damping_ratio << ' ' << t.n_stations << ' ' << static_cast<int>(t.beam_model) << ' '
+      << t.static_correction << '\n';
+  for (const KernelModel& k : m.kernels) {
+    v2(k.initial_position_m);
+    v2(k.initial_velocity_mps);
+    o << k.initial_angle_rad << ' ' << k.initial_angular_velocity_radps << ' ' << k.semi_axis_a_m
+      << ' ' << k.semi_axis_b_m << ' ' << k.mass_kg << ' ' << k.youngs_modulus_Pa << ' '
+      << k.poisson_ratio << ' ' << k.pedicel.present << ' ';
+    v2(k.pedicel.p_WA_W);
+    v2(k.pedicel.p_KP_K);
+    o << k.pedicel.stiffness_Npm << ' ' << k.pedicel.damping_Nspm << ' ' << k.pedicel.rest_length_m
+      << ' ' << k.pedicel.detachment_force_N << '\n';
+  }
+  for (const ObstacleModel& b : m.obstacles)
+    o << b.radius_m << ' ' << b.youngs_modulus_Pa << ' ' << b.poisson_ratio << '\n';
+  for (const ContactParams& c : m.contact)
+    o << static_cast<int>(c.law) << ' ' << c.restitution << ' ' << c.friction << '\n';
+  v2(m.gravity_mps2);
+  const IntegratorParams& i = m.integrator;
+  o << m.hc_min_impact_speed_mps << ' ' << static_cast<int>(i.type) << ' ' << i.tolerance << ' '
+    << i.dt_s << ' ' << i.theta << ' ' << i.zeno_velocity_mps << ' ' << i.max_step_s << ' '
+    << i.exact_free_teeth << ' ' << i.islands << ' ' << m.duration_s << ' ' << m.broadphase_margin_m
+    << ' ' << m.macro_collision_gap_s << ' ' << m.deflection_validity_fraction << ' '
+    << dmg.plastic_force_N << ' ' << dmg.fracture_force_N;
+  return o.str();
+}
+
+TEST(SceneLoader, SchemaDefaultsAreTheLoadersDefaults) {
+  int checked = 0;
+  for (const auto& [path, value] : sceneSchemaDefaults()) {
+    if (value.empty() || value == "[]" || value == "absent" || value.rfind("required", 0) == 0)
+      continue;
+    SCOPED_TRACE(path + " = " + value);
+    const bool stream = path.rfind("stream.", 0) == 0;
+    const YAML::Node absent = YAML::Load(stream ? kMinimalStream : kMinimalScene);
+    YAML::Node set = YAML::Clone(absent);
+    std::string written = path;
+    if (path == "obstacles.*.radius") written = "obstacles.1.radius";  // circles and segments
+    applyOverride(&set, written + "=" + value);
+    EXPECT_EQ(fingerprint(set), fingerprint(absent));
+    ++checked;
+  }
+  EXPECT_GT(checked, 60);
+  // The fingerprint sees a key set away from its default (so the comparison can fail).
+  YAML::Node moved = YAML::Load(kMinimalScene);
+  applyOverride(&moved, "teeth.0.poisson_ratio=0.36");
+  EXPECT_NE(fingerprint(moved), fingerprint(YAML::Load(kMinimalScene)));
 }
 
 // ---------------------------------------------------------------------------------------------

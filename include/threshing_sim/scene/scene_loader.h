@@ -9,6 +9,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "threshing_sim/core/model.h"
@@ -50,9 +51,14 @@ DamageThresholds damageFromYaml(const YAML::Node& root);
 Model loadScene(const std::string& path, const std::vector<std::string>& overrides = {},
                 DamageThresholds* damage = nullptr);
 
-// The schema as a Markdown table: every key path with its type, unit and accepted range (each
-// range finite). `simulate --print-schema` prints it; docs/scene_ranges.md is its output.
+// The schema as a Markdown table: every key path with its type, unit, default, accepted range
+// (each finite) or words, and meaning. `simulate --print-schema` prints it; docs/
+// scene_reference.md's key table is its output (scripts/scene_reference.sh).
 std::string sceneSchemaTable();
+
+// Every key's default as the reference prints it, by key path ("" for a section, "required",
+// "absent" for an optional section, "[]" for a list).
+std::vector<std::pair<std::string, std::string>> sceneSchemaDefaults();
 
 // Every key path a scene may hold, list items written as "*" (e.g. "teeth.*.length"), in
 // document order. docs/scene_reference.md has one row per path.
