@@ -6,7 +6,7 @@ duration, checks the properties every hard case must keep (issue 5), and writes 
 table as markdown: scene, integrator, passed properties, worst energy error, worst
 penetration, steps per simulated second, wall time.
 
-The short versions of the same scenes run in CI (test/core/test_hard_cases.cc), with the
+The short versions of the same scenes run in CI (test/core/hard_cases/), with the
 closed forms, the convergence and agreement checks that need several runs. This script adds
 what only a long run shows: progress over a long simulated time, energy that drifts up
 slowly, contacts that creep or sink, memory that grows with the run.
@@ -180,7 +180,7 @@ def penetration_bound(scene, doc, integrator):
 
 def hertz_indentation(tooth, kernel, v):
     """(5 m v^2 / (4 K))^(2/5) with the smallest Hertz constant of the pair (the kernel's
-    sharpest curvature b^2/a against the tooth's round tip), as in test_hard_cases.cc."""
+    sharpest curvature b^2/a against the tooth's round tip), as in test/core/hard_cases/."""
     e_t, nu_t = num(tooth, "youngs_modulus", 3e9), num(tooth, "poisson_ratio", 0.35)
     e_k, nu_k = num(kernel, "youngs_modulus", 2.8e8), num(kernel, "poisson_ratio", 0.3)
     a, b = (float(x) for x in kernel.get("semi_axes", [5e-3, 1.3e-3]))
@@ -304,7 +304,7 @@ The ten scenes of `config/hard/` are the configurations contact simulators fail 
 accumulation, grazing, stick-slip at the friction limit, simultaneous impacts, the Painleve
 configuration, a very stiff and a very soft tooth, a wedged kernel, a violent drum command and
 a long run. Each file's header says what makes it hard and where its values come from. Their
-short versions run in CI for both integrators (`test/core/test_hard_cases.cc`: closed forms,
+short versions run in CI for both integrators (`test/core/hard_cases/`: closed forms,
 convergence as the knob is refined, agreement of the two integrators within their error
 estimates, order independence, bit-identical reruns, no energy gain, bounded penetration and
 progress). The long versions below are made by the command below ({wall_minutes:.1f} minutes
