@@ -983,7 +983,7 @@ def write_csv(path, rows):
 
 # ------------------------------------------------------------------------------------------
 
-def main():
+def parse_args():
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="tiny CI version into --out")
@@ -1006,7 +1006,56 @@ def main():
     ap.add_argument("--sparse", type=int, metavar="N",
                     help="with --stream-kernels: N kernels of the stream in reach, the rest "
                          "hanging at rest out of reach")
-    args = ap.parse_args()
+    return ap.parse_args()
+
+
+def configuration(args):
+    """The sweep's settings, scenes, output folder and cache: the CI's tiny version (--quick) or
+    the full one."""
+    if args.quick:
+        cfg = {"tolerances": [1e-4, 1e-7], "steps": [1e-5, 1e-6], "stream_steps": [1e-5, 1e-6],
+               "ref_tol": 1e-9, "ref_dt": 1e-7, "stream_ref_dt": 1e-7, "mode_steps": [2],
+               "reps": 2, "budget": 5.0, "samples": 200, "kernel_counts": [1, 10],
+               "mode_counts": [0, 2], "scaling_reps": 1, "node_duration": NODE_DURATION_S,
+               "time_limit": 10.0}
+        out = pathlib.Path(args.out or tempfile.mkdtemp(prefix="bench_quick_"))
+        return cfg, ["single_strike"], out, out / "cache"
+    cfg = {"tolerances": TOLERANCES, "steps": STEPS_S, "stream_steps": STREAM_STEPS_S,
+           "ref_tol": REF_TOLERANCE, "ref_dt": REF_DT_S, "stream_ref_dt": STREAM_REF_DT_S,
+           "mode_steps": [1, 2], "reps": args.reps, "budget": 20.0, "samples": 200,
+           "kernel_counts": KERNEL_COUNTS, "mode_counts": MODE_COUNTS, "scaling_reps": 3,
+           "node_duration": NODE_DURATION_S, "time_limit": 60.0}
+    return cfg, list(SCENES), pathlib.Path(args.out) if args.out else DOCS, CACHE_DIR
+
+
+def quick_problems(rows, refs, names, fig_dir):
+    """The CI checks of the quick sweep: errors fall with the knob, the references agree, the
+    figures exist."""
+    problems = []
+    for name in names:
+        for integrator in INTEGRATOR_STYLE:
+            sel = sorted((r for r in rows if r["scene"] == name and
+                          r["integrator"] == integrator), key=lambda r: -r["knob"])
+            # Exit velocity and pose converge under both integrators; the force peaks of
+            # time stepping are impulses over one step and need not improve between two
+            # coarse steps (see docs/bench.md).
+            for m in ("exit_velocity", "pose"):
+                if not sel[-1][m] < sel[0][m]:
+                    problems.append(f"{name} {integrator}: {m} error does not fall with the "
+                                    f"knob ({sel[0][m]:.3g} -> {sel[-1][m]:.3g})")
+    for name in names:
+        a = refs[name]["agreement"]
+        if not a["exit_velocity"] < 1e-3:
+            problems.append(f"{name}: references disagree on the exit velocity "
+                            f"({a['exit_velocity']:.3g})")
+    for f in ("wp_single_strike.png", "scaling.png", "work_precision.csv", "scaling.csv"):
+        if not (fig_dir / f).exists() or (fig_dir / f).stat().st_size < 500:
+            problems.append(f"{f} missing")
+    return problems
+
+
+def main():
+    args = parse_args()
     if args.stream_kernels is not None:
         idle = ("sparse", args.sparse) if args.sparse is not None else (args.idle or False)
         sys.stdout.write(stream_override_text(args.stream_kernels, idle))
@@ -1016,24 +1065,7 @@ def main():
     bench_bin = pathlib.Path(args.bin) / "bench_work_precision"
     if not bench_bin.exists():
         raise SystemExit(f"bench: {bench_bin} not found: build first (bash scripts/setup.sh)")
-    if args.quick:
-        cfg = {"tolerances": [1e-4, 1e-7], "steps": [1e-5, 1e-6], "stream_steps": [1e-5, 1e-6],
-               "ref_tol": 1e-9, "ref_dt": 1e-7, "stream_ref_dt": 1e-7, "mode_steps": [2],
-               "reps": 2, "budget": 5.0, "samples": 200, "kernel_counts": [1, 10],
-               "mode_counts": [0, 2], "scaling_reps": 1, "node_duration": NODE_DURATION_S,
-               "time_limit": 10.0}
-        names = ["single_strike"]
-        out = pathlib.Path(args.out or tempfile.mkdtemp(prefix="bench_quick_"))
-        cache = out / "cache"
-    else:
-        cfg = {"tolerances": TOLERANCES, "steps": STEPS_S, "stream_steps": STREAM_STEPS_S,
-               "ref_tol": REF_TOLERANCE, "ref_dt": REF_DT_S, "stream_ref_dt": STREAM_REF_DT_S,
-               "mode_steps": [1, 2], "reps": args.reps, "budget": 20.0, "samples": 200,
-               "kernel_counts": KERNEL_COUNTS, "mode_counts": MODE_COUNTS, "scaling_reps": 3,
-               "node_duration": NODE_DURATION_S, "time_limit": 60.0}
-        names = list(SCENES)
-        out = pathlib.Path(args.out) if args.out else DOCS
-        cache = CACHE_DIR
+    cfg, names, out, cache = configuration(args)
     fig_dir = out / "bench"
     fig_dir.mkdir(parents=True, exist_ok=True)
     gen_dir = cache.parent / "generated" if not args.quick else out / "generated"
@@ -1080,25 +1112,7 @@ def main():
         if not r["deterministic"]:
             problems.append(f"{r['scene']} {r['integrator']} {r['knob']:g}: reruns differ")
     if args.quick:
-        for name in names:
-            for integrator in INTEGRATOR_STYLE:
-                sel = sorted((r for r in rows if r["scene"] == name and
-                              r["integrator"] == integrator), key=lambda r: -r["knob"])
-                # Exit velocity and pose converge under both integrators; the force peaks of
-                # time stepping are impulses over one step and need not improve between two
-                # coarse steps (see docs/bench.md).
-                for m in ("exit_velocity", "pose"):
-                    if not sel[-1][m] < sel[0][m]:
-                        problems.append(f"{name} {integrator}: {m} error does not fall with the "
-                                        f"knob ({sel[0][m]:.3g} -> {sel[-1][m]:.3g})")
-        for name in names:
-            a = refs[name]["agreement"]
-            if not a["exit_velocity"] < 1e-3:
-                problems.append(f"{name}: references disagree on the exit velocity "
-                                f"({a['exit_velocity']:.3g})")
-        for f in ("wp_single_strike.png", "scaling.png", "work_precision.csv", "scaling.csv"):
-            if not (fig_dir / f).exists() or (fig_dir / f).stat().st_size < 500:
-                problems.append(f"{f} missing")
+        problems += quick_problems(rows, refs, names, fig_dir)
     for p in problems:
         say(f"bench: PROBLEM: {p}")
     return 1 if problems else 0

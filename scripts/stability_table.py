@@ -440,7 +440,7 @@ def fmt_duration(seconds):
 # ---------------------------------------------------------------------------------------------
 # Main.
 
-def main():
+def parse_args():
     parser = argparse.ArgumentParser(
         description="Run the long versions of the hard cases and write the stability table.")
     parser.add_argument("--simulate", help="path of the simulate binary (default: "
@@ -472,19 +472,84 @@ def main():
     args = parser.parse_args()
     if not args.scale > 0:
         parser.error("--scale must be > 0")
+    return parser, args
+
+
+def render_saved(args):
+    """--render: the document from results saved by --save (joined in the order given)."""
+    commands, rows, notes, all_ok, wall_s = [], [], [], True, 0.0
+    for path in args.render:
+        with open(path) as f:
+            saved = json.load(f)
+        commands.append(saved["command"])
+        rows += [tuple(r) for r in saved["rows"]]
+        notes += [n for n in saved["notes"] if n not in notes]
+        all_ok = all_ok and saved["all_ok"]
+        wall_s = max(wall_s, saved.get("wall_s", 0.0))  # the runs went side by side
+    write_document("\n    ".join(commands), rows, notes, args.output, wall_s, args.readme,
+                   args.marker)
+    return 0 if all_ok else 1
+
+
+def run_row(simulate, scene, doc, integrator, args):
+    """One scene under one integrator: its long run, two short reruns for determinism, the
+    properties checked (printed) and the table row. Returns (row, all properties passed)."""
+    duration = scene.duration_s * args.scale
+    if scene.quick_duration_s and not args.full:
+        duration = scene.quick_duration_s * args.scale
+    print("scene %s %s: %g s ..." % (scene.key, integrator, duration),
+          file=sys.stderr, flush=True)
+    code, summary, wall, memory, stderr = run_simulate(simulate, scene, integrator, duration)
+    short = min(duration / 10, 10.0)
+    _, first, _, _, _ = run_simulate(simulate, scene, integrator, short)
+    _, second, _, _, _ = run_simulate(simulate, scene, integrator, short)
+    rerun_same = (first is not None and second is not None
+                  and without_wall_time(first) == without_wall_time(second))
+    props = evaluate(scene, doc, integrator, duration, code, summary, memory, rerun_same)
+    failed = [p for p in props if not p[1]]
+    passed = "%d/%d" % (len(props) - len(failed), len(props))
+    if failed:
+        passed += ": FAILED " + "; ".join("%s (%s)" % (n, d) for n, _, d in failed)
+    for name, ok, detail in props:
+        print("  %-16s %s  %s" % (name, "ok  " if ok else "FAIL", detail), file=sys.stderr)
+    if stderr:
+        print("  stderr: " + stderr[-500:], file=sys.stderr)
+    title = "%s %s" % (scene.key, scene.title)
+    if summary is None:
+        return (title, integrator, fmt_duration(duration), passed, "-", "-", "-",
+                "%.1f" % wall), not failed
+    gain = max(summary["max_energy_gain_at_impact_J"],
+               summary["energy_final_J"] - summary["energy_initial_J"]
+               - summary["drive_work_J"])
+    return (title, integrator, fmt_duration(summary["sim_time_s"]), passed, "%.2e" % gain,
+            "%.2e" % summary["max_penetration_m"],
+            "%.3g" % (summary["steps"] / summary["sim_time_s"]), "%.1f" % wall), not failed
+
+
+def shown_command(simulate):
+    """The command as run, with a workspace-independent simulate path (--save and --render,
+    which only keep or read a copy of the results, left out)."""
+    shown, argv = [], sys.argv[1:]
+    for i, a in enumerate(argv):
+        if a == "--save" or (i > 0 and argv[i - 1] == "--save") or a.startswith("--save="):
+            continue
+        if a == "--render" or (i > 0 and argv[i - 1] == "--render"):
+            continue
+        if a == simulate and os.path.isabs(a):
+            # The repository's own build as a relative path; another workspace's as WORKSPACE/.
+            rel = os.path.relpath(a, PACKAGE_DIR)
+            if not rel.startswith(".."):
+                a = rel
+            elif "/devel/lib/" in a:
+                a = "WORKSPACE/devel/lib/" + a.split("/devel/lib/", 1)[1]
+        shown.append(a if " " not in a else "'%s'" % a)
+    return "scripts/stability_table.py " + " ".join(shown)
+
+
+def main():
+    parser, args = parse_args()
     if args.render:
-        commands, rows, notes, all_ok, wall_s = [], [], [], True, 0.0
-        for path in args.render:
-            with open(path) as f:
-                saved = json.load(f)
-            commands.append(saved["command"])
-            rows += [tuple(r) for r in saved["rows"]]
-            notes += [n for n in saved["notes"] if n not in notes]
-            all_ok = all_ok and saved["all_ok"]
-            wall_s = max(wall_s, saved.get("wall_s", 0.0))  # the runs went side by side
-        write_document("\n    ".join(commands), rows, notes, args.output, wall_s, args.readme,
-                       args.marker)
-        return 0 if all_ok else 1
+        return render_saved(args)
     simulate = str(find_binary("simulate", args.simulate, search=True))
     scenes = [s for s in SCENES if not args.scenes or s.key in args.scenes]
     if not scenes:
@@ -500,58 +565,11 @@ def main():
         if scene.note and not (scene.quick_duration_s and args.full):
             notes.append("Scene %s: %s." % (scene.key, scene.note))
         for integrator in args.integrators:
-            duration = scene.duration_s * args.scale
-            if scene.quick_duration_s and not args.full:
-                duration = scene.quick_duration_s * args.scale
-            print("scene %s %s: %g s ..." % (scene.key, integrator, duration),
-                  file=sys.stderr, flush=True)
-            code, summary, wall, memory, stderr = run_simulate(simulate, scene, integrator,
-                                                               duration)
-            short = min(duration / 10, 10.0)
-            _, first, _, _, _ = run_simulate(simulate, scene, integrator, short)
-            _, second, _, _, _ = run_simulate(simulate, scene, integrator, short)
-            rerun_same = (first is not None and second is not None
-                          and without_wall_time(first) == without_wall_time(second))
-            props = evaluate(scene, doc, integrator, duration, code, summary, memory, rerun_same)
-            failed = [p for p in props if not p[1]]
-            all_ok = all_ok and not failed
-            passed = "%d/%d" % (len(props) - len(failed), len(props))
-            if failed:
-                passed += ": FAILED " + "; ".join("%s (%s)" % (n, d) for n, _, d in failed)
-            for name, ok, detail in props:
-                print("  %-16s %s  %s" % (name, "ok  " if ok else "FAIL", detail), file=sys.stderr)
-            if stderr:
-                print("  stderr: " + stderr[-500:], file=sys.stderr)
-            if summary is None:
-                rows.append(("%s %s" % (scene.key, scene.title), integrator,
-                             fmt_duration(duration), passed, "-", "-", "-", "%.1f" % wall))
-                continue
-            gain = max(summary["max_energy_gain_at_impact_J"],
-                       summary["energy_final_J"] - summary["energy_initial_J"]
-                       - summary["drive_work_J"])
-            rows.append(("%s %s" % (scene.key, scene.title), integrator,
-                         fmt_duration(summary["sim_time_s"]), passed, "%.2e" % gain,
-                         "%.2e" % summary["max_penetration_m"],
-                         "%.3g" % (summary["steps"] / summary["sim_time_s"]), "%.1f" % wall))
-
+            row, ok = run_row(simulate, scene, doc, integrator, args)
+            rows.append(row)
+            all_ok = all_ok and ok
     wall_s = time.monotonic() - started
-    # The command as run, with a workspace-independent simulate path.
-    # (--save only keeps a copy of the results: left out.)
-    shown, argv = [], sys.argv[1:]
-    for i, a in enumerate(argv):
-        if a == "--save" or (i > 0 and argv[i - 1] == "--save") or a.startswith("--save="):
-            continue
-        if a == "--render" or (i > 0 and argv[i - 1] == "--render"):
-            continue
-        if a == simulate and os.path.isabs(a):
-            # The repository's own build as a relative path; another workspace's as WORKSPACE/.
-            rel = os.path.relpath(a, PACKAGE_DIR)
-            if not rel.startswith(".."):
-                a = rel
-            elif "/devel/lib/" in a:
-                a = "WORKSPACE/devel/lib/" + a.split("/devel/lib/", 1)[1]
-        shown.append(a if " " not in a else "'%s'" % a)
-    command = "scripts/stability_table.py " + " ".join(shown)
+    command = shown_command(simulate)
     if args.save:
         with open(args.save, "w") as f:
             json.dump({"command": command, "rows": rows, "notes": notes, "all_ok": all_ok,
