@@ -34,10 +34,10 @@ if [ "$(cat "$SAN_OBJ/flags" 2>/dev/null)" != "${SAN_FLAGS[*]} | $SAN_CORE_FLAGS
   rm -f "$SAN_OBJ"/*.o
   echo "${SAN_FLAGS[*]} | $SAN_CORE_FLAGS" > "$SAN_OBJ/flags"
 fi
-for src in "$ROOT"/src/core/*.cc "$ROOT"/src/core/async/*.cc "$ROOT"/src/core/event_driven/*.cc \
-  "$ROOT"/src/core/time_stepping/*.cc "$ROOT"/src/scene/*.cc "$ROOT/src/ros/command_bag.cc"; do
-  # A file of a folder of src/core is named with its folder (event_driven/step.cc and
-  # time_stepping/step.cc are two objects).
+for src in "$ROOT"/src/core/*.cc "$ROOT"/src/core/*/*.cc "$ROOT"/src/scene/*.cc \
+  "$ROOT/src/ros/command_bag.cc"; do
+  # A file of a folder of src/core (contact/, event_driven/, time_stepping/, async/) is named
+  # with its folder (event_driven/step.cc and time_stepping/step.cc are two objects).
   rel="${src#"$ROOT"/src/}"
   case "$rel" in
     core/*/*) obj="$SAN_OBJ/$(basename "$(dirname "$rel")")_$(basename "$src" .cc).o" ;;
