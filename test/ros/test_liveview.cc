@@ -89,6 +89,8 @@ TEST(LiveView, FirstStrikeHistoryMatchesSimulate) {
   ASSERT_TRUE(ros::service::waitForService("/threshing_sim_node/pause", ros::Duration(10)));
   ASSERT_TRUE(ros::service::call("/threshing_sim_node/pause", run));
   ASSERT_TRUE(waitFor([] { return !g_seen.strikes.empty(); }, 30)) << "no strike_history";
+  // The latched scene may reach this subscriber after the strike on a loaded machine.
+  ASSERT_TRUE(waitFor([] { return !g_seen.scene.empty(); }, 30)) << "no scene_yaml";
   const double peak_sim_N = simulatePeak();
   ASSERT_GT(peak_sim_N, 0) << "simulate --summary failed";
   std::lock_guard<std::mutex> lock(g_seen.mutex);

@@ -261,7 +261,7 @@ class SweepTest(unittest.TestCase):
         out = self.out / "bad"
         proc = sweep("run", spec, "--simulate", self.simulate, "--out", out)
         self.assertEqual(proc.returncode, 2)
-        self.assertIn("teeth.0.length: must be in [1e-05, 10] (got -0.01)", proc.stderr)
+        self.assertIn("teeth.0.length: must be in [1e-5, 10] (got -0.01)", proc.stderr)
         self.assertIn("length=-0.01", proc.stderr)
         self.assertFalse(out.exists(), "a run started before the validation")
         spec.write_text(
