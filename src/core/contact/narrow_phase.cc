@@ -412,6 +412,17 @@ bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
 
 // --- kernel against kernel ------------------------------------------------------------------
 
+// The contact frame of a pair of exact shapes from their proximity p: gap, normal from body 1
+// to body 2, tangent t = J n and the closest points (no tooth coordinate).
+void setContactFrame(const Proximity& p, ContactGeom* g) {
+  g->gap_m = p.distance_m;
+  g->n = p.normal;
+  g->t = perp(g->n);
+  g->p0 = p.point1;
+  g->p1 = p.point2;
+  g->tooth_x_m = 0;
+}
+
 // Ellipse a against ellipse b; normal from a to b.
 bool kernelKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
   const Ellipse& e = in.e;
@@ -427,12 +438,7 @@ bool kernelKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
                            : -e.a_m - ea.a_m);
   if (isFar(bound, in.far_m, g)) return false;
   const Proximity p = ellipseEllipse(ea, e);
-  g->gap_m = p.distance_m;
-  g->n = p.normal;
-  g->t = perp(g->n);
-  g->p0 = p.point1;
-  g->p1 = p.point2;
-  g->tooth_x_m = 0;
+  setContactFrame(p, g);
   BodyJac& s = g->side[0];
   s.body = kernelBody(in.m, in.pair.a);
   kernelRow(g->p0, ea.center, g->n, -1.0, &s.w_n);
@@ -456,12 +462,7 @@ void obstacleContact(const NarrowInput& in, const ObstacleModel& o, const Proxim
                      double rho0_m, double r_obst, ContactGeom* g, HertzInputs* h) {
   g->rho0_m = rho0_m;
   g->rho1_m = p.radius2_m;
-  g->gap_m = p.distance_m;
-  g->n = p.normal;
-  g->t = perp(g->n);
-  g->p0 = p.point1;
-  g->p1 = p.point2;
-  g->tooth_x_m = 0;
+  setContactFrame(p, g);
   h->r_in = seriesRadius(r_obst, p.radius2_m);
   h->r_out = in.kern.semi_axis_b_m;  // bars and plates are straight along the drum axis
   h->E_star = effectiveModulus(o.youngs_modulus_Pa, o.poisson_ratio, in.kern.youngs_modulus_Pa,
