@@ -299,11 +299,18 @@ of the others; that of the slope, which friction acts on through the tooth's sur
   same force before its no-adhesion clamp. The spring stores `r_n F^2 / 2`, zero whenever a
   contact opens or closes, so the energy checks at impacts are unchanged. At another drum speed
   the tables are rebuilt (per workspace, cleared by `resetData`).
-- **Not implemented: the slope (friction) part.** A round tooth's surface point `(d/2) n` has
-  no slope component along n, so the tabulated w' terms do not enter the normal law. Along t
-  they would be a spring in series with a sticking contact: a tangential elastic state per
-  contact in both integrators, the island scheme's pair memory and the event logic. Without it
-  the stick forces converge only through the mode count.
+- **Not converged: the stick forces, through the surface's rotation.** A round tooth's surface
+  point `(d/2) n` has no slope component along n, so the tabulated w' terms do not enter the
+  normal law. Along t they do: the surface point moves with the section's rotation `(d/2) w'`,
+  and an Euler-Bernoulli mode's slope grows with its wave number, so each added mode moves
+  the stick force. Two remedies were measured on branch `tstick` (issue 12's note;
+  `scripts/probe_stick_convergence.sh` there): a Mindlin tangential spring in series with
+  the stick (with the residual flexibility along t) does not converge the stick forces
+  (tip strike, nylon: 10.63, 10.26, 10.12 N at 20, 30, 40 modes); dropping the surface's
+  rotation from the contact kinematics does (8.2079, 8.2083, 8.2084 N), but changes the force
+  itself. The physical remedy is a tooth whose sections rotate on their own (a Timoshenko
+  beam: shear and rotary inertia), with the friction couple spread over the contact width;
+  it is not implemented.
 - **Automatic mode count** (`teeth.*.modes: auto`, the default). The Hertz contact time t_c of
   the stiffest kernel contact at the tooth's tip speed (flank against the kernel's sharpest
   curvature) is estimated at start-up; a truncated mode of frequency omega is followed
@@ -361,12 +368,13 @@ def write_docs(results, before, after, out_md, readme):
         "series with the contact. The tangential peaks that miss it are stick "
         "forces: while the kernel sticks, the friction force is a multiplier set by the "
         "tooth surface point's tangential motion, which the friction couple (d/2) F_T drives "
-        "through the slope w'. An Euler-Bernoulli tooth has no rotary inertia, so each added "
-        "mode makes the surface point more mobile tangentially and the stick force moves "
-        "slowly with n (about 1/n). The static correction of the slope (the tabulated w' terms) "
-        "would need a spring in series with the sticking contact, i.e. a tangential elastic "
-        "state per contact in both integrators; it is not implemented (README \"Converged tooth "
-        "forces\"), so these rows stay unconverged and are shown as such.",
+        "through the slope w'. An Euler-Bernoulli mode's slope grows with its wave number, "
+        "so each added mode moves the surface point's tangential motion and the stick force "
+        "with it. A Mindlin tangential spring in series with the stick does not converge "
+        "these forces either; without the surface's rotation (d/2) w' they converge (measured: "
+        "Method, below), so the Euler-Bernoulli modes' slope is the cause. A tooth whose "
+        "sections rotate on their own (Timoshenko) is the remedy; it is not implemented, so "
+        "these rows stay unconverged and are shown as such.",
         "",
         knead_text(before, after),
         "",
