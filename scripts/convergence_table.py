@@ -181,14 +181,15 @@ def study(simulate, name, args, work):
 
 
 def knead_before_after(simulate, work):
-    """Peak knead (tangential) force of the polyurethane bench at 6, 8, 10, 12 modes without
-    the static correction at --tolerance 1e-8 (the issue's figures), and with it at the chosen
-    level and the finer ones."""
+    """Peak knead (tangential) force of the polyurethane bench at 6, 8, 10, 12 modes with the
+    model of before (no static correction, Euler-Bernoulli sections) at --tolerance 1e-8 (the
+    issue's figures), and with today's defaults at the chosen level and the finer ones."""
     path = str(BENCH_DIR / f"{KNEAD_BENCH}.yaml")
     before = []
     for n in (6, 8, 10, 12):
         s = run(simulate, [path, "--tolerance", "1e-8"],
-                ["--set", f"teeth.*.modes={n}", "--set", "teeth.*.static_correction=off"],
+                ["--set", f"teeth.*.modes={n}", "--set", "teeth.*.static_correction=off",
+                 "--set", "teeth.*.section_rotation=euler_bernoulli"],
                 work / f"knead_before_{n}.json")
         before.append((n, metrics(s)))
     args = [path, "--tolerance", "1e-8"]
@@ -198,6 +199,42 @@ def knead_before_after(simulate, work):
         s = run(simulate, args, ["--set", f"teeth.*.modes={level}"], work / f"knead_after_{level}.json")
         after.append((level, metrics(s)))
     return before, after
+
+
+ROTATION_CASE = ("tip_strike/nylon", "single_strike", "tip_strike", "nylon")
+ROTATION_LEVELS = (20, 30, 40)
+
+
+def rotation_study(simulate, work):
+    """Peak tangential force of one tip strike at three mode counts with each section rotation
+    (--tolerance 1e-11, far below the differences): {word: [(modes, metrics)]}."""
+    _, scene, case_file, variant = ROTATION_CASE
+    args = [str(SCENE_DIR / f"{scene}.yaml"), "--set-file",
+            str(SCENE_DIR / "teeth" / f"{variant}.yaml"), "--set-file",
+            str(SCENE_DIR / "cases" / f"{case_file}.yaml"), "--tolerance", "1e-11"]
+    out = {}
+    for word in ("shear_corrected", "euler_bernoulli"):
+        out[word] = []
+        for n in ROTATION_LEVELS:
+            s = run(simulate, args, ["--set", f"teeth.*.modes={n}",
+                                     "--set", f"teeth.*.section_rotation={word}"],
+                    work / f"rotation_{word}_{n}.json")
+            out[word].append((n, metrics(s)))
+    return out
+
+
+def rotation_text(study):
+    """The section rotation study as a sentence."""
+    def series(word):
+        rows = study[word]
+        forces = ", ".join(f"{m['ft']:.4g}" for _, m in rows)
+        changes = ", ".join(f"{100 * rel(a['ft'], b['ft']):.2f} %"
+                            for (_, a), (_, b) in zip(rows, rows[1:]))
+        return f"{forces} N (changes {changes})"
+    levels = ", ".join(str(n) for n in ROTATION_LEVELS)
+    return (f"Peak tangential force of the {ROTATION_CASE[0]} at {levels} modes (`--tolerance "
+            f"1e-11`): with `section_rotation: shear_corrected` (the default) "
+            f"{series('shear_corrected')}; with `euler_bernoulli` {series('euler_bernoulli')}.")
 
 
 def usable(m):
@@ -275,8 +312,9 @@ def knead_text(before, after):
               else "-")
     return (f"Knead force of `config/bench/{KNEAD_BENCH}.yaml` at `--tolerance 1e-8` (peak "
             f"tangential tooth force, modes in brackets). Before (modal tooth only, "
-            f"`static_correction: off`): {b}. After (static correction, automatic count and "
-            f"finer levels): {a}; change from the chosen level to the next: {change}.")
+            f"`static_correction: off`, `section_rotation: euler_bernoulli`): {b}. After (static "
+            f"correction, shear-corrected sections, automatic count and finer levels): {a}; "
+            f"change from the chosen level to the next: {change}.")
 
 
 METHOD = """## Method
@@ -299,18 +337,22 @@ of the others; that of the slope, which friction acts on through the tooth's sur
   same force before its no-adhesion clamp. The spring stores `r_n F^2 / 2`, zero whenever a
   contact opens or closes, so the energy checks at impacts are unchanged. At another drum speed
   the tables are rebuilt (per workspace, cleared by `resetData`).
-- **Not converged: the stick forces, through the surface's rotation.** A round tooth's surface
-  point `(d/2) n` has no slope component along n, so the tabulated w' terms do not enter the
-  normal law. Along t they do: the surface point moves with the section's rotation `(d/2) w'`,
-  and an Euler-Bernoulli mode's slope grows with its wave number, so each added mode moves
-  the stick force. Two remedies were measured on branch `tstick` (issue 12's note;
-  `scripts/probe_stick_convergence.sh` there): a Mindlin tangential spring in series with
-  the stick (with the residual flexibility along t) does not converge the stick forces
-  (tip strike, nylon: 10.63, 10.26, 10.12 N at 20, 30, 40 modes); dropping the surface's
-  rotation from the contact kinematics does (8.2079, 8.2083, 8.2084 N), but changes the force
-  itself. The physical remedy is a tooth whose sections rotate on their own (a Timoshenko
-  beam: shear and rotary inertia), with the friction couple spread over the contact width;
-  it is not implemented.
+- **Shear-corrected sections** (`teeth.*.section_rotation: shear_corrected`, the default;
+  docs/model.md §9b). The friction force acts on the tooth's surface, at `(d/2) n` from the
+  centreline, so its couple turns the sections, and the surface point moves with their
+  rotation. An Euler-Bernoulli section turns with the slope: mode i's rotation is phi_i', which
+  grows with its wave number beta_i, and the couple reaches ever further into the high modes.
+  A shear-flexible (Timoshenko) beam bent quasi-statically into a wave of number beta turns its
+  sections by `psi = w' / (1 + (E / kappa G) (I / A) beta^2)` (kappa = 6 (1 + nu) / (7 + 6 nu),
+  a solid round section): the shear takes up the rest of the slope. Each mode's rotation in
+  the contact Jacobian (and its rate in the velocity drift) is scaled by that factor, the
+  same in the force and the motion, so the contact's power balance is unchanged. The modes'
+  shapes and frequencies stay Euler-Bernoulli; the correction only concerns the rotation that
+  carries the surface points. For the teeth of `config/` (d / L = 1/6) it is 0.98 for the
+  first mode and 0.48 for the fifth. A large-deflection tooth's sections turn with its
+  centreline (a Kirchhoff rod). Tried before it and measured on branch `tstick`
+  (`scripts/probe_stick_convergence.sh` there): a Mindlin tangential spring in series with
+  the stick (and the residual flexibility along t) does not converge the stick forces.
 - **Automatic mode count** (`teeth.*.modes: auto`, the default). The Hertz contact time t_c of
   the stiffest kernel contact at the tooth's tip speed (flank against the kernel's sharpest
   curvature) is estimated at start-up; a truncated mode of frequency omega is followed
@@ -332,7 +374,7 @@ def summary_text(results):
             f"{n_agree} of them agree between the levels within two standard errors.")
 
 
-def write_docs(results, before, after, out_md, readme):
+def write_docs(results, before, after, rotation, out_md, readme):
     summary = summary_text(results)
     limit = (f" A level whose run took longer than {TIME_LIMIT_S:.0f} s is reported as timed out "
              "(`--time-limit`); one that failed (the work budget) is reported with its status.")
@@ -363,18 +405,16 @@ def write_docs(results, before, after, out_md, readme):
         "size (10 kernels), much weaker than the 1 % of the single strikes; the run maxima and "
         "their changes are listed too, and are not converged.",
         "",
-        "**Where the 1 % is missed.** The normal forces and exit speeds of the single strikes "
-        "converge: the static correction puts the truncated modes' normal compliance in "
-        "series with the contact. The tangential peaks that miss it are stick "
-        "forces: while the kernel sticks, the friction force is a multiplier set by the "
-        "tooth surface point's tangential motion, which the friction couple (d/2) F_T drives "
-        "through the slope w'. An Euler-Bernoulli mode's slope grows with its wave number, "
-        "so each added mode moves the surface point's tangential motion and the stick force "
-        "with it. A Mindlin tangential spring in series with the stick does not converge "
-        "these forces either; without the surface's rotation (d/2) w' they converge (measured: "
-        "Method, below), so the Euler-Bernoulli modes' slope is the cause. A tooth whose "
-        "sections rotate on their own (Timoshenko) is the remedy; it is not implemented, so "
-        "these rows stay unconverged and are shown as such.",
+        "**Stick forces and the sections' rotation.** The normal forces and exit speeds "
+        "converge through the static correction, which puts the truncated modes' normal "
+        "compliance in series with the contact. The tangential peaks are mostly stick forces: "
+        "while the kernel sticks, the friction force is set by the tooth surface point's "
+        "tangential motion, which the friction couple (d/2) F_T drives through the rotation of "
+        "the tooth's sections. An Euler-Bernoulli section turns with the slope w', and a mode's "
+        "slope grows with its wave number, so with `section_rotation: euler_bernoulli` every "
+        "added mode moves the stick force (about 1/n). A shear-flexible section turns by less "
+        "than the slope at short waves, the shear taking up the rest; with `shear_corrected` "
+        "(the default) the stick forces converge (Method, below). " + rotation_text(rotation),
         "",
         knead_text(before, after),
         "",
@@ -411,14 +451,17 @@ def main():
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as pool:
         futures = [pool.submit(study, simulate, name, args, a.work) for name, args in todo]
         knead = pool.submit(knead_before_after, simulate, a.work)
+        rotation_future = pool.submit(rotation_study, simulate, a.work)
         results = [f.result() for f in futures]
         before, after = knead.result()
+        rotation = rotation_future.result()
     for name, rows in results:
         print(f"{name}: {' '.join(verdict(rows))}  " +
               "  ".join(f"{n}: N {m['fn']:.4g} T {m['ft']:.4g} v {m['v']:.4g}" for n, m in rows
                         if usable(m)))
     print(knead_text(before, after))
-    write_docs(results, before, after, a.out, None if a.quick else ROOT / "README.md")
+    print(rotation_text(rotation))
+    write_docs(results, before, after, rotation, a.out, None if a.quick else ROOT / "README.md")
 
 
 if __name__ == "__main__":

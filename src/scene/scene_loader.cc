@@ -119,6 +119,9 @@ const char* const kAutoModesWord = "auto";  // teeth.*.modes when absent: chosen
 std::string toothModelWord(ToothBeamModel m) {
   return m == ToothBeamModel::kLargeDeflection ? "large_deflection" : "modal";
 }
+std::string sectionRotationWord(ToothSectionRotation r) {
+  return r == ToothSectionRotation::kEulerBernoulli ? "euler_bernoulli" : "shear_corrected";
+}
 std::string lawWord(ContactLaw law) { return law == ContactLaw::kRigid ? "rigid" : "compliant"; }
 std::string integratorWord(IntegratorType t) {
   return t == IntegratorType::kTimeStepping ? "time_stepping" : "event_driven";
@@ -206,6 +209,17 @@ const KeySpec kSchema[] = {
      "Residual flexibility of the truncated modes in series with the contact (README \"Converged "
      "tooth forces\"); `off`: the retained modes only. A large-deflection tooth has none.",
      "on, off"},
+    {"teeth.*.section_rotation", KeyKind::kValue, "word", "", kNoRange,
+     [](const SchemaDefaults& d) -> std::string {
+       return sectionRotationWord(d.tooth.section_rotation);
+     },
+     "What turns a modal tooth's sections, and with them the surface points that friction acts "
+     "on: `shear_corrected`, each mode's slope w' reduced to the rotation of a shear-flexible "
+     "(Timoshenko) section, w' / (1 + (E / kappa G) (I / A) beta^2), so the stick forces converge "
+     "in the mode count; `euler_bernoulli`, the slope itself (the paper's model; its stick forces "
+     "do not converge). A large-deflection tooth's sections turn with its centreline "
+     "([model.md](model.md) §9b).",
+     "shear_corrected, euler_bernoulli"},
     {"kernels", KeyKind::kList, "list", "", kNoRange,
      [](const SchemaDefaults&) -> std::string { return "[]"; },
      "The grain kernels: rigid ellipses in the drum plane."},
@@ -791,6 +805,10 @@ ToothModel readTooth(const Section& s) {
       model == "large_deflection" ? ToothBeamModel::kLargeDeflection : ToothBeamModel::kModal;
   t.static_correction =
       s.word("static_correction", onOff(t.static_correction), "static correction") == "on";
+  t.section_rotation = s.word("section_rotation", sectionRotationWord(t.section_rotation),
+                              "section rotation") == "euler_bernoulli"
+                           ? ToothSectionRotation::kEulerBernoulli
+                           : ToothSectionRotation::kShearCorrected;
   return t;
 }
 

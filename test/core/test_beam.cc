@@ -245,6 +245,28 @@ TEST(BeamTest, DerivedFieldsAndModalIntegrals) {
   EXPECT_EQ(VecX(tooth.dphi_s.row(3).transpose()), dphiAt(tooth, tooth.station_x_m[3]));
 }
 
+// The sections' rotation per unit slope (docs/model.md §9b): Timoshenko's quasi-static
+// 1 / (1 + (E / kappa G) (I / A) beta_i^2), kappa = 6 (1 + nu) / (7 + 6 nu), falling with the
+// mode's wave number; 1 for every mode with Euler-Bernoulli sections.
+TEST(BeamTest, SectionRotationFactorsMatchTheShearCorrection) {
+  ToothModel tooth;
+  tooth.n_modes = 8;
+  tooth.poisson_ratio = 0.39;
+  compileTooth(0.2, &tooth);
+  const double nu = tooth.poisson_ratio, d = tooth.diameter_m;
+  const double kappa = 6 * (1 + nu) / (7 + 6 * nu);
+  for (int i = 0; i < tooth.n_modes; ++i) {
+    const double beta = cantileverBetaL(i) / tooth.length_m;
+    const double expected = 1 / (1 + 2 * (1 + nu) / kappa * (d * d / 16) * beta * beta);
+    EXPECT_NEAR(tooth.rotation_factor[i], expected, 1e-12) << "mode " << i;
+    if (i > 0) EXPECT_LT(tooth.rotation_factor[i], tooth.rotation_factor[i - 1]);
+  }
+  EXPECT_GT(tooth.rotation_factor[0], 0.97);  // d / L = 1/6: the first mode barely shears
+  tooth.section_rotation = ToothSectionRotation::kEulerBernoulli;
+  compileTooth(0.2, &tooth);
+  EXPECT_EQ(tooth.rotation_factor, VecX::Ones(tooth.n_modes));
+}
+
 TEST(BeamTest, StiffnessMatrixIsLambdaPlusOmegaSquaredKgMinusI) {
   const ToothModel tooth = makeNylonTooth(4);
   const MatX K0 = toothStiffness(tooth, 0.0);

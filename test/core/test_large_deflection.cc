@@ -225,6 +225,9 @@ StrikeResult strike(IntegratorType type, ToothBeamModel beam) {
   Model m = testutil::defaultSceneModel(type);
   m.integrator.islands = false;
   m.teeth[0].beam_model = beam;
+  // The rod's sections turn with its centreline: the modal tooth's Euler-Bernoulli sections
+  // are its small-deflection limit (the shear-corrected default is not).
+  m.teeth[0].section_rotation = ToothSectionRotation::kEulerBernoulli;
   compileModel(&m);
   Data d;
   testutil::runTo(m, &d, m.duration_s);

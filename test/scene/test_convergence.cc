@@ -1,4 +1,4 @@
-// Mode convergence of a knead (issue 12): the polyurethane knead of config/bench/ with the
+// Mode convergence of the stick forces (issue 12) and of a knead: the polyurethane knead of config/bench/ with the
 // automatic mode count and the static correction gives the same knead force, normal force and
 // exit speed to 1 % as the next finer level (ceil(1.5 n) modes, as scripts/convergence_table.py
 // compares), where the modal tooth alone moved by 10 % between 10 and 12 modes; no impact gains
@@ -116,6 +116,45 @@ TEST(Convergence, StaticCorrectionOffIsTheModalToothUnderBothIntegrators) {
     EXPECT_NE(d_on.stats.peak_normal_force_N, d_off.stats.peak_normal_force_N);
     EXPECT_LE(d_on.stats.max_energy_gain_at_impact_J, 1e-9 * d_on.stats.energy_initial_J);
   }
+}
+
+}  // namespace
+}  // namespace threshing_sim
+
+namespace threshing_sim {
+namespace {
+
+// The tip strike of docs/convergence.md's section rotation study: peak tangential force at a
+// mode count and section rotation, at a tolerance far below the differences.
+double tipStrikeStickForce(int modes, const std::string& rotation) {
+  const std::string dir = std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/";
+  std::vector<std::string> overrides = overridesFromFile(dir + "teeth/nylon.yaml");
+  for (const std::string& o : overridesFromFile(dir + "cases/tip_strike.yaml"))
+    overrides.push_back(o);
+  overrides.push_back("teeth.*.modes=" + std::to_string(modes));
+  overrides.push_back("teeth.*.section_rotation=" + rotation);
+  overrides.push_back("integrator.tolerance=1e-10");
+  const Model m = loadScene(dir + "single_strike.yaml", overrides);
+  Data d;
+  resetData(m, &d);
+  EXPECT_EQ(advanceTo(m, &d, m.duration_s), StepStatus::kOk);
+  EXPECT_EQ(d.stats.max_energy_gain_at_impact_J, 0.0);
+  return d.stats.kernel_tooth_peaks[0].tangential_force_N;
+}
+
+// With Euler-Bernoulli sections the friction couple reaches into every mode through its
+// slope, and the tip strike's stick force moves by more than 1 % from 20 to 30 modes; with
+// the shear-corrected sections (the default) it moves by less than 0.1 %.
+TEST(Convergence, TipStrikeStickForceConvergesWithShearCorrectedSections) {
+  const double shear20 = tipStrikeStickForce(20, "shear_corrected");
+  const double shear30 = tipStrikeStickForce(30, "shear_corrected");
+  const double eb20 = tipStrikeStickForce(20, "euler_bernoulli");
+  const double eb30 = tipStrikeStickForce(30, "euler_bernoulli");
+  RecordProperty("shear_corrected_N", std::to_string(shear20) + " " + std::to_string(shear30));
+  RecordProperty("euler_bernoulli_N", std::to_string(eb20) + " " + std::to_string(eb30));
+  EXPECT_NEAR(shear30, shear20, 1e-3 * shear20);
+  EXPECT_GT(std::abs(eb30 - eb20), 0.01 * eb20);
+  EXPECT_GT(shear20, 1.0);  // a real stick force, a few newtons
 }
 
 }  // namespace

@@ -27,6 +27,9 @@ enum class PairKind { kToothKernel = 0, kKernelKernel = 1, kKernelObstacle = 2 }
 // Beam model of a tooth: assumed modes (linear, small deflection) or a geometrically exact
 // planar rod (large deflection, src/core/large_deflection.cc).
 enum class ToothBeamModel { kModal, kLargeDeflection };
+// What turns a modal tooth's sections (and so the surface points the friction couple acts on):
+// the slope w' (Euler-Bernoulli), or the shear-corrected rotation psi (docs/model.md §9b).
+enum class ToothSectionRotation { kShearCorrected, kEulerBernoulli };
 
 // Drum drive: the drum's speed follows a commanded target at a bounded acceleration.
 struct DrumModel {
@@ -53,6 +56,8 @@ struct ToothModel {
                                                        // is the number of Ritz shape functions
   bool static_correction = true;  // residual flexibility of the truncated modes in series with
                                   // the contact (docs/model.md §9b); false: modes only [-]
+  ToothSectionRotation section_rotation = ToothSectionRotation::kShearCorrected;  // teeth.*.
+                                  // section_rotation: the sections' rotation in the contact [-]
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
@@ -65,6 +70,8 @@ struct ToothModel {
   VecX sigma;                       // sigma_i [-], size n
   VecX norm_C;                      // C_i so that int rho A phi_i^2 = 1 [1/sqrt(kg)], size n
   VecX omega0_sq;                   // Lambda = diag(omega_i^2) at rest [1/s^2], size n
+  VecX rotation_factor;             // psi_i / phi_i': mode i's section rotation per slope,
+                                    // 1 / (1 + (E / kappa G) (I / A) beta_i^2), or 1 [-], size n
   VecX damping_coeff;               // D = diag(2 zeta omega_i) at rest [1/s], size n
   MatX K_G;                         // centrifugal stiffening integral (n x n) [-]; times Omega^2
   VecX p_inertia;                   // p_i = int rho A (R + x) phi_i dx [sqrt(kg) m]; load -dOmega p

@@ -37,11 +37,12 @@ Vec2 rigidPairDrift(const ContactGeom& g, const Vec2& c0, double omega0, const V
 
 // Drift of a tooth-kernel pair. The centreline point r(x) (distance d = gap + r_t from the
 // ellipse, radius of curvature rho1 at the foot p1 = r + d n) moves relative to the kernel
-// at w = r_dot - V1(r); v_N = -n.w and v_T = -t.w + omega1 d - r_t (Omega + w'_dot). The
+// at w = r_dot - V1(r); v_N = -n.w and v_T = -t.w + omega1 d - r_t (Omega + psi_dot), psi the
+// sections' rotation (w' for Euler-Bernoulli and a rod, shear-corrected by default). The
 // closest point x* follows n.rt_x = 0 (the narrow phase's condition; fixed at an end of the
 // tooth), the normal turns at phi' = omega1 - t.(w + r_x x*') / (rho1 + d), and
 //   d(v_N)/dt = -phi' t.w - n.w',  d(v_T)/dt = phi' n.w - t.w' + omega1 d' - r_t (alpha +
-//   phi''.qdot x*'),  w' = r_ddot + r_dot_x x*' - omega1 J (r_dot + r_x x*' - v1),
+//   psi'_dot x*'),  w' = r_ddot + r_dot_x x*' - omega1 J (r_dot + r_x x*' - v1),
 // d' = -n.(w + r_x x*'), everything in world (the drum frame turned by theta).
 Vec2 toothPairDrift(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                     const ContactGeom& g, Workspace* ws) {
@@ -77,7 +78,7 @@ Vec2 toothPairDrift(const Model& m, const VecX& z, const VecX& u, const Drive& d
   const Vec2 w_rate = r_ddot + x_rate * r_dot_x - om1 * perp(move - v1);
   const double dvn = -(phi_rate * g.t.dot(w) + g.n.dot(w_rate));
   const double dvt = phi_rate * g.n.dot(w) - g.t.dot(w_rate) - om1 * g.n.dot(w + x_rate * r_x) -
-                     r_t * (al + cm.dslope_rate_dx * x_rate);
+                     r_t * (al + cm.drotation_rate_dx * x_rate);
   return Vec2(dvn, dvt);
 }
 

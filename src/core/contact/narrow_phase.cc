@@ -335,7 +335,7 @@ void rodToothSide(const NarrowInput& in, const ToothModel& tm, ContactGeom* g) {
 }
 
 // Modal tooth: phi and phi' at x are still in the scratch from the refinement's last
-// evaluation; H(x) q is blended from the stations like H(x) itself (from *direct after a warm
+// evaluation; the surface point turns with the section, psi_i = rotation_factor_i phi_i'; H(x) q is blended from the stations like H(x) itself (from *direct after a warm
 // start). Also the residual flexibility along n in series with the Hertz law.
 void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
                     StationPair* direct, ContactGeom* g) {
@@ -357,10 +357,9 @@ void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
     const double hq = from_warm ? (1.0 - t_h) * direct->hq0[i] + t_h * direct->hq1[i]
                                 : (1.0 - t_h) * ws->centreline.station_Hq(i, col_h) +
                                       t_h * ws->centreline.station_Hq(i, col_h + 1);
-    s.w_n[i] =
-        -(e2n * ws->centreline.scratch_phi[i] - e1n * hq + jrn * ws->centreline.scratch_dphi[i]);
-    s.w_t[i] =
-        -(e2t * ws->centreline.scratch_phi[i] - e1t * hq + jrt * ws->centreline.scratch_dphi[i]);
+    const double psi = tm.rotation_factor[i] * ws->centreline.scratch_dphi[i];  // section turn
+    s.w_n[i] = -(e2n * ws->centreline.scratch_phi[i] - e1n * hq + jrn * psi);
+    s.w_t[i] = -(e2t * ws->centreline.scratch_phi[i] - e1t * hq + jrt * psi);
   }
   // The truncated modes' compliance along n: the load (e2.n, (J r_t n).n) on (w, w').
   double r_ww, r_wt, r_tt;
@@ -387,7 +386,7 @@ bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
   g->p1 = best.point2;
 
   // Tooth side: velocity of the surface point = Omega J p0 + Jq qdot, with
-  // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) phi'^T.
+  // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) psi^T (psi: the sections' rotation).
   BodyJac& s = g->side[0];
   s.body = toothBody(in.pair.a);
   const int n = tm.n_modes;

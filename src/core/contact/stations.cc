@@ -168,7 +168,7 @@ CentrelineMotion rodMotion(const Model& m, int tooth, const VecX& z, const VecX&
   cm.rt_x = cm.r_x;
   cm.rt_xx = toD(r_ss);
   cm.rt_x_rate = cm.v_x;
-  cm.dslope_rate_dx = dthd;
+  cm.drotation_rate_dx = dthd;
   return cm;
 }
 
@@ -180,7 +180,7 @@ CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, cons
   if (tm.beam_model == ToothBeamModel::kLargeDeflection) return rodMotion(m, tooth, z, u, x_m, ws);
   const int n = tm.n_modes;
   CentrelineMotion cm;
-  double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wd2 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0,
+  double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0,
          wcdd = 0;
   int s = 0;
   double t = 0;
@@ -195,7 +195,7 @@ CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, cons
     w2 = ws->centreline.scratch_ddphi.dot(q);
     wd = ws->centreline.scratch_phi.dot(qd);
     wd1 = ws->centreline.scratch_dphi.dot(qd);
-    wd2 = ws->centreline.scratch_ddphi.dot(qd);
+    cm.drotation_rate_dx = ws->centreline.scratch_ddphi.dot(tm.rotation_factor.cwiseProduct(qd));
     // Stations s, s + 1: w_c, H q (as updateStations computes them) and qdot^T H qdot.
     StationPair st;
     st.update(tm, s, z.data() + tm.dof_offset);
@@ -228,7 +228,6 @@ CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, cons
   cm.rt_x = (1.0 - 0.5 * w1 * w1) * e1 + w1 * e2;
   cm.rt_xx = (-w1 * w2) * e1 + w2 * e2;
   cm.rt_x_rate = (-w1 * wd1) * e1 + wd1 * e2;
-  cm.dslope_rate_dx = wd2;
   return cm;
 }
 

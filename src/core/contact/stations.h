@@ -85,7 +85,8 @@ struct CentrelineMotion {
   Vec2 rt_x, rt_xx;  // the narrow phase's tangent (1 - w'^2/2) e1 + w' e2 [-] and its
                      // x-derivative [1/m]
   Vec2 rt_x_rate;    // its material rate [1/s]
-  double dslope_rate_dx = 0;  // d(w'_dot)/dx = phi'' . qdot [1/(m s)]
+  double drotation_rate_dx = 0;  // x-derivative of the sections' rotation rate: modal
+                                 // (rotation_factor phi'') . qdot, rod theta' . qdot [1/(m s)]
 };
 CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, const VecX& u,
                                   double x_m, Workspace* ws);
