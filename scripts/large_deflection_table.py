@@ -47,7 +47,8 @@ SECTIONS = [
      TABLE, "| %s | %s | %s | %s | %s | %s | %s | %s |"),
     ("Default strike (config/default_scene.yaml's model: nylon tooth, 4 modes or 4 "
      "shape functions, 800 rpm; time stepping at the scene's h = 1e-6), rod against "
-     "modal tooth; relative differences, the "
+     "modal tooth with Euler-Bernoulli sections (`section_rotation: euler_bernoulli`, as "
+     "the rod's turn with its centreline); relative differences, the "
      "exit velocity's as |v_rod - v_modal| / |v_modal|:",
      ["integrator", "peak normal rod / modal [N]", "diff", "peak tangential rod / modal [N]",
       "diff", "exit velocity rod / modal [m/s]", "diff", "tip deflection / L"],
