@@ -259,7 +259,9 @@ TEST(BeamTest, SectionRotationFactorsMatchTheShearCorrection) {
     const double beta = cantileverBetaL(i) / tooth.length_m;
     const double expected = 1 / (1 + 2 * (1 + nu) / kappa * (d * d / 16) * beta * beta);
     EXPECT_NEAR(tooth.rotation_factor[i], expected, 1e-12) << "mode " << i;
-    if (i > 0) EXPECT_LT(tooth.rotation_factor[i], tooth.rotation_factor[i - 1]);
+    if (i > 0) {
+      EXPECT_LT(tooth.rotation_factor[i], tooth.rotation_factor[i - 1]);
+    }
   }
   EXPECT_GT(tooth.rotation_factor[0], 0.97);  // d / L = 1/6: the first mode barely shears
   tooth.section_rotation = ToothSectionRotation::kEulerBernoulli;

@@ -105,11 +105,13 @@ void placeAtGap(const Model& m, Motion* mo, const PairId& pair, int kernel, doub
 
 // A model with one nylon tooth (n modes) on the drum, one elongated kernel and the two
 // obstacle kinds, compiled. Obstacles are far from the tooth.
-Model contactModel(int n_modes) {
+Model contactModel(int n_modes,
+                   ToothSectionRotation rotation = ToothSectionRotation::kShearCorrected) {
   Model m;
   m.drum.radius_m = 0.20;
   m.drum.initial_speed_radps = 83.78;
   m.teeth = {testutil::nylonTooth(n_modes)};
+  m.teeth[0].section_rotation = rotation;
   m.kernels = {makeKernel(5.0e-3, 1.3e-3, Vec2(0.235, 0.012)),
                makeKernel(4.0e-3, 1.5e-3, Vec2(0.0, -0.4)),
                makeKernel(5.0e-3, 1.3e-3, Vec2(0.0, -0.27))};
@@ -179,8 +181,10 @@ Motion toothKernelMotion(const Model& m, double x_c, double tilt_rad = 0.1) {
   return mo;
 }
 
+// With Euler-Bernoulli sections the material point turns with the slope w', as
+// toothPointVelocityFd moves it.
 TEST(ContactJacobian, ToothKernelMatchesMaterialPointVelocities) {
-  const Model m = contactModel(4);
+  const Model m = contactModel(4, ToothSectionRotation::kEulerBernoulli);
   const PairId pair{PairKind::kToothKernel, 0, 0};
   for (double x_c : {0.030, 0.033}) {  // at a station, and between two stations
     const Motion mo = toothKernelMotion(m, x_c);
@@ -206,6 +210,31 @@ TEST(ContactJacobian, ToothKernelMatchesMaterialPointVelocities) {
     EXPECT_NEAR(r.g.vn, r.vn_fd_pts, tol) << "x_c = " << x_c << ", delta = " << delta;
     EXPECT_NEAR(r.g.vt, r.vt_fd_pts, tol) << "x_c = " << x_c << ", delta = " << delta;
     RecordProperty("chord_error_m_x" + fmt(x_c), fmt(delta));
+  }
+}
+
+// Shear-corrected sections (the default) turn by psi_i = f_i phi_i' per mode: the surface
+// point's tangential velocity differs from the Euler-Bernoulli one by exactly
+// -r_t sum_i (f_i - 1) phi_i'(x*) qdot_i, its normal velocity not at all (the section's turn
+// moves the surface point along t).
+TEST(ContactJacobian, ShearCorrectedSectionsTurnTheSurfacePointByPsi) {
+  const Model eb = contactModel(4, ToothSectionRotation::kEulerBernoulli);
+  const Model shear = contactModel(4);
+  const PairId pair{PairKind::kToothKernel, 0, 0};
+  for (double x_c : {0.030, 0.033}) {
+    const Motion mo = toothKernelMotion(shear, x_c);
+    const ContactGeom ge = evaluate(eb, mo.z, mo.u, mo.theta, mo.omega, pair);
+    const ContactGeom gs = evaluate(shear, mo.z, mo.u, mo.theta, mo.omega, pair);
+    const ToothModel& tm = shear.teeth[0];
+    VecX phi, dphi;
+    evaluateModes(tm, gs.tooth_x_m, &phi, &dphi);
+    double turn = 0.0;
+    for (int i = 0; i < 4; ++i)
+      turn += (tm.rotation_factor[i] - 1.0) * dphi[i] * mo.u[tm.dof_offset + i];
+    EXPECT_EQ(gs.tooth_x_m, ge.tooth_x_m);
+    EXPECT_NEAR(gs.vn, ge.vn, 1e-12);
+    EXPECT_NEAR(gs.vt, ge.vt - 0.5 * tm.diameter_m * turn, 1e-12) << "x_c = " << x_c;
+    EXPECT_GT(std::abs(gs.vt - ge.vt), 1e-4);  // the correction is there
   }
 }
 

@@ -91,13 +91,15 @@ TEST(Recipe, RecordReplayResimulateVerbatim) {
                    std::string(kDisplay + 1) + " -s '-screen 0 1400x900x24 -ac' bash " + path,
                &output);
   });
-  // Screenshot of the replay once rviz has been sent the strike chart.
+  // Screenshot of the replay once rviz has been sent the strike chart, again every 1.5 s while
+  // the replay runs until the chart shows (rviz may still be drawing its first frames when the
+  // first chart arrives).
   const std::string png = std::string(SCREENSHOT_DIR) + "/replay_screenshot.png";
   long orange = -1;
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(150);
   while (ros::WallTime::now() < end &&
          done.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
-    if (chart_replayed && orange < 0) {
+    if (chart_replayed && orange <= 100) {
       ros::WallDuration(1.5).sleep();
       if (std::system(
               ("import -display " + std::string(kDisplay) + " -window root " + png).c_str()) == 0)

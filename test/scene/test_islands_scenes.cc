@@ -104,9 +104,11 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
     const SceneRun g = runScene(c.file, settings(c, GetParam(), false));
     const SceneRun a = runScene(c.file, settings(c, GetParam(), true));
     const SceneRun f = runScene(c.file, settings(c, GetParam(), false, refined(g)));
+    const SceneRun af = runScene(c.file, settings(c, GetParam(), true, refined(g)));
     ASSERT_NE(g.status, StepStatus::kFailed);
     ASSERT_NE(a.status, StepStatus::kFailed);
     ASSERT_NE(f.status, StepStatus::kFailed);
+    ASSERT_NE(af.status, StepStatus::kFailed);
     EXPECT_EQ(a.d.stats.impacts, g.d.stats.impacts);
     // The impacts in the same order.
     std::vector<PairId> ga, aa;
@@ -115,33 +117,40 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
     for (const ContactEvent& e : a.d.events)
       if (e.is_impact || e.to == ContactState::kImpact) aa.push_back(e.pair);
     EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
-    const std::vector<double> og = outputs(g), oa = outputs(a), of = outputs(f);
+    const std::vector<double> og = outputs(g), oa = outputs(a), of = outputs(f),
+                              oaf = outputs(af);
     for (size_t q = 0; q < og.size(); ++q) {
-      // The error estimate (knob refined), or for the event-driven integrator ten times its
-      // tolerance relative to the value, whichever is larger.
-      const double estimate = std::abs(og[q] - of[q]);
+      // The two schemes' error estimates (knob refined) together: each takes its own steps,
+      // so at one knob either may be the more accurate; or for the event-driven integrator ten
+      // times its tolerance relative to the value, whichever is larger. Schemes that converged
+      // to different answers fail it: their refined runs then differ as much as they do.
+      const double estimate = std::abs(og[q] - of[q]) + std::abs(oa[q] - oaf[q]);
       const double tol = g.m.integrator.type == IntegratorType::kEventDriven
                              ? 10.0 * g.m.integrator.tolerance * std::abs(og[q])
                              : 0.0;
       const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
       EXPECT_LE(std::abs(oa[q] - og[q]), std::max({3.0 * estimate, tol, floor}))
           << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined "
-          << of[q];
+          << of[q] << " and " << oaf[q];
     }
   }
 }
 
 // The polyurethane knead with the static correction (the known defect above): the peak forces
 // and the exit velocity within 1e-3 (relative) of the global scheme's, the same impacts.
-// At tolerance 1e-7 they agree to 1e-5: the difference follows the tolerance.
+// At tolerance 1e-7 they agree to 1e-5: the difference follows the tolerance. Measured with
+// the Euler-Bernoulli sections the defect was found with: with the shear-corrected ones the
+// peak normal force itself moves by 1e-4 between tolerances (40.4430, 40.4437, 40.4422,
+// 40.4437 N at 1e-6 to 1e-9, either scheme), above the 1e-5 this checks.
 TEST_P(IslandScenes, PolyurethaneKneadWithTheStaticCorrectionWithinAKnownBound) {
   for (const auto& [tolerance, bound] :
        {std::pair<const char*, double>{"", 1e-3}, std::pair<const char*, double>{"1e-7", 1e-5}}) {
     SCOPED_TRACE(std::string("tolerance ") + tolerance);
     const Case c{"bench/knead_polyurethane.yaml", "",
                  *tolerance ? "integrator.tolerance=1e-7" : ""};
-    const SceneRun g = runScene(c.file, settings(c, GetParam(), false));
-    const SceneRun a = runScene(c.file, settings(c, GetParam(), true));
+    const std::string euler_bernoulli = "teeth.*.section_rotation=euler_bernoulli";
+    const SceneRun g = runScene(c.file, settings(c, GetParam(), false, euler_bernoulli));
+    const SceneRun a = runScene(c.file, settings(c, GetParam(), true, euler_bernoulli));
     ASSERT_NE(g.status, StepStatus::kFailed);
     ASSERT_NE(a.status, StepStatus::kFailed);
     EXPECT_TRUE(g.m.teeth[0].static_correction);
