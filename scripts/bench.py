@@ -37,6 +37,7 @@ import math
 import os
 import pathlib
 import re
+import signal
 import subprocess
 import sys
 import tempfile
@@ -90,6 +91,7 @@ NODE_SETTINGS = {
 NODE_COUNTS = [1, 10, 20, 30, 40, 50, 100, 200, 500, 1000]
 NODE_DURATION_S = 0.2
 NODE_RTF_PASS = 0.99
+NODE_TIMEOUT_S = 300.0  # a node run that has not finished by then is reported as too slow
 
 METRICS = ["exit_velocity", "pose", "peak_normal", "peak_tangential", "impulse", "impacts",
            "tip_rms"]
@@ -519,6 +521,25 @@ def node_budget(cfg, gen_dir, node_counts):
     return results
 
 
+def run_bounded(cmd, env, timeout_s):
+    """Runs cmd in its own session; (stdout, stderr), or (None, None) when it ran past
+    timeout_s (its whole process group, roslaunch and the nodes included, is then stopped:
+    SIGINT, then SIGKILL after 20 s)."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env, start_new_session=True)
+    try:
+        return proc.communicate(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        for sig, wait_s in ((signal.SIGINT, 20), (signal.SIGKILL, 20)):
+            try:
+                os.killpg(proc.pid, sig)
+                proc.communicate(timeout=wait_s)
+                break
+            except (subprocess.TimeoutExpired, ProcessLookupError):
+                continue
+        return None, None
+
+
 def node_try(cfg, gen_dir, setup, port, integrator, settings, count):
     """One node run at real time: its final summary line parsed, or None."""
     import yaml
@@ -542,13 +563,18 @@ def node_try(cfg, gen_dir, setup, port, integrator, settings, count):
            f"clock_mode:=wall real_time_factor:=1 duration:={cfg['node_duration']} "
            "status_period:=0")
     env = dict(os.environ, PATH="/usr/bin:" + os.environ.get("PATH", ""))
-    proc = subprocess.run(["bash", "-c", cmd], capture_output=True, text=True, env=env,
-                          timeout=600)
+    stdout, stderr = run_bounded(["bash", "-c", cmd], env, NODE_TIMEOUT_S)
+    if stdout is None:
+        say(f"node budget, {integrator}: {count} kernels: no summary within "
+            f"{NODE_TIMEOUT_S:.0f} s (real-time factor below "
+            f"{cfg['node_duration'] / NODE_TIMEOUT_S:.2g})")
+        return None
+    text = stdout + stderr
     m = re.search(r"simulated ([0-9.]+) s in ([0-9.]+) s of wall time \(real-time factor "
-                  r"([0-9.eE+-]+) overall\).*?(\d+) overruns", proc.stdout + proc.stderr)
+                  r"([0-9.eE+-]+) overall\).*?(\d+) overruns", text)
     if not m:
         say(f"node budget: {count} kernels: no summary line\n"
-            f"{(proc.stdout + proc.stderr)[-800:]}")
+            f"{text[-800:]}")
         return None
     rtf = float(m.group(3))
     say(f"node budget, {tag}: {count} kernels: real-time factor {rtf:.3g} "

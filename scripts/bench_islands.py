@@ -168,9 +168,10 @@ def node_table(gen_dir, quick):
         settings = SCHEMES[("islands", integrator)][2:]
         for n in (1, 10, 100, 1000):
             row = bench.node_try(cfg, gen_dir, setup, port, integrator, settings, n)
-            if row is not None:
-                row["setting"] = label
-                rows.append(row)
+            if row is None:  # no summary (or too slow to finish): larger counts are slower
+                break
+            row["setting"] = label
+            rows.append(row)
     return rows
 
 

@@ -1,8 +1,9 @@
-// Mode convergence of the stick forces (issue 12) and of a knead: the polyurethane knead of config/bench/ with the
-// automatic mode count and the static correction gives the same knead force, normal force and
-// exit speed to 1 % as the next finer level (ceil(1.5 n) modes, as scripts/convergence_table.py
-// compares), where the modal tooth alone moved by 10 % between 10 and 12 modes; no impact gains
-// energy. Full table: docs/convergence.md.
+// Mode convergence (issue 12): the polyurethane knead of config/bench/ with the automatic mode
+// count and the static correction gives the same knead force, normal force and exit speed to
+// 1 % as the next finer level (ceil(1.5 n) modes, as scripts/convergence_table.py compares),
+// where the modal tooth alone moved by 10 % between 10 and 12 modes; a tip strike's stick force
+// converges with the shear-corrected sections; no impact gains energy. Full table:
+// docs/convergence.md.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -335,8 +335,9 @@ void rodToothSide(const NarrowInput& in, const ToothModel& tm, ContactGeom* g) {
 }
 
 // Modal tooth: phi and phi' at x are still in the scratch from the refinement's last
-// evaluation; the surface point turns with the section, psi_i = rotation_factor_i phi_i'; H(x) q is blended from the stations like H(x) itself (from *direct after a warm
-// start). Also the residual flexibility along n in series with the Hertz law.
+// evaluation; the surface point turns with the section, psi_i = rotation_factor_i phi_i'; H(x) q
+// is blended from the stations like H(x) itself (from *direct after a warm start). Also the
+// residual flexibility along n in series with the Hertz law.
 void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
                     StationPair* direct, ContactGeom* g) {
   Workspace* ws = in.ws;
