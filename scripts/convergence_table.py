@@ -350,7 +350,9 @@ of the others; that of the slope, which friction acts on through the tooth's sur
   shapes and frequencies stay Euler-Bernoulli; the correction only concerns the rotation that
   carries the surface points. For the teeth of `config/` (d / L = 1/6) it is 0.98 for the
   first mode and 0.48 for the fifth. A large-deflection tooth's sections turn with its
-  centreline (a Kirchhoff rod). Tried before it and measured on branch `tstick`
+  centreline (a Kirchhoff rod); its surface points get the same factor, mode by mode of the
+  rod linearised at rest (docs/large_deflection.md). Tried before it and measured on branch
+  `tstick`
   (`scripts/probe_stick_convergence.sh` there): a Mindlin tangential spring in series with
   the stick (and the residual flexibility along t) does not converge the stick forces.
 - **Automatic mode count** (`teeth.*.modes: auto`, the default). The Hertz contact time t_c of

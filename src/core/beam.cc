@@ -126,26 +126,21 @@ double cantileverBetaL(int i) {
   return z;
 }
 
-// Section rotation per unit slope of each mode (docs/model.md §9b). A shear-flexible
-// (Timoshenko) beam bent quasi-statically into a wave of number beta turns its sections by
+// Section rotation per unit slope (docs/model.md §9b). A shear-flexible (Timoshenko) beam bent
+// quasi-statically into a wave of number beta turns its sections by
 // psi = w' / (1 + (E / kappa G) (I / A) beta^2): the shear takes up the rest of the slope.
 // Euler-Bernoulli (psi = w') lets the slopes of high modes grow with beta, so the friction
 // couple's reach into them, and the stick forces, never converge in the mode count.
 // kappa = 6 (1 + nu) / (7 + 6 nu): the shear coefficient of a solid circular section.
-namespace {
-VecX sectionRotationFactors(const ToothModel& t) {
-  const int n = static_cast<int>(t.beta_per_m.size());
-  if (t.section_rotation == ToothSectionRotation::kEulerBernoulli) return VecX::Ones(n);
+double sectionRotationFactor(const ToothModel& t, double beta_per_m) {
+  if (t.section_rotation == ToothSectionRotation::kEulerBernoulli) return 1.0;
   const double nu = t.poisson_ratio;
   const double kappa = 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu);
   const double E_over_kappa_G = 2.0 * (1.0 + nu) / kappa;  // G = E / (2 (1 + nu))
   const double r_g_sq_m2 = t.second_moment_m4 / t.area_m2;  // I / A = d^2 / 16
-  VecX f(n);
-  for (int i = 0; i < n; ++i)
-    f[i] = 1.0 / (1.0 + E_over_kappa_G * r_g_sq_m2 * t.beta_per_m[i] * t.beta_per_m[i]);
-  return f;
+  return 1.0 / (1.0 + E_over_kappa_G * r_g_sq_m2 * beta_per_m * beta_per_m);
 }
-}  // namespace
+
 
 void compileTooth(double drum_radius_m, ToothModel* tooth) {
   validateTooth(drum_radius_m, *tooth);
@@ -181,7 +176,8 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
     t.omega0_sq[i] = std::pow(beta_L, 4) * EI / (rhoA * std::pow(L, 4));
     t.damping_coeff[i] = 2 * t.damping_ratio * std::sqrt(t.omega0_sq[i]);
   }
-  t.rotation_factor = sectionRotationFactors(t);
+  t.rotation_factor.resize(n);
+  for (int i = 0; i < n; ++i) t.rotation_factor[i] = sectionRotationFactor(t, t.beta_per_m[i]);
 
   // Centrifugal stiffening K_G = int N phi' phi'^T and tangential inertia load
   // p = int rho A (R + x) phi, with the axial force N(x) = rho A [R (L - x) + (L^2 - x^2) / 2].

@@ -128,6 +128,7 @@ void compileLargeDeflection(ToothModel* tooth) {
   // Damping: modal damping 2 zeta omega of the linearised rod at rest, D = M0 V diag V^T M0
   // with K V = M0 V Omega^2, V^T M0 V = I.
   t.ld_D.setZero(n, n);
+  t.ld_rotation_filter = MatX::Identity(n, n);
   if (n == 0) return;
   LdConfig cfg;
   const VecX q0 = VecX::Zero(n);
@@ -141,6 +142,16 @@ void compileLargeDeflection(ToothModel* tooth) {
   const MatX MV = M0d * eig.eigenvectors();
   const VecX c = 2.0 * t.damping_ratio * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
   t.ld_D = MV * c.asDiagonal() * MV.transpose();
+  // The shear-corrected rotation, mode by mode of the linearised rod (docs/model.md §9b): mode j
+  // has the wave number beta_j = (omega_j^2 rho A / EI)^{1/4}. (Euler-Bernoulli: S = I.)
+  if (t.section_rotation == ToothSectionRotation::kEulerBernoulli) return;
+  VecX f(n);
+  for (int j = 0; j < n; ++j) {
+    const double beta_per_m = std::pow(
+        std::max(eig.eigenvalues()[j], 0.0) * t.mass_per_length_kgpm / EI, 0.25);
+    f[j] = sectionRotationFactor(t, beta_per_m);
+  }
+  t.ld_rotation_filter = eig.eigenvectors() * f.asDiagonal() * MV.transpose();
 }
 
 void ldConfigure(const ToothModel& t, const double* q, LdConfig* cfg) {

@@ -217,8 +217,8 @@ const KeySpec kSchema[] = {
      "on: `shear_corrected`, each mode's slope w' reduced to the rotation of a shear-flexible "
      "(Timoshenko) section, w' / (1 + (E / kappa G) (I / A) beta^2), so the stick forces converge "
      "in the mode count; `euler_bernoulli`, the slope itself (the paper's model; its stick forces "
-     "do not converge). A large-deflection tooth's sections turn with its centreline "
-     "([model.md](model.md) §9b).",
+     "do not converge). A large-deflection tooth applies the same factor mode by mode of the rod "
+     "linearised at rest ([model.md](model.md) §9b).",
      "shear_corrected, euler_bernoulli"},
     {"kernels", KeyKind::kList, "list", "", kNoRange,
      [](const SchemaDefaults&) -> std::string { return "[]"; },

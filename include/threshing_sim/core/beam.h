@@ -24,6 +24,11 @@ struct StationFlexibility {
 // beta_i L of the i-th (0-based) clamped-free mode: 1.87510407, 4.69409113, ... [-]
 double cantileverBetaL(int i);
 
+// Section rotation per unit slope of a wave of number beta_per_m in the tooth (docs/model.md
+// §9b): 1 / (1 + (E / kappa G) (I / A) beta^2) for shear-corrected sections, 1 for
+// Euler-Bernoulli ones. Needs the tooth's area and second moment (compiled).
+double sectionRotationFactor(const ToothModel& t, double beta_per_m);
+
 // Fills the derived fields of `tooth` (section, modal constants, K_G, p, I0, stations,
 // phi/dphi/H at the stations) for a root at distance drum_radius_m from the drum axis.
 // Throws std::invalid_argument naming the field on a non-physical value.

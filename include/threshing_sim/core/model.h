@@ -90,6 +90,9 @@ struct ToothModel {
   MatX ld_B;  // C^T diag(node mass) C, N x N [kg m^2]
   MatX ld_K;  // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
   MatX ld_D;  // damping matrix (modal damping of the linearised tooth at rest) [N m s]
+  MatX ld_rotation_filter;  // S: the sections' rotation rate that carries the surface points is
+                            // phi(s)^T S qdot; S = V diag(f_j) V^T M0 in the linearised rod's
+                            // modes V (f_j: sectionRotationFactor of mode j), n x n [-]
   Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
   bool modes_auto = false;        // n_modes was chosen by compileModel (kAutoModes) [-]
   double contact_time_s = 0;      // Hertz contact time estimate the automatic count used [s]

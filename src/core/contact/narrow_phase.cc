@@ -321,8 +321,13 @@ void rodToothSide(const NarrowInput& in, const ToothModel& tm, ContactGeom* g) {
   const int n = tm.n_modes;
   LdJac jac;
   ldPoint(tm, ldConfigOf(in.m, in.pair.a, in.z, in.ws), g->tooth_x_m, nullptr, nullptr, &jac);
-  double phi[kLdMaxShapes];
-  ldShapes(tm, g->tooth_x_m, phi, nullptr);
+  double theta_shape[kLdMaxShapes], phi[kLdMaxShapes];
+  ldShapes(tm, g->tooth_x_m, theta_shape, nullptr);
+  // The section's turn per coordinate: phi^T S (S = I for Euler-Bernoulli sections).
+  for (int i = 0; i < n; ++i) {
+    phi[i] = 0.0;
+    for (int k = 0; k < n; ++k) phi[i] += theta_shape[k] * tm.ld_rotation_filter(k, i);
+  }
   const Rotation2 rot(in.drive.theta_rad);
   const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
   const Vec2 jr = perp(r_t * g->n);

@@ -156,8 +156,10 @@ CentrelineMotion rodMotion(const Model& m, int tooth, const VecX& z, const VecX&
   ldPointMotion(tm, cfg, u.data() + tm.dof_offset, x_m, &v, &a, &v_s);
   double phi[kLdMaxShapes], dphi[kLdMaxShapes];
   ldShapes(tm, x_m, phi, dphi);
-  double dthd = 0.0;
-  for (int i = 0; i < tm.n_modes; ++i) dthd += dphi[i] * u[tm.dof_offset + i];
+  double dthd = 0.0;  // x-derivative of the sections' turn rate, phi'^T S qdot
+  for (int i = 0; i < tm.n_modes; ++i)
+    for (int k = 0; k < tm.n_modes; ++k)
+      dthd += dphi[k] * tm.ld_rotation_filter(k, i) * u[tm.dof_offset + i];
   auto toD = [&](const Vec2& p) { return Vec2(p.x() * tm.e1_D + p.y() * tm.e2_D); };
   CentrelineMotion cm;
   cm.r = toD(r);
