@@ -136,11 +136,10 @@ double sectionRotationFactor(const ToothModel& t, double beta_per_m) {
   if (t.section_rotation == ToothSectionRotation::kEulerBernoulli) return 1.0;
   const double nu = t.poisson_ratio;
   const double kappa = 6.0 * (1.0 + nu) / (7.0 + 6.0 * nu);
-  const double E_over_kappa_G = 2.0 * (1.0 + nu) / kappa;  // G = E / (2 (1 + nu))
+  const double E_over_kappa_G = 2.0 * (1.0 + nu) / kappa;   // G = E / (2 (1 + nu))
   const double r_g_sq_m2 = t.second_moment_m4 / t.area_m2;  // I / A = d^2 / 16
   return 1.0 / (1.0 + E_over_kappa_G * r_g_sq_m2 * beta_per_m * beta_per_m);
 }
-
 
 void compileTooth(double drum_radius_m, ToothModel* tooth) {
   validateTooth(drum_radius_m, *tooth);

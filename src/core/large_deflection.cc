@@ -147,8 +147,8 @@ void compileLargeDeflection(ToothModel* tooth) {
   if (t.section_rotation == ToothSectionRotation::kEulerBernoulli) return;
   VecX f(n);
   for (int j = 0; j < n; ++j) {
-    const double beta_per_m = std::pow(
-        std::max(eig.eigenvalues()[j], 0.0) * t.mass_per_length_kgpm / EI, 0.25);
+    const double beta_per_m =
+        std::pow(std::max(eig.eigenvalues()[j], 0.0) * t.mass_per_length_kgpm / EI, 0.25);
     f[j] = sectionRotationFactor(t, beta_per_m);
   }
   t.ld_rotation_filter = eig.eigenvectors() * f.asDiagonal() * MV.transpose();

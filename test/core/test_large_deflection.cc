@@ -296,13 +296,13 @@ void expectSmallDeflectionAgreement(IntegratorType type) {
       strike(type, ToothBeamModel::kModal, ToothSectionRotation::kShearCorrected);
   const StrikeResult rod_s =
       strike(type, ToothBeamModel::kLargeDeflection, ToothSectionRotation::kShearCorrected);
-  std::printf("LD_AGREEMENT_SHEAR_CORRECTED peak normal %.4f vs %.4f N, tangential %.4f vs "
-              "%.4f N\n",
-              rod_s.peak_normal_N, modal_s.peak_normal_N, rod_s.peak_tangential_N,
-              modal_s.peak_tangential_N);
+  std::printf(
+      "LD_AGREEMENT_SHEAR_CORRECTED peak normal %.4f vs %.4f N, tangential %.4f vs "
+      "%.4f N\n",
+      rod_s.peak_normal_N, modal_s.peak_normal_N, rod_s.peak_tangential_N,
+      modal_s.peak_tangential_N);
   EXPECT_NEAR(rod_s.peak_normal_N, modal_s.peak_normal_N, 0.01 * modal_s.peak_normal_N);
-  EXPECT_NEAR(rod_s.peak_tangential_N, modal_s.peak_tangential_N,
-              0.01 * modal_s.peak_tangential_N);
+  EXPECT_NEAR(rod_s.peak_tangential_N, modal_s.peak_tangential_N, 0.01 * modal_s.peak_tangential_N);
   EXPECT_NE(modal_s.peak_tangential_N, modal.peak_tangential_N);  // the factor is in use
 }
 

@@ -117,8 +117,7 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
     for (const ContactEvent& e : a.d.events)
       if (e.is_impact || e.to == ContactState::kImpact) aa.push_back(e.pair);
     EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
-    const std::vector<double> og = outputs(g), oa = outputs(a), of = outputs(f),
-                              oaf = outputs(af);
+    const std::vector<double> og = outputs(g), oa = outputs(a), of = outputs(f), oaf = outputs(af);
     for (size_t q = 0; q < og.size(); ++q) {
       // The two schemes' error estimates (knob refined) together: each takes its own steps,
       // so at one knob either may be the more accurate; or for the event-driven integrator ten

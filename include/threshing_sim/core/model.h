@@ -56,8 +56,8 @@ struct ToothModel {
                                                        // is the number of Ritz shape functions
   bool static_correction = true;  // residual flexibility of the truncated modes in series with
                                   // the contact (docs/model.md §9b); false: modes only [-]
-  ToothSectionRotation section_rotation = ToothSectionRotation::kShearCorrected;  // teeth.*.
-                                  // section_rotation: the sections' rotation in the contact [-]
+  // teeth.*.section_rotation: what turns the sections in the contact (docs/model.md §9b) [-]
+  ToothSectionRotation section_rotation = ToothSectionRotation::kShearCorrected;
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]

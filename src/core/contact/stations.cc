@@ -182,8 +182,7 @@ CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, cons
   if (tm.beam_model == ToothBeamModel::kLargeDeflection) return rodMotion(m, tooth, z, u, x_m, ws);
   const int n = tm.n_modes;
   CentrelineMotion cm;
-  double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0,
-         wcdd = 0;
+  double w = 0, w1 = 0, w2 = 0, wd = 0, wd1 = 0, wc = 0, wc1 = 0, wcd = 0, wcd1 = 0, wcdd = 0;
   int s = 0;
   double t = 0;
   stationInterval(tm, x_m, &s, &t);

@@ -86,7 +86,7 @@ struct CentrelineMotion {
                      // x-derivative [1/m]
   Vec2 rt_x_rate;    // its material rate [1/s]
   double drotation_rate_dx = 0;  // x-derivative of the sections' rotation rate: modal
-                                 // (rotation_factor phi'') . qdot, rod theta' . qdot [1/(m s)]
+                                 // (rotation_factor phi'') . qdot, rod phi'^T S qdot [1/(m s)]
 };
 CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, const VecX& u,
                                   double x_m, Workspace* ws);
