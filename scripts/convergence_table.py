@@ -352,9 +352,8 @@ of the others; that of the slope, which friction acts on through the tooth's sur
   first mode and 0.48 for the fifth. A large-deflection tooth's sections turn with its
   centreline (a Kirchhoff rod); its surface points get the same factor, mode by mode of the
   rod linearised at rest (docs/large_deflection.md). Tried before it and measured on branch
-  `tstick`
-  (`scripts/probe_stick_convergence.sh` there): a Mindlin tangential spring in series with
-  the stick (and the residual flexibility along t) does not converge the stick forces.
+  `tstick` (`scripts/probe_stick_convergence.sh` there): a Mindlin tangential spring in series
+  with the stick (and the residual flexibility along t) does not converge the stick forces.
 - **Automatic mode count** (`teeth.*.modes: auto`, the default). The Hertz contact time t_c of
   the stiffest kernel contact at the tooth's tip speed (flank against the kernel's sharpest
   curvature) is estimated at start-up; a truncated mode of frequency omega is followed

@@ -31,8 +31,9 @@ def sweep_runs(out, rows, ct):
                                          f"{row['status']} {row['message']}")
         group = row["group"]
         modes = int(row["modes"]) if row.get("modes") else (0 if group == "frozen" else None)
+        rotation = "euler_bernoulli" if group == "euler_bernoulli" else None
         run = ct.Run(out, group, row["case"], row["tooth"], int(float(row["drum_speed_rpm"])),
-                     modes=modes)
+                     modes=modes, rotation=rotation)
         run.dir = out / "files" / row["key"]
         if not (run.dir / "summary.json").is_file():
             raise spec_module.SweepError(f"{run.dir}: no kept files for run {row['run']}")

@@ -121,6 +121,9 @@ class SweepTest(unittest.TestCase):
                    for c in ct.FROZEN_CASES for v in ct.FLEXIBLE for r in ct.RPM_FULL]
         theirs += [ct.Run(out, "convergence", "single_strike", v, ct.HISTORY_RPM, modes=m)
                    for v in ct.FLEXIBLE for m in ct.CONVERGENCE_MODES]
+        theirs += [ct.Run(out, "euler_bernoulli", c, v, ct.HISTORY_RPM,
+                          rotation="euler_bernoulli")
+                   for c in ct.FROZEN_CASES for v in ct.FLEXIBLE]
         self.assertEqual(len(mine), len(theirs))
         commands = [t.command(self.simulate) for t in theirs]
         text = "".join("\t".join(c[1:c.index("--summary")]) + "\n" for c in commands)
