@@ -50,6 +50,13 @@ CASES = {"single_strike": ("single_strike", None), "tip_strike": ("single_strike
 FROZEN_CASES = ["single_strike", "tip_strike", "knead"]  # the stream is too costly to double
 VARIANTS = ["rigid", "spring_steel", "nylon", "polyurethane"]
 FLEXIBLE = VARIANTS[1:]
+# Case -> the teeth whose modal tooth bends past the small-deflection range there (the core's
+# deflection_validity_fraction, 0.1 L, at some drum speed of the sweep): they run as
+# large-deflection rods (LD_FILE). The "modal" group reruns them with the modal tooth at
+# HISTORY_RPM, and the findings page lists any modal run of the sweep that leaves the range.
+LARGE_DEFLECTION = {"knead": ["nylon", "polyurethane"], "stream": ["polyurethane"]}
+LD_FILE = SCENE_DIR / "cases" / "large_deflection.yaml"
+VALIDITY_FRACTION = 0.1   # model.deflection_validity_fraction's default [-]
 COLORS = {"rigid": "black", "spring_steel": "tab:blue", "nylon": "tab:green",
           "polyurethane": "tab:red"}
 STYLES = {"rigid": "o-", "spring_steel": "s--", "nylon": "^-.", "polyurethane": "v:"}
@@ -69,12 +76,26 @@ HERTZ_SPEED_MPS = (13.0, 25.0)
 # ------------------------------------------------------------------------------------------
 # Runs.
 
+def scene_args(case, variant):
+    """simulate arguments of a case with a tooth variant: the scene, the tooth file, the case
+    file, and LD_FILE where the tooth is a large-deflection rod (LARGE_DEFLECTION)."""
+    scene, case_file = CASES[case]
+    args = [str(SCENE_DIR / f"{scene}.yaml"),
+            "--set-file", str(SCENE_DIR / "teeth" / f"{variant}.yaml")]
+    if case_file:
+        args += ["--set-file", str(SCENE_DIR / "cases" / f"{case_file}.yaml")]
+    if variant in LARGE_DEFLECTION.get(case, []):
+        args += ["--set-file", str(LD_FILE)]
+    return args
+
+
 class Run:
     """One simulate invocation: a case with a tooth variant at a drum speed."""
 
     def __init__(self, out, group, case, variant, rpm, modes=None, forces=False, quick=False,
-                 rotation=None):
-        self.group = group    # "sweep", "frozen" (modes 0), "convergence" or "euler_bernoulli"
+                 rotation=None, model=None):
+        self.group = group    # "sweep", "frozen" (modes 0), "convergence", "euler_bernoulli"
+        #                       or "modal"
         self.case = case
         self.variant = variant
         self.rpm = rpm
@@ -82,21 +103,20 @@ class Run:
         self.forces = forces
         self.quick = quick
         self.rotation = rotation  # override of teeth.*.section_rotation, or None
+        self.model = model        # override of teeth.*.model (after LD_FILE), or None
         name = f"{rpm}rpm" + ("" if modes is None else f"_{modes}modes")
         self.dir = out / "runs" / group / case / variant / name
 
     def command(self, simulate):
-        scene, case_file = CASES[self.case]
-        cmd = [str(simulate), str(SCENE_DIR / f"{scene}.yaml"),
-               "--set-file", str(SCENE_DIR / "teeth" / f"{self.variant}.yaml")]
-        if case_file:
-            cmd += ["--set-file", str(SCENE_DIR / "cases" / f"{case_file}.yaml")]
+        cmd = [str(simulate)] + scene_args(self.case, self.variant)
         cmd += ["--set", f"drum.speed={self.rpm * RADPS_PER_RPM!r}"]
         if self.modes is not None:
             cmd += ["--set", f"teeth.*.modes={self.modes}"]
         if self.rotation is not None:
             cmd += ["--set", f"teeth.*.section_rotation={self.rotation}"]
-        if self.quick and scene == "stream":
+        if self.model is not None:
+            cmd += ["--set", f"teeth.*.model={self.model}"]
+        if self.quick and CASES[self.case][0] == "stream":
             cmd += QUICK_STREAM
         cmd += ["--summary", str(self.dir / "summary.json"),
                 "--outcomes", str(self.dir / "outcomes.csv"),
@@ -117,6 +137,10 @@ class Run:
         if proc.returncode != 0:
             return self, proc.stderr.strip() or f"exit status {proc.returncode}", wall_s
         return self, None, wall_s
+
+    def rod(self):
+        """Whether the run's tooth is the large-deflection rod."""
+        return self.model is None and self.variant in LARGE_DEFLECTION.get(self.case, [])
 
     def label(self):
         modes = "" if self.modes is None else f", {self.modes} modes"
@@ -242,6 +266,8 @@ def metrics(run):
                                  for k in hit],
         "damaged": sum(k["damage"] != "none" for k in kernels) / len(kernels),
         "detached": sum(k["detached"] for k in kernels) / len(kernels),
+        "tip": run.summary()["max_tip_deflection_ratio"],
+        "rod": run.rod(),
     }
 
 
@@ -286,7 +312,7 @@ def ratio_range(numerators, denominators):
 
 def analyse(runs, sample_us):
     """Every number the report and the findings state."""
-    table, frozen, euler = {}, {}, {}
+    table, frozen, euler, modal = {}, {}, {}, {}
     for run in runs:
         if run.group == "sweep":
             table.setdefault((run.case, run.variant), {})[run.rpm] = metrics(run)
@@ -294,7 +320,9 @@ def analyse(runs, sample_us):
             frozen.setdefault((run.case, run.variant), {})[run.rpm] = metrics(run)
         elif run.group == "euler_bernoulli":
             euler[(run.case, run.variant)] = metrics(run)
-    a = {"table": table, "frozen": frozen, "euler": euler, "sample_us": sample_us,
+        elif run.group == "modal":
+            modal[(run.case, run.variant)] = metrics(run)
+    a = {"table": table, "frozen": frozen, "euler": euler, "modal": modal, "sample_us": sample_us,
          "threshold_us": 2 * sample_us}
 
     # Claim 1: share of touched kernels whose two peaks lie more than two sampling intervals
@@ -761,6 +789,48 @@ def rotation_table(a, history_rpm):
                            "tangential / rigid tooth's, shear-corrected / Euler-Bernoulli"], rows)
 
 
+def rod_cases():
+    """The cases whose soft teeth are rods, in words."""
+    return ", ".join(f"the {case} with the {' and '.join(v)} "
+                     f"{'teeth' if len(v) > 1 else 'tooth'}"
+                     for case, v in LARGE_DEFLECTION.items())
+
+
+def invalid_runs(a):
+    """(case, tooth, rpm, tip / L) of the sweep's modal runs past the small-deflection range."""
+    return [(case, v, rpm, m["tip"]) for (case, v), by_rpm in sorted(a["table"].items())
+            for rpm, m in sorted(by_rpm.items()) if not m["rod"] and m["tip"] > VALIDITY_FRACTION]
+
+
+def rod_paragraph(a, history_rpm):
+    beyond = invalid_runs(a)
+    check = ("No modal run of the sweep leaves the range." if not beyond else
+             "Modal runs of the sweep past it (add them to `LARGE_DEFLECTION`): " +
+             "; ".join(f"{c} {v} {r} rpm ({fmt(t)} L)" for c, v, r, t in beyond) + ".")
+    return (f"The modal tooth is a small-deflection beam, valid to a tip deflection of "
+            f"{VALIDITY_FRACTION:g} L (the core warns past it). Where it bends further at some "
+            f"speed, the tooth is the geometrically exact large-deflection rod "
+            f"(`config/scenes/cases/large_deflection.yaml`, docs/large_deflection.md; its "
+            f"automatic count of shape functions): {rod_cases()}. {check} The same cases at "
+            f"{history_rpm} rpm with the modal tooth against the rod (largest tip deflection "
+            f"over L; the stream is chaotic, its maxima compare one seed's kernels):")
+
+
+def rod_table(a, history_rpm):
+    """Peak forces and tip deflection of the rod runs and their modal reruns."""
+    rows = []
+    for (case, v), before in sorted(a["modal"].items()):
+        now = a["table"].get((case, v), {}).get(history_rpm)
+        if now is None:
+            continue
+        rows.append([case, v, f"{fmt(now['peak_normal_N'])} / {fmt(before['peak_normal_N'])}",
+                     f"{fmt(now['knead_N'])} / {fmt(before['knead_N'])}",
+                     f"{fmt(now['tip'])} / {fmt(before['tip'])}"])
+    return markdown_table(["case", "tooth", "peak normal [N], rod / modal",
+                           "peak tangential [N], rod / modal", "tip deflection / L, rod / modal"],
+                          rows)
+
+
 def write_findings(path, a, plots, rpms, history_rpm):
     convergence = (markdown_table(
         ["tooth"] + [f"{m} modes" for m in CONVERGENCE_MODES],
@@ -778,7 +848,8 @@ def write_findings(path, a, plots, rpms, history_rpm):
         "`config/scenes/{single_strike,knead,stream}.yaml` and the single strike with "
         "`config/scenes/cases/tip_strike.yaml`; teeth: `config/scenes/teeth/{rigid,"
         "spring_steel,nylon,polyurethane}.yaml` (values and sources in the files); drum "
-        f"speeds {rpms[0]}-{rpms[-1]} rpm; force peaks and their times from the core at every "
+        f"speeds {rpms[0]}-{rpms[-1]} rpm; {rod_cases()} as large-deflection rods (below); "
+        "force peaks and their times from the core at every "
         "accepted step, at located maxima of the compliant normal forces and on both sides of "
         "every located event (steps near a tooth at most "
         f"{fmt(a['sample_us'])} us); force histories sampled every {fmt(a['sample_us'])} us near "
@@ -799,6 +870,9 @@ def write_findings(path, a, plots, rpms, history_rpm):
         "A kernel is damaged when the largest normal force of any of its contacts reaches the "
         "plastic threshold (139 N; fracture 146 N). The knead kernel has no pedicel.", "",
         damage_table(a), "",
+        "## Large deflection: where the tooth is a rod", "",
+        rod_paragraph(a, history_rpm), "",
+        rod_table(a, history_rpm), "",
         "## What the shear-corrected sections changed", "",
         rotation_paragraph(history_rpm), "",
         rotation_table(a, history_rpm), "",
@@ -910,8 +984,9 @@ def readme_section(a, rpms, docs_rel, n_runs, jobs, wall_s):
     lines = [
         f"Generated by `scripts/compare_teeth.py --findings` from the built `simulate`: "
         f"{n_runs} simulations (cases {', '.join(cases)}; teeth {', '.join(teeth)}; "
-        f"{rpms[0]}-{rpms[-1]} rpm; controls with frozen teeth), all contacts compliant, "
-        "integrated event-driven. Force peaks and their "
+        f"{rpms[0]}-{rpms[-1]} rpm; controls with frozen teeth; {rod_cases()} as "
+        "large-deflection rods, where the modal tooth bends past 0.1 L), all contacts "
+        "compliant, integrated event-driven. Force peaks and their "
         "times are the core's (every accepted step, the located maxima of compliant normal "
         "forces, and both sides of every located event). "
         f"This run took {duration(wall_s)} on {jobs} workers. The full report, with every "
@@ -989,6 +1064,8 @@ def main():
                  for v in FLEXIBLE for m in CONVERGENCE_MODES]
         runs += [Run(out, "euler_bernoulli", c, v, history_rpm, rotation="euler_bernoulli")
                  for c in FROZEN_CASES for v in FLEXIBLE]
+        runs += [Run(out, "modal", c, v, history_rpm, model="modal")
+                 for c, teeth in LARGE_DEFLECTION.items() for v in teeth]
     print(f"compare_teeth: {len(runs)} simulations on {args.jobs} workers -> {out}", flush=True)
     started = time.monotonic()
     run_all(runs, simulate, args.jobs, args.reuse)

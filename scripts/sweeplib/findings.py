@@ -32,8 +32,9 @@ def sweep_runs(out, rows, ct):
         group = row["group"]
         modes = int(row["modes"]) if row.get("modes") else (0 if group == "frozen" else None)
         rotation = "euler_bernoulli" if group == "euler_bernoulli" else None
+        model = "modal" if group == "modal" else None
         run = ct.Run(out, group, row["case"], row["tooth"], int(float(row["drum_speed_rpm"])),
-                     modes=modes, rotation=rotation)
+                     modes=modes, rotation=rotation, model=model)
         run.dir = out / "files" / row["key"]
         if not (run.dir / "summary.json").is_file():
             raise spec_module.SweepError(f"{run.dir}: no kept files for run {row['run']}")

@@ -234,6 +234,10 @@ void printModes(const Model& model) {
     }
     std::printf("  at rest:");
     printFrequencies(toothFrequenciesHz(tooth, 0.0));
+    if (tooth.beam_model == ToothBeamModel::kLargeDeflection) {
+      std::printf("  large-deflection rod, %d shape functions, linearised at rest:", tooth.n_modes);
+      printFrequencies(tooth.ld_frequencies_Hz);
+    }
     std::printf("  at %.6g rad/s (%.6g rpm):", omega_radps, omega_radps * kRpmPerRadps);
     printFrequencies(toothFrequenciesHz(tooth, omega_radps));
   }

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 #include "eigen_solvers.h"
 #include "internal.h"
@@ -73,13 +74,14 @@ const LagrangeTable& lagrange() {
   return table;
 }
 
-double intervalLength(const ToothModel& t) { return t.length_m / kLdIntervals; }
+double intervalLength(const ToothModel& t) { return t.length_m / t.ld_intervals; }
+int nodeCount(const ToothModel& t) { return t.ld_intervals * kLdGauss; }
 
 // Interval holding s and the local coordinate xi in [-1, 1] there.
 void locate(const ToothModel& t, double s_m, int* k, double* xi) {
   const double h = intervalLength(t);
   const double s = std::clamp(s_m, 0.0, t.length_m);
-  *k = std::min(kLdIntervals - 1, static_cast<int>(s / h));
+  *k = std::min(t.ld_intervals - 1, static_cast<int>(s / h));
   *xi = std::clamp(2.0 * (s - *k * h) / h - 1.0, -1.0, 1.0);
 }
 
@@ -105,15 +107,18 @@ void ldShapes(const ToothModel& t, double s_m, double* phi, double* dphi) {
 void compileLargeDeflection(ToothModel* tooth) {
   ToothModel& t = *tooth;
   const int n = t.n_modes;
-  if (n > kLdMaxShapes) throw std::invalid_argument("tooth.modes: must be <= 12");
+  if (n > kLdMaxShapes)
+    throw std::invalid_argument("tooth.modes: must be <= " + std::to_string(kLdMaxShapes) +
+                                " for a large_deflection tooth");
+  t.ld_intervals = ldIntervalsFor(n);
   const double h = intervalLength(t);
   const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
   t.ld_root_T = Vec2(t.p_DR_D.dot(t.e1_D), t.p_DR_D.dot(t.e2_D));
-  t.ld_node_s_m.resize(kLdNodes);
-  t.ld_node_mass_kg.resize(kLdNodes);
-  t.ld_Phi.resize(kLdNodes, n);
+  t.ld_node_s_m.resize(nodeCount(t));
+  t.ld_node_mass_kg.resize(nodeCount(t));
+  t.ld_Phi.resize(nodeCount(t), n);
   double phi[kLdMaxShapes], dphi[kLdMaxShapes];
-  for (int k = 0; k < kLdIntervals; ++k) {
+  for (int k = 0; k < t.ld_intervals; ++k) {
     for (int j = 0; j < kLdGauss; ++j) {
       const int a = k * kLdGauss + j;
       t.ld_node_s_m[a] = (k + 0.5 * (kNode[j] + 1.0)) * h;
@@ -140,7 +145,9 @@ void compileLargeDeflection(ToothModel* tooth) {
   if (eig.info() != Eigen::Success)
     throw std::invalid_argument("tooth.modes: the large-deflection rod's modes did not converge");
   const MatX MV = M0d * eig.eigenvectors();
-  const VecX c = 2.0 * t.damping_ratio * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  const VecX omega_radps = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+  t.ld_frequencies_Hz = omega_radps / (2.0 * kPi);
+  const VecX c = 2.0 * t.damping_ratio * omega_radps;
   t.ld_D = MV * c.asDiagonal() * MV.transpose();
   // The shear-corrected rotation, mode by mode of the linearised rod (docs/model.md §9b): mode j
   // has the wave number beta_j = (omega_j^2 rho A / EI)^{1/4}. (Euler-Bernoulli: S = I.)
@@ -158,7 +165,7 @@ void ldConfigure(const ToothModel& t, const double* q, LdConfig* cfg) {
   const int n = t.n_modes;
   const double h = intervalLength(t);
   cfg->n = n;
-  for (int a = 0; a < kLdNodes; ++a) {
+  for (int a = 0; a < nodeCount(t); ++a) {
     double th = 0.0;
     for (int i = 0; i < n; ++i) th += t.ld_Phi(a, i) * q[i];
     cfg->theta[a] = th;
@@ -167,7 +174,7 @@ void ldConfigure(const ToothModel& t, const double* q, LdConfig* cfg) {
   }
   cfg->r_end[0] = t.ld_root_T;
   cfg->J_end[0].setZero(2, n);
-  for (int k = 0; k < kLdIntervals; ++k) {
+  for (int k = 0; k < t.ld_intervals; ++k) {
     Vec2 r = cfg->r_end[k];
     LdJac J = cfg->J_end[k];
     for (int j = 0; j < kLdGauss; ++j) {
@@ -239,8 +246,8 @@ void ldDynamics(const ToothModel& t, const LdConfig& cfg, const double* q, const
   const LagrangeTable& L = lagrange();
   const int n = cfg.n;
   const double h = intervalLength(t);
-  double thd[kLdNodes];
-  for (int a = 0; a < kLdNodes; ++a) {
+  double thd[kLdMaxNodes];
+  for (int a = 0; a < nodeCount(t); ++a) {
     double v = 0.0;
     for (int i = 0; i < n; ++i) v += t.ld_Phi(a, i) * qd[i];
     thd[a] = v;
@@ -249,7 +256,7 @@ void ldDynamics(const ToothModel& t, const LdConfig& cfg, const double* q, const
   LdVec Qin = LdVec::Zero(n);
   double T = 0.0, H = 0.0;
   Vec2 vel_end = Vec2::Zero(), acc_end = Vec2::Zero();  // at the interval start
-  for (int k = 0; k < kLdIntervals; ++k) {
+  for (int k = 0; k < t.ld_intervals; ++k) {
     for (int j = 0; j < kLdGauss; ++j) {
       // Node g = (k, j): r, v, a and J by the interval's integration matrix.
       const int g = k * kLdGauss + j;
@@ -310,9 +317,9 @@ Vec2 ldStaticTipLoad(const ToothModel& t, const Vec2& P, VecX* q_out) {
     bool converged = false;
     for (int it = 0; it < 50 && !converged; ++it) {
       ldConfigure(t, q.data(), &cfg);
-      VecX res = t.ld_K * q - cfg.J_end[kLdIntervals].transpose() * Ps;
+      VecX res = t.ld_K * q - cfg.J_end[t.ld_intervals].transpose() * Ps;
       MatX tangent = t.ld_K;
-      for (int a = 0; a < kLdNodes; ++a) {
+      for (int a = 0; a < nodeCount(t); ++a) {
         const double w = 0.5 * h * kWeight[a % kLdGauss];
         const double pt = Ps.x() * cfg.cos_t[a] + Ps.y() * cfg.sin_t[a];
         tangent.noalias() += (w * pt) * t.ld_Phi.row(a).transpose() * t.ld_Phi.row(a);
@@ -325,7 +332,7 @@ Vec2 ldStaticTipLoad(const ToothModel& t, const Vec2& P, VecX* q_out) {
   }
   ldConfigure(t, q.data(), &cfg);
   if (q_out != nullptr) *q_out = q;
-  return cfg.r_end[kLdIntervals] - (t.ld_root_T + Vec2(t.length_m, 0.0));
+  return cfg.r_end[t.ld_intervals] - (t.ld_root_T + Vec2(t.length_m, 0.0));
 }
 
 namespace internal {

@@ -167,9 +167,11 @@ void compileToothAt(Model* model, size_t k) {
   if (t.n_modes == kAutoModes || t.modes_auto) {
     t.modes_auto = true;
     t.contact_time_s = shortestContactTime(m, t);
-    // A large-deflection rod's `modes` are the Ritz shape functions of its section angle, not
-    // bending modes: kLdAutoShapes resolve its statics to 1e-7 L (docs/large_deflection.md).
-    t.n_modes = rod ? kLdAutoShapes : chooseModeCount(m, t, t.contact_time_s);
+    // A large-deflection rod's `modes` are the Ritz shape functions of its section angle; its
+    // low frequencies are the cantilever's, so it takes the modal count within bounds
+    // (large_deflection.h, docs/large_deflection.md).
+    const int n = chooseModeCount(m, t, t.contact_time_s);
+    t.n_modes = rod ? std::clamp(n, kLdAutoMinShapes, kLdAutoMaxShapes) : n;
   }
   // The rod truncates no modes: there is no residual flexibility to correct.
   if (rod) t.static_correction = false;

@@ -187,7 +187,7 @@ const KeySpec kSchema[] = {
      [](const SchemaDefaults&) -> std::string { return kAutoModesWord; },
      "Number of retained bending modes; 0 makes the tooth rigid; `auto` chooses it from the "
      "contact time and the tolerance (README \"Converged tooth forces\"). For a large-deflection "
-     "tooth: its Ritz shape functions, at most 12 (`auto`: 6)."},
+     "tooth: its Ritz shape functions, at most 40 (`auto`: the modal count, within 6 to 24)."},
     {"teeth.*.damping_ratio", KeyKind::kValue, "number", "", Bound{0.0, 1.0, false, true},
      [](const SchemaDefaults& d) -> std::string { return num(d.tooth.damping_ratio); },
      "Modal damping ratio zeta, the same for every mode."},

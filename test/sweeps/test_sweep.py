@@ -124,6 +124,8 @@ class SweepTest(unittest.TestCase):
         theirs += [ct.Run(out, "euler_bernoulli", c, v, ct.HISTORY_RPM,
                           rotation="euler_bernoulli")
                    for c in ct.FROZEN_CASES for v in ct.FLEXIBLE]
+        theirs += [ct.Run(out, "modal", c, v, ct.HISTORY_RPM, model="modal")
+                   for c, teeth in ct.LARGE_DEFLECTION.items() for v in teeth]
         self.assertEqual(len(mine), len(theirs))
         commands = [t.command(self.simulate) for t in theirs]
         text = "".join("\t".join(c[1:c.index("--summary")]) + "\n" for c in commands)

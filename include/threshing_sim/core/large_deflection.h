@@ -7,9 +7,10 @@
 // stiffness EI int phi_i' phi_j' ds is constant and diagonal. Positions are exact geometry,
 // r(s) = b + int_0^s (cos theta, sin theta) d sigma in the tooth frame T (axes e1 along the
 // undeformed tooth, e2 = J e1, origin on the drum axis, root at b), integrated by collocation:
-// 8 intervals of 8 Gauss-Legendre nodes, with the integral inside an interval taken from the
-// Lagrange interpolant of (cos, sin)(theta) on its nodes (spectral integration matrix). The
-// rod's mass sits on the same 64 nodes (node weight rho A w_a), so the discrete system is a
+// 8 intervals of 8 Gauss-Legendre nodes (16 intervals past kLdFineShapes shape functions), with
+// the integral inside an interval taken from the Lagrange interpolant of (cos, sin)(theta) on its
+// nodes (spectral integration matrix). The rod's mass sits on the same 64 (128) nodes (node
+// weight rho A w_a), so the discrete system is a
 // set of particles whose positions are exact functions of q: its mass matrix M(q), velocity
 // terms, centrifugal, Coriolis and Euler loads follow from D'Alembert's principle without
 // approximation, and the energy of the free rod is conserved exactly by its equations
@@ -23,11 +24,25 @@
 
 namespace threshing_sim {
 
-constexpr int kLdIntervals = 8;                    // collocation intervals along the rod [-]
-constexpr int kLdGauss = 8;                        // Gauss nodes per interval [-]
-constexpr int kLdNodes = kLdIntervals * kLdGauss;  // mass and collocation nodes [-]
-constexpr int kLdMaxShapes = 12;                   // most Ritz shape functions (teeth.*.modes)
-constexpr int kLdAutoShapes = 6;                   // shape functions of teeth.*.modes: auto
+constexpr int kLdGauss = 8;          // Gauss nodes per collocation interval [-]
+constexpr int kLdMaxIntervals = 16;  // most collocation intervals along the rod [-]
+constexpr int kLdMaxNodes = kLdMaxIntervals * kLdGauss;  // most mass and collocation nodes [-]
+// Most Ritz shape functions (teeth.*.modes). The Legendre angle fields' highest Ritz frequencies
+// are spurious, and they climb fast once the mass nodes stop resolving the kinetic energy: with
+// 64 nodes the polyurethane tooth's highest frequency is 36 times the cantilever's at 28
+// functions, 205 times at 32; with 128 nodes 30 times at 28, 62 times at 40
+// (docs/large_deflection.md). Hence 8 intervals up to kLdFineShapes functions, 16 beyond.
+constexpr int kLdMaxShapes = 40;
+constexpr int kLdFineShapes = 24;
+// Collocation intervals of a rod with n shape functions [-].
+constexpr int ldIntervalsFor(int n) { return n <= kLdFineShapes ? 8 : kLdMaxIntervals; }
+// teeth.*.modes: auto on a rod takes the modal tooth's count (chooseModeCount: the modes the
+// contact time and tolerance need), at least kLdAutoMinShapes and at most kLdAutoMaxShapes, so
+// that two finer levels (+4, +8) stay available to check convergence. The polyurethane knead's
+// forces and exit speed move by less than 1 % from 24 to 28 and 32 functions; at 20 the exit
+// speed is 1.3 % off (docs/large_deflection.md).
+constexpr int kLdAutoMinShapes = 6;
+constexpr int kLdAutoMaxShapes = 24;
 
 // 2 x n Jacobian of a point (dr/dq, tooth frame) [m/rad], n <= kLdMaxShapes.
 using LdJac = Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, kLdMaxShapes>;
@@ -45,12 +60,12 @@ void ldShapes(const ToothModel& tooth, double s_m, double* phi, double* dphi);
 // The rod at one configuration q: node angles and the centreline and its Jacobian at the
 // interval ends (tooth frame, drum origin).
 struct LdConfig {
-  int n = 0;                      // shape functions [-]
-  double theta[kLdNodes];         // section angle at the nodes [rad]
-  double cos_t[kLdNodes];         // its cosine [-]
-  double sin_t[kLdNodes];         // its sine [-]
-  Vec2 r_end[kLdIntervals + 1];   // r at the interval ends [m]
-  LdJac J_end[kLdIntervals + 1];  // dr/dq there [m/rad]
+  int n = 0;                         // shape functions [-]
+  double theta[kLdMaxNodes];         // section angle at the nodes [rad]
+  double cos_t[kLdMaxNodes];         // its cosine [-]
+  double sin_t[kLdMaxNodes];         // its sine [-]
+  Vec2 r_end[kLdMaxIntervals + 1];   // r at the interval ends [m]
+  LdJac J_end[kLdMaxIntervals + 1];  // dr/dq there [m/rad]
 };
 
 // Computes the configuration of `tooth` at q (n_modes values) [rad].

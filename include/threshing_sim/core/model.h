@@ -83,6 +83,7 @@ struct ToothModel {
   int dof_offset = 0;               // first index of this tooth's q in the generalised vector
   // Large-deflection tooth only (beam_model kLargeDeflection; q in rad, section angle
   // theta(s) = sum_i q_i phi_i(s)); see large_deflection.h. N collocation nodes s_a.
+  int ld_intervals = 8;  // collocation intervals (ldIntervalsFor(n_modes)), N = 8 per interval [-]
   VecX ld_node_s_m;      // node coordinates s_a [m], size N
   VecX ld_node_mass_kg;  // node masses rho A w_a (Gauss weights w_a) [kg], size N
   MatX ld_Phi;           // phi_i(s_a), N x n [-]
@@ -93,6 +94,7 @@ struct ToothModel {
   MatX ld_rotation_filter;  // S: the sections' rotation rate that carries the surface points is
                             // phi(s)^T S qdot; S = V diag(f_j) V^T M0 in the linearised rod's
                             // modes V (f_j: sectionRotationFactor of mode j), n x n [-]
+  VecX ld_frequencies_Hz;   // natural frequencies of the rod linearised at rest, n [Hz]
   Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
   bool modes_auto = false;        // n_modes was chosen by compileModel (kAutoModes) [-]
   double contact_time_s = 0;      // Hertz contact time estimate the automatic count used [s]
