@@ -25,7 +25,8 @@ import sys
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "scripts"))
-from compare_teeth import CASES, LD_FILE, SCENE_DIR, VARIANTS, scene_args  # noqa: E402
+from compare_teeth import (CASES, LD_FILE, SCENE_DIR, VALIDITY_FRACTION, VARIANTS,  # noqa: E402
+                           scene_args)
 from tslib import markdown  # noqa: E402
 
 BENCH_DIR = ROOT / "config/bench"
@@ -69,11 +70,11 @@ ROD_SUFFIX = " (rod)"  # scene names whose tooth is the large-deflection rod
 
 
 def rod_reruns(todo, results):
-    """The scenes whose modal tooth bent past 0.1 L (the core's validity limit) again with the
+    """The scenes whose modal tooth bent past VALIDITY_FRACTION L (the core's limit) again with the
     large-deflection rod (config/scenes/cases/large_deflection.yaml)."""
     again = []
     for (name, args), (_, rows) in zip(todo, results):
-        if not is_rod(args) and any(usable(m) and m["tip"] > 0.1 for _, m in rows):
+        if not is_rod(args) and any(usable(m) and m["tip"] > VALIDITY_FRACTION for _, m in rows):
             again.append((name + ROD_SUFFIX, args + ["--set-file", str(LD_FILE)]))
     return again
 

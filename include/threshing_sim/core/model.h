@@ -87,10 +87,8 @@ struct ToothModel {
   VecX ld_node_s_m;      // node coordinates s_a [m], size N
   VecX ld_node_mass_kg;  // node masses rho A w_a (Gauss weights w_a) [kg], size N
   MatX ld_Phi;           // phi_i(s_a), N x n [-]
-  MatX ld_C;  // integration matrix: r(s_a) = b + sum_b C_ab (cos, sin)(theta_b), N x N [m]
-  MatX ld_B;  // C^T diag(node mass) C, N x N [kg m^2]
-  MatX ld_K;  // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
-  MatX ld_D;  // damping matrix (modal damping of the linearised tooth at rest) [N m s]
+  MatX ld_K;             // elastic stiffness EI int phi_i' phi_j' ds, n x n [N m]
+  MatX ld_D;             // damping matrix (modal damping of the linearised tooth at rest) [N m s]
   MatX ld_rotation_filter;  // S: the sections' rotation rate that carries the surface points is
                             // phi(s)^T S qdot; S = V diag(f_j) V^T M0 in the linearised rod's
                             // modes V (f_j: sectionRotationFactor of mode j), n x n [-]
