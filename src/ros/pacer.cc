@@ -1,5 +1,7 @@
 #include "threshing_sim/ros/pacer.h"
 
+#include <time.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -12,6 +14,22 @@ double MonotonicClock::nowSeconds() const {
   using Seconds = std::chrono::duration<double>;
   return std::chrono::duration_cast<Seconds>(std::chrono::steady_clock::now().time_since_epoch())
       .count();
+}
+
+double ThreadCpuClock::nowSeconds() const {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
+
+void StepMeter::end() {
+  longest_s_ = std::max(longest_s_, clock_.nowSeconds() - began_s_);
+  ++steps_;
+}
+
+void StepMeter::mark() {
+  longest_s_ = 0;
+  steps_ = 0;
 }
 
 namespace {

@@ -320,7 +320,9 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   applyStaged();
   const long k = step_ + 1;
   advance_started_s_ = clock_.nowSeconds();
+  step_meter_.begin();
   const StepStatus status = advanceSampled(k);
+  step_meter_.end();
   advance_started_s_ = -1;
   step_ = k;
   if (status == StepStatus::kFailed) {
@@ -423,6 +425,7 @@ void ThreshingSimNode::finishReset(bool done, const std::string& message) {
 
 void ThreshingSimNode::applyDrumTarget(double speed_radps) {
   setDrumTarget(*model_, &data_, speed_radps);
+  step_meter_.mark();
   pending_commands_.push_back({stampOf(step_), speed_radps});
 }
 
@@ -558,6 +561,8 @@ void ThreshingSimNode::publishCounters() {
   step_rate_hz_ = pacer_.stepRateHz();
   overruns_ = pacer_.overruns();
   resyncs_ = pacer_.resyncs();
+  longest_step_s_ = step_meter_.longestSeconds();
+  steps_since_command_ = step_meter_.steps();
   impacts_ = data_.stats.impacts;
   peak_force_N_ = data_.stats.peak_normal_force_N;
   recoveries_ = data_.stats.numerical_recoveries;
@@ -705,6 +710,8 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("target real-time factor", target);
   stat.add("overruns", overruns_.load());
   stat.add("re-synchronisations", resyncs_.load());
+  stat.add("longest physics step since the last drum command [CPU s]", longest_step_s_.load());
+  stat.add("physics steps since the last drum command", steps_since_command_.load());
   stat.add("rejected commands", rejected_commands_.load());
   stat.add("numerical recoveries", recoveries_.load());
   stat.add("impacts", impacts_.load());

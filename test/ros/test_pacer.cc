@@ -1,7 +1,9 @@
 // Unit tests of the Pacer with a fake clock (no ROS master, no sleeping).
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <stdexcept>
+#include <thread>
 
 #include "threshing_sim/ros/pacer.h"
 
@@ -154,6 +156,41 @@ TEST(Pacer, RejectsBadOptions) {
   Pacer pacer(clock, options(1.0));
   EXPECT_THROW(pacer.setRealTimeFactor(std::numeric_limits<double>::quiet_NaN()),
                std::invalid_argument);
+}
+
+// The step meter keeps the longest step since its mark, and a mark starts a new window.
+TEST(StepMeter, LongestStepSinceTheMark) {
+  FakeClock clock;
+  clock.now_s = 0.0;  // exact sums of the costs below
+  StepMeter meter(clock);
+  const double costs_s[] = {1e-6, 5e-3, 2e-6};
+  for (double cost_s : costs_s) {
+    meter.begin();
+    clock.now_s += cost_s;
+    meter.end();
+  }
+  EXPECT_NEAR(meter.longestSeconds(), 5e-3, 1e-15);
+  EXPECT_EQ(meter.steps(), 3);
+  meter.mark();
+  EXPECT_EQ(meter.longestSeconds(), 0.0);
+  EXPECT_EQ(meter.steps(), 0);
+  meter.begin();
+  clock.now_s += 3e-6;
+  meter.end();
+  EXPECT_NEAR(meter.longestSeconds(), 3e-6, 1e-15);
+}
+
+// The thread CPU clock advances with work done and not with time spent asleep.
+TEST(ThreadCpuClock, CountsWorkNotSleep) {
+  ThreadCpuClock cpu;
+  const double t0_s = cpu.nowSeconds();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const double slept_s = cpu.nowSeconds() - t0_s;
+  EXPECT_LT(slept_s, 0.02);
+  volatile double sink = 0;
+  const double t1_s = cpu.nowSeconds();
+  for (int i = 0; i < 20000000; ++i) sink = sink + 1e-9 * i;
+  EXPECT_GT(cpu.nowSeconds() - t1_s, 0.0);
 }
 
 }  // namespace

@@ -25,6 +25,32 @@ class MonotonicClock : public SteadyClock {
   double nowSeconds() const override;
 };
 
+// CPU time of the calling thread (CLOCK_THREAD_CPUTIME_ID): what a step itself costs, which a
+// preemption by another process on a shared machine does not inflate.
+class ThreadCpuClock : public SteadyClock {
+ public:
+  double nowSeconds() const override;
+};
+
+// The longest single physics step since the last mark, on the clock it is given (the node
+// gives it the physics thread's CPU clock). The node marks it at every drum command, so a
+// speed change that stalls a step (a factorisation inside the step) shows as one long step.
+class StepMeter {
+ public:
+  explicit StepMeter(const SteadyClock& clock) : clock_(clock) {}
+  void begin() { began_s_ = clock_.nowSeconds(); }  // before a step
+  void end();                                       // after it
+  void mark();                                      // starts a new window
+  double longestSeconds() const { return longest_s_; }
+  long steps() const { return steps_; }
+
+ private:
+  const SteadyClock& clock_;
+  double began_s_ = 0;    // clock reading at the running step's begin() [s]
+  double longest_s_ = 0;  // longest step since the mark [s]
+  long steps_ = 0;        // steps ended since the mark [-]
+};
+
 struct PacerOptions {
   double step_s = 1e-5;           // simulated time per physics step [s]
   double real_time_factor = 1.0;  // simulated seconds per wall second; 0 = as fast as possible [-]

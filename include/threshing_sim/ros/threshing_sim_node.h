@@ -149,12 +149,14 @@ class ThreshingSimNode {
   std::vector<ContactEvent> pending_impacts_;
   std::vector<AppliedCommand> pending_commands_;
   bool pending_reset_ = false;
-  bool reset_wanted_ = false;  // a reset (service or period) waits for a placement without
-                               // overlaps
-  long reset_ticket_ = 0;      // the service ticket it answers (0: the periodic reset)
-  long reset_wait_steps_ = 0;  // boundaries it has waited so far
-  double start_wall_s_ = 0;    // steady time the stepping began [s]
-  double run_wall_s_ = 0;      // wall time from then until the physics thread ended [s]
+  bool reset_wanted_ = false;         // a reset (service or period) waits for a placement without
+                                      // overlaps
+  long reset_ticket_ = 0;             // the service ticket it answers (0: the periodic reset)
+  long reset_wait_steps_ = 0;         // boundaries it has waited so far
+  ThreadCpuClock cpu_clock_;          // the physics thread's CPU time
+  StepMeter step_meter_{cpu_clock_};  // longest step since the last drum command
+  double start_wall_s_ = 0;           // steady time the stepping began [s]
+  double run_wall_s_ = 0;             // wall time from then until the physics thread ended [s]
 
   // --- shared: staged inputs and service hand-shakes (staged_mutex_) ---
   std::mutex staged_mutex_;
@@ -185,6 +187,8 @@ class ThreshingSimNode {
   std::atomic<double> advance_started_s_{-1};  // steady time the running advanceTo() began,
                                                // < 0 when none runs (the watchdog's input) [s]
   std::atomic<double> measured_rtf_{0}, step_rate_hz_{0}, peak_force_N_{0};
+  std::atomic<double> longest_step_s_{0};        // longest step since the last drum command [CPU s]
+  std::atomic<long> steps_since_command_{0};     // physics steps since then [-]
   std::atomic<double> max_deflection_ratio_{0};  // largest |w(L)| / L of the run [-]
   std::atomic<double> deflection_warning_s_{
       -1};  // first time beyond the valid range; < 0 never [s]
