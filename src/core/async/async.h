@@ -167,6 +167,19 @@ OrientedEllipse orientedKernel(const Model& m, const VecX& z, const AsyncState& 
 // --- wake.cc: what can touch what over a window --------------------------------------------
 // Distance from p to the annular sector {rho e(phi): phi0 <= phi <= phi1, r_in <= rho <= r_out}.
 double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, double r_out);
+// The annular sector a tooth's centreline sweeps over a window, with its edges' directions.
+struct SweptSector {
+  double phi0_rad = 0, phi1_rad = 0;  // angular range, phi0 <= phi1 [rad]
+  double r_in_m = 0, r_out_m = 0;     // radial range [m]
+  Vec2 e0_W = Vec2::UnitX();          // unit radial direction at phi0, world [-]
+  Vec2 e1_W = Vec2::UnitX();          // unit radial direction at phi1, world [-]
+};
+SweptSector sweptSector(double phi0_rad, double phi1_rad, double r_in_m, double r_out_m);
+// Lower bound of the distance from ellipse e to the sector [m] (<= 0 where they may meet): the
+// larger of the centre's distance less the semi-axis a and, for an ellipse beside the sweep,
+// its separation from the lines of the sector's radial segments (a thin kernel lying along a
+// radius is a semi-axis b, not a, from the tooth's path). No trigonometry per ellipse.
+double sectorEllipseGapBound(const SweptSector& sec, const OrientedEllipse& e);
 bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1);
 void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1);
 // Lists every island kernel in the island grid (circle: semi-axis a plus its window reach).

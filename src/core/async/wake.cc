@@ -112,6 +112,39 @@ double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, doub
   return std::min(toSegment(phi0), toSegment(phi1));
 }
 
+SweptSector sweptSector(double phi0_rad, double phi1_rad, double r_in_m, double r_out_m) {
+  SweptSector sec;
+  sec.phi0_rad = phi0_rad;
+  sec.phi1_rad = phi1_rad;
+  sec.r_in_m = r_in_m;
+  sec.r_out_m = r_out_m;
+  sec.e0_W = Vec2(std::cos(phi0_rad), std::sin(phi0_rad));
+  sec.e1_W = Vec2(std::cos(phi1_rad), std::sin(phi1_rad));
+  return sec;
+}
+
+double sectorEllipseGapBound(const SweptSector& sec, const OrientedEllipse& e) {
+  const double circle_m =
+      sectorDistance(e.center_W, sec.phi0_rad, sec.phi1_rad, sec.r_in_m, sec.r_out_m) - e.a_m;
+  const double span_rad = sec.phi1_rad - sec.phi0_rad;
+  if (!(span_rad < 0.5 * kTwoPi)) return circle_m;
+  // Normal t(phi) of the line through the drum axis along e(phi). The centre's side of it,
+  // t(phi).c = |c| sin(phi_c - phi), keeps one sign over the range when the ends agree, and
+  // its size is smallest at an end (sin is concave there). The ellipse's support along t(phi)
+  // is within a |t(phi) - t(end)| <= a span / 2 of its support at the nearer end.
+  const Vec2 t0(-sec.e0_W.y(), sec.e0_W.x()), t1(-sec.e1_W.y(), sec.e1_W.x());
+  const double s0_m = t0.dot(e.center_W), s1_m = t1.dot(e.center_W);
+  if (!((s0_m > 0.0 && s1_m > 0.0) || (s0_m < 0.0 && s1_m < 0.0))) return circle_m;
+  auto support = [&e](const Vec2& n) {
+    const Vec2& u = e.axis_W;
+    const double na_m = e.a_m * n.dot(u), nb_m = e.b_m * (u.x() * n.y() - u.y() * n.x());
+    return std::sqrt(na_m * na_m + nb_m * nb_m);
+  };
+  const double beside_m = std::min(std::abs(s0_m), std::abs(s1_m)) -
+                          std::max(support(t0), support(t1)) - 0.5 * e.a_m * span_rad;
+  return std::max(circle_m, beside_m);
+}
+
 bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
   for (int i = heapTop(*as); i >= 0 && as->kernels[i].wake_s < t1; i = heapTop(*as)) {
     heapRemove(as, i);
@@ -148,19 +181,19 @@ void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
     const ToothModel& tm = m.teeth[k];
     const double pad = toothPad(m, *d, *as, k);
     const double r_in = tm.p_DR_D.norm(), r_out = r_in + tm.length_m;
-    const double phi0 = th_lo + tm.mount_angle_rad, phi1 = th_hi + tm.mount_angle_rad;
+    const SweptSector sec =
+        sweptSector(th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out);
     Vec2 lo, hi;
-    sectorBox(phi0, phi1, r_in, r_out, &lo, &hi);
+    sectorBox(sec.phi0_rad, sec.phi1_rad, r_in, r_out, &lo, &hi);
     gridQuery(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad));
     as->found_copy = as->found;  // tryShrink queries the grid again
     for (int j : as->found_copy) {
       const KernelClock& kj = as->kernels[j];
       if (!kj.in_grid) continue;  // re-listed or joined meanwhile
-      if (sectorDistance(kj.bound_c_W, phi0, phi1, r_in, r_out) > kj.bound_r_m + pad) continue;
-      const Vec2 c = d->z.segment<2>(m.kernels[j].dof_offset);
-      const double room =
-          sectorDistance(c, phi0, phi1, r_in, r_out) - pad - m.kernels[j].semi_axis_a_m;
-      if (tryShrink(m, d, as, j, t0, t1, room)) continue;
+      // Its ellipse, grown by its bound circle's growth, against the padded sector.
+      const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d->z, *as, j));
+      if (gap - (kj.bound_r_m - m.kernels[j].semi_axis_a_m) > pad) continue;
+      if (tryShrink(m, d, as, j, t0, t1, gap - pad)) continue;
       joinOnce(as, k, T + j);
       ++as->counters.tooth_wakes;
     }
@@ -168,9 +201,8 @@ void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
     islandGridQuery(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad));
     for (int i : as->found) {
       if (as->kernels[i].island == as->tooth_island[k]) continue;
-      const double r = m.kernels[i].semi_axis_a_m + islandReach(m, *d, i, t1 - t0);
-      const Vec2 c = d->z.segment<2>(m.kernels[i].dof_offset);
-      if (sectorDistance(c, phi0, phi1, r_in, r_out) <= r + pad) joinOnce(as, k, T + i);
+      const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d->z, *as, i));
+      if (gap - islandReach(m, *d, i, t1 - t0) <= pad) joinOnce(as, k, T + i);
     }
   }
 }
@@ -257,13 +289,12 @@ void islandProximity(const Model& m, const Data& d, const AsyncState& as, int s,
     const ToothModel& tm = m.teeth[isl.teeth[a]];
     const double pad = toothPad(m, d, as, isl.teeth[a]);
     const double r_in = tm.p_DR_D.norm(), r_out = r_in + tm.length_m;
+    const SweptSector sec =
+        sweptSector(th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out);
     for (int b = 0; b < nK; ++b) {
       const int i = isl.kernels[b];
-      const double r = m.kernels[i].semi_axis_a_m + islandReach(m, d, i, window_s);
-      const Vec2 c = d.z.segment<2>(m.kernels[i].dof_offset);
-      if (sectorDistance(c, th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out) <=
-          r + pad)
-        edges->emplace_back(a, nT + b);
+      const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d.z, as, i));
+      if (gap - islandReach(m, d, i, window_s) <= pad) edges->emplace_back(a, nT + b);
     }
   }
   for (int a = 0; a < nK; ++a) {
