@@ -206,7 +206,9 @@ TEST(Bounds, SectorEllipseGapBoundNeverExceedsTheDistance) {
   const double r_in = 0.14, r_out = 0.2, a = 5e-3, b = 1.3e-3;
   int sharper = 0, near = 0;
   for (int n = 0; n < 1500; ++n) {
-    const double phi0 = ang(rng), phi1 = phi0 + span(rng), rho = rad(rng), phi_c = 2.0 * ang(rng);
+    // Centres near the sweep, and every third one anywhere around the drum axis.
+    const double phi0 = ang(rng), phi1 = phi0 + span(rng), rho = rad(rng);
+    const double phi_c = n % 3 == 2 ? psi(rng) : 2.0 * ang(rng);
     const Vec2 c(rho * std::cos(phi_c), rho * std::sin(phi_c));
     // Half the cases radial (the stream's kernels), half at random angles.
     const double psi_rad = n % 2 == 0 ? phi_c : psi(rng);
