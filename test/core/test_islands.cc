@@ -116,6 +116,221 @@ TEST(Calendar, GridQueryFindsEveryCircleMeetingTheBox) {
   }
 }
 
+// --- calendar.cc / wake.cc: bounds without trigonometry ---------------------------------------
+
+internal::OrientedEllipse oriented(const Vec2& c_W, double psi_rad, double a_m, double b_m) {
+  internal::OrientedEllipse e;
+  e.center_W = c_W;
+  e.axis_W = Vec2(std::cos(psi_rad), std::sin(psi_rad));
+  e.a_m = a_m;
+  e.b_m = b_m;
+  return e;
+}
+
+Ellipse plain(const Vec2& c_W, double psi_rad, double a_m, double b_m) {
+  Ellipse e;
+  e.center = c_W;
+  e.angle_rad = psi_rad;
+  e.a_m = a_m;
+  e.b_m = b_m;
+  return e;
+}
+
+// The supporting-line bound never exceeds the exact signed distance (ellipseEllipse), apart or
+// overlapping, and is exact for two discs.
+TEST(Bounds, EllipseGapBoundNeverExceedsTheDistance) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> pos(-0.015, 0.015), ang(-4.0, 4.0), a(1e-3, 6e-3),
+      ratio(0.2, 1.0);
+  int apart = 0, overlapping = 0;
+  for (int n = 0; n < 4000; ++n) {
+    const double a1 = a(rng), a2 = a(rng), b1 = a1 * ratio(rng), b2 = a2 * ratio(rng);
+    const Vec2 c1(pos(rng), pos(rng)), c2(pos(rng), pos(rng));
+    const double p1 = ang(rng), p2 = ang(rng);
+    const double exact = ellipseEllipse(plain(c1, p1, a1, b1), plain(c2, p2, a2, b2)).distance_m;
+    const double bound =
+        internal::ellipseGapBound(oriented(c1, p1, a1, b1), oriented(c2, p2, a2, b2));
+    EXPECT_LE(bound, exact + 1e-12) << "case " << n;
+    (exact > 0 ? apart : overlapping) += 1;
+  }
+  EXPECT_GT(apart, 500);
+  EXPECT_GT(overlapping, 250);
+  const double discs = internal::ellipseGapBound(oriented(Vec2(0, 0), 0.3, 2e-3, 2e-3),
+                                                 oriented(Vec2(5e-3, 1e-3), -1.0, 1e-3, 1e-3));
+  EXPECT_NEAR(discs, std::sqrt(26e-6) - 3e-3, 1e-15);
+}
+
+// pairMayTouch with the relative speed bound of two rigidly moving ellipses never claims
+// separation for a pair that touches within the window (exact distance along the motion).
+TEST(Bounds, PairMayTouchIsConservativeOverTheWindow) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> pos(-0.02, 0.02), ang(-4.0, 4.0), vel(-20.0, 20.0),
+      spin(-3000.0, 3000.0), ratio(0.2, 1.0);
+  const double a1 = 5e-3, a2 = 4e-3, window_s = 2e-4;
+  int separated = 0, touched = 0, close_calls = 0;
+  for (int n = 0; n < 3000; ++n) {
+    const double b1 = a1 * ratio(rng), b2 = a2 * ratio(rng);
+    const Vec2 c1(pos(rng), pos(rng)), c2(pos(rng), pos(rng));
+    const Vec2 v1(vel(rng), vel(rng)), v2(vel(rng), vel(rng));
+    const double p1 = ang(rng), p2 = ang(rng), w1 = spin(rng), w2 = spin(rng);
+    const double reach_m = ((v1 - v2).norm() + std::abs(w1) * a1 + std::abs(w2) * a2) * window_s;
+    const bool may =
+        internal::pairMayTouch(oriented(c1, p1, a1, b1), oriented(c2, p2, a2, b2), reach_m);
+    const double start = ellipseEllipse(plain(c1, p1, a1, b1), plain(c2, p2, a2, b2)).distance_m;
+    double closest = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= 200; ++k) {
+      const double t = window_s * k / 200.0;
+      closest = std::min(closest, ellipseEllipse(plain(c1 + t * v1, p1 + t * w1, a1, b1),
+                                                 plain(c2 + t * v2, p2 + t * w2, a2, b2))
+                                      .distance_m);
+    }
+    if (!may) {
+      ++separated;
+      EXPECT_GT(closest, 0.0) << "case " << n << ": claimed apart, touches within the window";
+      if (closest < 0.5 * start) ++close_calls;  // it closed half its gap within the window
+    }
+    if (closest <= 0.0) ++touched;
+  }
+  EXPECT_GT(separated, 300);
+  EXPECT_GT(touched, 300);
+  EXPECT_GT(close_calls, 20);  // pairs that close in fast are among those claimed apart
+}
+
+// The sector bound never exceeds the distance from the ellipse to the swept sector (its radial
+// segments sampled finely, each distance exact), and beats the bounding circle for thin
+// kernels beside the sweep.
+TEST(Bounds, SectorEllipseGapBoundNeverExceedsTheDistance) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> rad(0.17, 0.23), ang(-0.2, 0.2), psi(-4.0, 4.0),
+      span(0.0, 0.05);
+  const double r_in = 0.14, r_out = 0.2, a = 5e-3, b = 1.3e-3;
+  int sharper = 0, near = 0;
+  for (int n = 0; n < 1500; ++n) {
+    // Centres near the sweep, and every third one anywhere around the drum axis.
+    const double phi0 = ang(rng), phi1 = phi0 + span(rng), rho = rad(rng);
+    const double phi_c = n % 3 == 2 ? psi(rng) : 2.0 * ang(rng);
+    const Vec2 c(rho * std::cos(phi_c), rho * std::sin(phi_c));
+    // Half the cases radial (the stream's kernels), half at random angles.
+    const double psi_rad = n % 2 == 0 ? phi_c : psi(rng);
+    const internal::SweptSector sec = internal::sweptSector(phi0, phi1, r_in, r_out);
+    const double bound = internal::sectorEllipseGapBound(sec, oriented(c, psi_rad, a, b));
+    double sampled = std::numeric_limits<double>::infinity();
+    for (int k = 0; k <= 1000; ++k) {
+      const double phi = phi0 + (phi1 - phi0) * k / 1000.0;
+      const Vec2 e(std::cos(phi), std::sin(phi));
+      sampled = std::min(sampled,
+                         segmentEllipse(r_in * e, r_out * e, plain(c, psi_rad, a, b)).distance_m);
+    }
+    EXPECT_LE(bound, std::max(sampled, 0.0) + 1e-12) << "case " << n;
+    const double circle = internal::sectorDistance(c, phi0, phi1, r_in, r_out) - a;
+    if (bound > circle + 1e-3) ++sharper;
+    if (sampled > 0.0 && sampled < 3e-3) ++near;
+  }
+  EXPECT_GT(sharper, 100);
+  EXPECT_GT(near, 25);
+}
+
+TEST(Bounds, OrientedKernelCachesTheAxisOfTheCurrentAngle) {
+  Model m = testutil::bareModel(IntegratorType::kEventDriven);
+  m.kernels = {testutil::makeKernel(5e-3, 1.3e-3, Vec2(0.01, 0.02), Vec2::Zero(), 0.4)};
+  compileModel(&m);
+  Data d;
+  resetData(m, &d);
+  AsyncState as;
+  as.kernels.assign(1, internal::KernelClock());
+  for (double psi : {0.4, 0.4, -2.0, 3.0, 3.0}) {
+    d.z[m.kernels[0].dof_offset + 2] = psi;
+    const internal::OrientedEllipse e = internal::orientedKernel(m, d.z, as, 0);
+    EXPECT_EQ(e.axis_W.x(), std::cos(psi));
+    EXPECT_EQ(e.axis_W.y(), std::sin(psi));
+    EXPECT_EQ(e.center_W, Vec2(0.01, 0.02));
+  }
+}
+
+// The neighbour search of islands (islandNeighbours through the lazy grid and the island grid)
+// finds exactly the pairs within reach of a brute-force O(N^2) pass: island kernels against
+// lazy kernels (ellipse bound against the two growths) and against kernels of later islands
+// (pairMayTouch with the pair's relative speed bound).
+TEST(IslandGrid, NeighbourSearchFindsExactlyThePairsWithinReach) {
+  const int n = 300, n_islands = 12;
+  Model m = testutil::bareModel(IntegratorType::kEventDriven);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> pos(-0.08, 0.08), ang(-4.0, 4.0), vel(-15.0, 15.0),
+      u01(0.0, 1.0);
+  for (int i = 0; i < n; ++i)
+    m.kernels.push_back(testutil::makeKernel(5e-3, 1.3e-3, Vec2(pos(rng), pos(rng)),
+                                             Vec2(vel(rng), vel(rng)), ang(rng)));
+  compileModel(&m);
+  Data d;
+  resetData(m, &d);
+  for (int i = 0; i < n; ++i) d.u[m.kernels[i].dof_offset + 2] = 2000.0 * (u01(rng) - 0.5);
+  AsyncState as;
+  as.kernels.assign(n, internal::KernelClock());
+  as.r_cap_m = 5e-3 + 4.0 * m.broadphase_margin_m;
+  as.cell_m = 2.0 * as.r_cap_m;
+  as.cell_key.assign(2048, internal::kEmptyCell);
+  as.cell_head.assign(2048, -1);
+  as.entity_slot.assign(n, -1);
+  as.islands.resize(n_islands);
+  // A third of the kernels in islands, the rest lazy with bound circles (clocks past the
+  // window's start, so that none is re-predicted: every pair within reach must join).
+  const double t0 = 0.0, t1 = 1e-4;
+  for (int i = 0; i < n; ++i) {
+    internal::KernelClock& kc = as.kernels[i];
+    if (i % 3 == 0) {
+      const int s = (i / 3) % n_islands;
+      as.islands[s].alive = s != 5;  // one dead slot
+      if (s == 5) continue;
+      as.islands[s].kernels.push_back(i);
+      kc.motion = internal::KernelMotion::kIsland;
+      kc.island = s;
+    } else {
+      kc.t_s = 1.0;
+      kc.bound_c_W = d.z.segment<2>(m.kernels[i].dof_offset);
+      kc.bound_r_m = 5e-3 + (as.r_cap_m - 5e-3) * u01(rng);
+      internal::gridInsert(&as, i);
+    }
+  }
+  internal::listIslandKernels(m, d, &as, t1 - t0);
+  internal::islandNeighbours(m, &d, &as, t0, t1);
+  const int T = static_cast<int>(m.teeth.size());
+  std::vector<std::pair<int, int>> got, want;
+  for (const auto& jn : as.joins) got.emplace_back(jn.first - T, jn.second - T);
+  for (int i = 0; i < n; ++i) {
+    const int s = as.kernels[i].island;
+    if (s < 0) continue;
+    const internal::OrientedEllipse ei = internal::orientedKernel(m, d.z, as, i);
+    for (int j = 0; j < n; ++j) {
+      const internal::KernelClock& kj = as.kernels[j];
+      const internal::OrientedEllipse ej = internal::orientedKernel(m, d.z, as, j);
+      if (kj.in_grid) {
+        const double grow = internal::islandReach(m, d, i, t1 - t0) + kj.bound_r_m - 5e-3;
+        if (internal::ellipseGapBound(ei, ej) <= grow) want.emplace_back(i, j);
+      } else if (kj.island > s &&
+                 internal::pairMayTouch(ei, ej, internal::islandPairReach(m, d, i, j, t1 - t0))) {
+        want.emplace_back(i, j);
+      }
+    }
+  }
+  std::sort(got.begin(), got.end());
+  std::sort(want.begin(), want.end());
+  EXPECT_GT(want.size(), 20u);
+  EXPECT_EQ(got, want);
+  // The island grid alone: every island kernel whose circle meets a box is listed.
+  for (int q = 0; q < 100; ++q) {
+    const Vec2 lo(pos(rng), pos(rng)), hi = lo + Vec2(0.02 * u01(rng), 0.02 * u01(rng));
+    internal::islandGridQuery(&as, lo, hi);
+    for (const auto& entry : as.island_cells) {
+      const int i = entry.second;
+      const Vec2 c = d.z.segment<2>(m.kernels[i].dof_offset);
+      const double r = 5e-3 + internal::islandReach(m, d, i, t1 - t0);
+      if ((c.cwiseMax(lo).cwiseMin(hi) - c).norm() <= r) {
+        EXPECT_NE(std::find(as.found.begin(), as.found.end(), i), as.found.end());
+      }
+    }
+  }
+}
+
 // --- body_motion.cc: lone bodies -----------------------------------------------------------
 
 // A lone kernel on its pedicel, far from anything, under both schemes.

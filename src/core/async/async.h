@@ -47,6 +47,18 @@ struct KernelClock {
   std::int64_t cell = 0;               // grid cell of bound_c_W while listed
   int cell_next = -1, cell_prev = -1;  // neighbours in the cell's list (-1 = none)
   bool in_grid = false;                // listed in the grid
+  // Cached a-axis of the kernel at angle axis_psi_rad (see orientedKernel): the bounds need
+  // cos psi and sin psi, which change only when the kernel's angle does.
+  mutable double axis_psi_rad = std::numeric_limits<double>::quiet_NaN();  // [rad]
+  mutable Vec2 axis_W = Vec2::UnitX();  // (cos, sin) of axis_psi_rad, world [-]
+};
+
+// An ellipse with its a-axis as a unit vector: the bounds below need no trigonometry.
+struct OrientedEllipse {
+  Vec2 center_W = Vec2::Zero();  // centre, world [m]
+  Vec2 axis_W = Vec2::UnitX();   // unit a-axis (cos psi, sin psi), world [-]
+  double a_m = 0;                // semi-major [m]
+  double b_m = 0;                // semi-minor [m]
 };
 
 // One island: a sub-system of teeth and kernels (plus every obstacle) integrated together.
@@ -89,12 +101,16 @@ struct AsyncState {
   std::vector<ToothPropagator> prop;            // free teeth at constant drum speed
   mutable std::vector<ToothBound> tooth_bound;  // per tooth: its deflection bound's data
   // Per-window scratch (grow-only).
-  std::vector<int> uf_parent;                    // union-find over entity slots of this window
-  std::vector<int> entities;                     // entity ids: tooth k -> k, kernel i -> T + i
-  std::vector<int> entity_slot;                  // per entity id: slot in entities, or -1
-  std::vector<std::pair<int, int>> joins;        // entity pairs that must share an island
-  std::vector<int> found;                        // grid query results
-  std::vector<int> found_copy;                   // a query's results while the grid changes
+  std::vector<int> uf_parent;              // union-find over entity slots of this window
+  std::vector<int> entities;               // entity ids: tooth k -> k, kernel i -> T + i
+  std::vector<int> entity_slot;            // per entity id: slot in entities, or -1
+  std::vector<std::pair<int, int>> joins;  // entity pairs that must share an island
+  std::vector<int> found;                  // grid query results
+  std::vector<int> found_copy;             // a query's results while the grid changes
+  // Grid of island kernels over this window (same cells as the lazy grid; rebuilt per window):
+  // (cell key of the kernel's centre, kernel), ascending.
+  std::vector<std::pair<std::int64_t, int>> island_cells;
+  double island_r_max_m = 0;  // largest listed circle (semi-axis a plus reach) this window [m]
   std::vector<int> comp_teeth, comp_kernels;     // one component's bodies
   std::vector<std::pair<int, int>> split_edges;  // an island's proximity graph (local numbers)
   std::vector<std::uint8_t> split_pinned;        // its bodies that must stay integrated
@@ -136,14 +152,47 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
                    double grow_cap_m = std::numeric_limits<double>::infinity());
 // Distance from point c to obstacle o's surface [m] (negative inside).
 double obstacleClearance(const ObstacleModel& o, const Vec2& c);
-// Supporting-line lower bound of the gap between two ellipses along their centres' line [m].
-double ellipseGapBound(const Ellipse& e1, const Ellipse& e2);
+// Table key of grid cell (cx, cy) (the lazy grid's and the island grid's cells).
+std::int64_t gridCellKey(std::int64_t cx, std::int64_t cy);
+// Supporting-line lower bound of the gap between two ellipses along their centres' line [m]:
+// never above their signed distance; no trigonometry.
+double ellipseGapBound(const OrientedEllipse& e1, const OrientedEllipse& e2);
+// Whether two ellipses whose surfaces approach each other by at most reach_m [m] (over a
+// window) may touch: bounding circles first, the ellipse bound only for pairs that pass.
+bool pairMayTouch(const OrientedEllipse& e1, const OrientedEllipse& e2, double reach_m);
+// Kernel i's ellipse at the pose z holds, with its axis from the cache in as (recomputed only
+// when the angle changed since the last call).
+OrientedEllipse orientedKernel(const Model& m, const VecX& z, const AsyncState& as, int i);
 
 // --- wake.cc: what can touch what over a window --------------------------------------------
 // Distance from p to the annular sector {rho e(phi): phi0 <= phi <= phi1, r_in <= rho <= r_out}.
 double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, double r_out);
+// The annular sector a tooth's centreline sweeps over a window, with its edges' directions.
+struct SweptSector {
+  double phi0_rad = 0, phi1_rad = 0;  // angular range, phi0 <= phi1 [rad]
+  double r_in_m = 0, r_out_m = 0;     // radial range [m]
+  Vec2 e0_W = Vec2::UnitX();          // unit radial direction at phi0, world [-]
+  Vec2 e1_W = Vec2::UnitX();          // unit radial direction at phi1, world [-]
+};
+SweptSector sweptSector(double phi0_rad, double phi1_rad, double r_in_m, double r_out_m);
+// Lower bound of the distance from ellipse e to the sector [m] (<= 0 where they may meet): the
+// larger of the centre's distance less the semi-axis a and, for an ellipse beside the sweep,
+// its separation from the lines of the sector's radial segments (a thin kernel lying along a
+// radius is a semi-axis b, not a, from the tooth's path). No trigonometry per ellipse.
+double sectorEllipseGapBound(const SweptSector& sec, const OrientedEllipse& e);
 bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1);
 void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1);
+// Lists every island kernel in the island grid (circle: semi-axis a plus its window reach).
+void listIslandKernels(const Model& m, const Data& d, AsyncState* as, double window_s);
+// Island kernels of the island grid whose circles may meet the box [lo, hi], into as->found.
+void islandGridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi);
+// Reach of island kernel i over a window: its speed bound times the window plus two margins
+// (it may be struck mid-window) [m].
+double islandReach(const Model& m, const Data& d, int i, double window_s);
+// Bound on how far the surfaces of island kernels i and j approach each other over a window:
+// their relative speed bound (centre velocity difference plus each spin times its semi-axis a)
+// times the window plus each one's two margins [m].
+double islandPairReach(const Model& m, const Data& d, int i, int j, double window_s);
 void islandNeighbours(const Model& m, Data* d, AsyncState* as, double t0, double t1);
 // The proximity graph of island s over the next window of length window_s, in local entity
 // numbers (teeth 0..nT-1, kernels nT..): edges between bodies in contact or within reach;

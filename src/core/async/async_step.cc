@@ -336,6 +336,7 @@ StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
   }
   ++as.counters.windows;
   if (!wakeDueKernels(m, d, &as, t0, t1)) return StepStatus::kFailed;
+  listIslandKernels(m, *d, &as, t1 - t0);
   sweepTeeth(m, d, &as, t0, t1);
   islandNeighbours(m, d, &as, t0, t1);
   claimIntegratedTeeth(m, *d, &as);

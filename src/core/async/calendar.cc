@@ -47,12 +47,7 @@ void siftDown(AsyncState* as, int pos) {
   }
 }
 
-// Table key of grid cell (cx, cy): the row in the high 32 bits, the column in the low ones
-// (in unsigned arithmetic: a negative row must not be shifted as a signed value).
-std::int64_t cellKey(std::int64_t cx, std::int64_t cy) {
-  return static_cast<std::int64_t>((static_cast<std::uint64_t>(cy) << 32) ^
-                                   (static_cast<std::uint64_t>(cx) & 0xffffffffULL));
-}
+std::int64_t cellKey(std::int64_t cx, std::int64_t cy) { return gridCellKey(cx, cy); }
 
 std::int64_t cellOf(const AsyncState& as, const Vec2& p) {
   const std::int64_t cx = static_cast<std::int64_t>(std::floor(p.x() / as.cell_m));
@@ -106,17 +101,47 @@ void compactGrid(AsyncState* as) {
 
 }  // namespace
 
-double ellipseGapBound(const Ellipse& e1, const Ellipse& e2) {
-  const Vec2 d = e2.center - e1.center;
-  const double dist = d.norm();
-  if (!(dist > 0.0)) return -e1.a_m - e2.a_m;
-  const Vec2 n = d / dist;
-  auto reach = [&n](const Ellipse& e) {
-    const Vec2 axis(std::cos(e.angle_rad), std::sin(e.angle_rad));
-    const double na = e.a_m * n.dot(axis), nb = e.b_m * (axis.x() * n.y() - axis.y() * n.x());
-    return std::sqrt(na * na + nb * nb);
+// Table key of grid cell (cx, cy): the row in the high 32 bits, the column in the low ones
+// (in unsigned arithmetic: a negative row must not be shifted as a signed value).
+std::int64_t gridCellKey(std::int64_t cx, std::int64_t cy) {
+  return static_cast<std::int64_t>((static_cast<std::uint64_t>(cy) << 32) ^
+                                   (static_cast<std::uint64_t>(cx) & 0xffffffffULL));
+}
+
+double ellipseGapBound(const OrientedEllipse& e1, const OrientedEllipse& e2) {
+  const Vec2 d_W = e2.center_W - e1.center_W;
+  const double dist_m = d_W.norm();
+  if (!(dist_m > 0.0)) return -e1.a_m - e2.a_m;
+  const Vec2 n_W = d_W / dist_m;
+  // Support of an ellipse along n: sqrt(a^2 (n.u)^2 + b^2 (n x u)^2), u its unit a-axis.
+  auto support = [&n_W](const OrientedEllipse& e) {
+    const Vec2& u = e.axis_W;
+    const double na_m = e.a_m * n_W.dot(u), nb_m = e.b_m * (u.x() * n_W.y() - u.y() * n_W.x());
+    return std::sqrt(na_m * na_m + nb_m * nb_m);
   };
-  return dist - reach(e1) - reach(e2);
+  return dist_m - support(e1) - support(e2);
+}
+
+bool pairMayTouch(const OrientedEllipse& e1, const OrientedEllipse& e2, double reach_m) {
+  const double circles_m = e1.a_m + e2.a_m + reach_m;
+  if ((e2.center_W - e1.center_W).squaredNorm() > circles_m * circles_m) return false;
+  return ellipseGapBound(e1, e2) <= reach_m;
+}
+
+OrientedEllipse orientedKernel(const Model& m, const VecX& z, const AsyncState& as, int i) {
+  const KernelModel& k = m.kernels[i];
+  const KernelClock& kc = as.kernels[i];
+  const double psi_rad = z[k.dof_offset + 2];
+  if (!(kc.axis_psi_rad == psi_rad)) {
+    kc.axis_W = Vec2(std::cos(psi_rad), std::sin(psi_rad));
+    kc.axis_psi_rad = psi_rad;
+  }
+  OrientedEllipse e;
+  e.center_W = z.segment<2>(k.dof_offset);
+  e.axis_W = kc.axis_W;
+  e.a_m = k.semi_axis_a_m;
+  e.b_m = k.semi_axis_b_m;
+  return e;
 }
 
 void heapPush(AsyncState* as, int i) {
@@ -219,18 +244,18 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
     horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
   }
   const double min_horizon = t_window_end_s - t_s;
-  const Ellipse e = kernelEllipse(m, d.z, i);
+  const OrientedEllipse e = orientedKernel(m, d.z, *as, i);
   // Other lazy kernels: the grown ellipses must stay a margin apart.
   const double reach = k.semi_axis_a_m + v * horizon + margin;
-  gridQuery(as, e.center - Vec2(reach, reach), e.center + Vec2(reach, reach));
+  gridQuery(as, e.center_W - Vec2(reach, reach), e.center_W + Vec2(reach, reach));
   bool joined = false;
   for (int j : as->found) {
     if (j == i) continue;
     const KernelClock& kj = as->kernels[j];
-    if ((kj.bound_c_W - e.center).norm() > kj.bound_r_m + reach) continue;
+    if ((kj.bound_c_W - e.center_W).norm() > kj.bound_r_m + reach) continue;
     // Each of two neighbours may grow into at most half of the free gap between them, so that
     // the one predicted later still finds its share.
-    const double free_m = ellipseGapBound(e, kernelEllipse(m, d.z, j)) - margin;
+    const double free_m = ellipseGapBound(e, orientedKernel(m, d.z, *as, j)) - margin;
     const double grown_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
     const double room = std::min(free_m - grown_j, 0.5 * free_m);
     if (room >= v * min_horizon) {
@@ -242,7 +267,7 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
   }
   // Obstacles: the grown bounding circle must stay a margin away.
   for (const ObstacleModel& o : m.obstacles) {
-    const double room = obstacleClearance(o, e.center) - k.semi_axis_a_m - margin;
+    const double room = obstacleClearance(o, e.center_W) - k.semi_axis_a_m - margin;
     if (room >= v * min_horizon) {
       horizon = std::min(horizon, room / v);
     } else {
@@ -250,7 +275,7 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
       joined = true;
     }
   }
-  kc.bound_c_W = e.center;
+  kc.bound_c_W = e.center_W;
   kc.bound_r_m = k.semi_axis_a_m + v * horizon;
   kc.wake_s = t_s + horizon;
   kc.speed_bound_mps = v;

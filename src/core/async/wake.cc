@@ -30,12 +30,6 @@ void sectorBox(double phi0, double phi1, double r_in, double r_out, Vec2* lo, Ve
   for (double a = std::ceil(phi0 / q) * q; a <= phi1; a += q) add(a, r_out);
 }
 
-// Growth of island kernel i's ellipse over the window: its speed bound over the window plus
-// two margins (it may be struck mid-window) [m].
-double islandReach(const Model& m, const Data& d, int i, double window_s) {
-  return kernelSpeedBound(m, d.u, i) * window_s + 2.0 * m.broadphase_margin_m;
-}
-
 // Pad around tooth k's undeformed centreline within which its surface stays over the window:
 // deflection bound (generous inside an island, where contact forces work on it), capsule
 // radius, margin [m].
@@ -49,7 +43,61 @@ double toothPad(const Model& m, const Data& d, const AsyncState& as, int k) {
 
 void joinOnce(AsyncState* as, int a, int b) { as->joins.emplace_back(a, b); }
 
+// Cell coordinate of x [m] in the grids' cells.
+std::int64_t cellCoord(const AsyncState& as, double x_m) {
+  return static_cast<std::int64_t>(std::floor(x_m / as.cell_m));
+}
+
 }  // namespace
+
+double islandReach(const Model& m, const Data& d, int i, double window_s) {
+  return kernelSpeedBound(m, d.u, i) * window_s + 2.0 * m.broadphase_margin_m;
+}
+
+double islandPairReach(const Model& m, const Data& d, int i, int j, double window_s) {
+  const KernelModel& ki = m.kernels[i];
+  const KernelModel& kj = m.kernels[j];
+  const double v_rel_mps = (d.u.segment<2>(ki.dof_offset) - d.u.segment<2>(kj.dof_offset)).norm() +
+                           std::abs(d.u[ki.dof_offset + 2]) * ki.semi_axis_a_m +
+                           std::abs(d.u[kj.dof_offset + 2]) * kj.semi_axis_a_m;
+  return v_rel_mps * window_s + 4.0 * m.broadphase_margin_m;
+}
+
+void listIslandKernels(const Model& m, const Data& d, AsyncState* as, double window_s) {
+  as->island_cells.clear();
+  as->island_r_max_m = 0.0;
+  for (const Island& isl : as->islands) {
+    if (!isl.alive) continue;
+    for (int i : isl.kernels) {
+      const Vec2 c_W = d.z.segment<2>(m.kernels[i].dof_offset);
+      as->island_cells.emplace_back(gridCellKey(cellCoord(*as, c_W.x()), cellCoord(*as, c_W.y())),
+                                    i);
+      as->island_r_max_m =
+          std::max(as->island_r_max_m, m.kernels[i].semi_axis_a_m + islandReach(m, d, i, window_s));
+    }
+  }
+  std::sort(as->island_cells.begin(), as->island_cells.end());
+}
+
+void islandGridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
+  as->found.clear();
+  const double pad = as->island_r_max_m;
+  const std::int64_t x0 = cellCoord(*as, lo.x() - pad), x1 = cellCoord(*as, hi.x() + pad);
+  const std::int64_t y0 = cellCoord(*as, lo.y() - pad), y1 = cellCoord(*as, hi.y() + pad);
+  const auto& cells = as->island_cells;
+  if ((x1 - x0 + 1) * (y1 - y0 + 1) > static_cast<std::int64_t>(cells.size())) {
+    // More cells than island kernels: every island kernel is a candidate.
+    for (const auto& entry : cells) as->found.push_back(entry.second);
+    return;
+  }
+  for (std::int64_t cy = y0; cy <= y1; ++cy) {
+    for (std::int64_t cx = x0; cx <= x1; ++cx) {
+      const std::int64_t key = gridCellKey(cx, cy);
+      auto it = std::lower_bound(cells.begin(), cells.end(), std::make_pair(key, -1));
+      for (; it != cells.end() && it->first == key; ++it) as->found.push_back(it->second);
+    }
+  }
+}
 
 double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, double r_out) {
   const double rho = p.norm();
@@ -62,6 +110,39 @@ double sectorDistance(const Vec2& p, double phi0, double phi1, double r_in, doub
     return (p - s * e).norm();
   };
   return std::min(toSegment(phi0), toSegment(phi1));
+}
+
+SweptSector sweptSector(double phi0_rad, double phi1_rad, double r_in_m, double r_out_m) {
+  SweptSector sec;
+  sec.phi0_rad = phi0_rad;
+  sec.phi1_rad = phi1_rad;
+  sec.r_in_m = r_in_m;
+  sec.r_out_m = r_out_m;
+  sec.e0_W = Vec2(std::cos(phi0_rad), std::sin(phi0_rad));
+  sec.e1_W = Vec2(std::cos(phi1_rad), std::sin(phi1_rad));
+  return sec;
+}
+
+double sectorEllipseGapBound(const SweptSector& sec, const OrientedEllipse& e) {
+  const double circle_m =
+      sectorDistance(e.center_W, sec.phi0_rad, sec.phi1_rad, sec.r_in_m, sec.r_out_m) - e.a_m;
+  const double span_rad = sec.phi1_rad - sec.phi0_rad;
+  if (!(span_rad < 0.5 * kTwoPi)) return circle_m;
+  // Normal t(phi) of the line through the drum axis along e(phi). The centre's side of it,
+  // t(phi).c = |c| sin(phi_c - phi), keeps one sign over the range when the ends agree, and
+  // its size is smallest at an end (sin is concave there). The ellipse's support along t(phi)
+  // is within a |t(phi) - t(end)| <= a span / 2 of its support at the nearer end.
+  const Vec2 t0(-sec.e0_W.y(), sec.e0_W.x()), t1(-sec.e1_W.y(), sec.e1_W.x());
+  const double s0_m = t0.dot(e.center_W), s1_m = t1.dot(e.center_W);
+  if (!((s0_m > 0.0 && s1_m > 0.0) || (s0_m < 0.0 && s1_m < 0.0))) return circle_m;
+  auto support = [&e](const Vec2& n) {
+    const Vec2& u = e.axis_W;
+    const double na_m = e.a_m * n.dot(u), nb_m = e.b_m * (u.x() * n.y() - u.y() * n.x());
+    return std::sqrt(na_m * na_m + nb_m * nb_m);
+  };
+  const double beside_m = std::min(std::abs(s0_m), std::abs(s1_m)) -
+                          std::max(support(t0), support(t1)) - 0.5 * e.a_m * span_rad;
+  return std::max(circle_m, beside_m);
 }
 
 bool wakeDueKernels(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
@@ -100,65 +181,79 @@ void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
     const ToothModel& tm = m.teeth[k];
     const double pad = toothPad(m, *d, *as, k);
     const double r_in = tm.p_DR_D.norm(), r_out = r_in + tm.length_m;
-    const double phi0 = th_lo + tm.mount_angle_rad, phi1 = th_hi + tm.mount_angle_rad;
+    const SweptSector sec =
+        sweptSector(th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out);
     Vec2 lo, hi;
-    sectorBox(phi0, phi1, r_in, r_out, &lo, &hi);
+    sectorBox(sec.phi0_rad, sec.phi1_rad, r_in, r_out, &lo, &hi);
     gridQuery(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad));
     as->found_copy = as->found;  // tryShrink queries the grid again
     for (int j : as->found_copy) {
       const KernelClock& kj = as->kernels[j];
       if (!kj.in_grid) continue;  // re-listed or joined meanwhile
-      if (sectorDistance(kj.bound_c_W, phi0, phi1, r_in, r_out) > kj.bound_r_m + pad) continue;
-      const Vec2 c = d->z.segment<2>(m.kernels[j].dof_offset);
-      const double room =
-          sectorDistance(c, phi0, phi1, r_in, r_out) - pad - m.kernels[j].semi_axis_a_m;
-      if (tryShrink(m, d, as, j, t0, t1, room)) continue;
+      // Its ellipse, grown by its bound circle's growth, against the padded sector.
+      const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d->z, *as, j));
+      if (gap - (kj.bound_r_m - m.kernels[j].semi_axis_a_m) > pad) continue;
+      if (tryShrink(m, d, as, j, t0, t1, gap - pad)) continue;
       joinOnce(as, k, T + j);
       ++as->counters.tooth_wakes;
     }
-    // Kernels of other islands.
-    for (size_t s = 0; s < as->islands.size(); ++s) {
-      const Island& isl = as->islands[s];
-      if (!isl.alive || static_cast<int>(s) == as->tooth_island[k]) continue;
-      for (int i : isl.kernels) {
-        const double r = m.kernels[i].semi_axis_a_m + islandReach(m, *d, i, t1 - t0);
-        const Vec2 c = d->z.segment<2>(m.kernels[i].dof_offset);
-        if (sectorDistance(c, phi0, phi1, r_in, r_out) <= r + pad) joinOnce(as, k, T + i);
-      }
+    // Kernels of other islands, through the island grid.
+    islandGridQuery(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad));
+    for (int i : as->found) {
+      if (as->kernels[i].island == as->tooth_island[k]) continue;
+      const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d->z, *as, i));
+      if (gap - islandReach(m, *d, i, t1 - t0) <= pad) joinOnce(as, k, T + i);
     }
   }
 }
 
-void islandNeighbours(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
+namespace {
+// Lazy kernels that island kernel i may reach over the window [t0, t1] (through the grid of
+// bound circles; each bound circle, then the ellipse bound): a neighbour whose speed bound
+// keeps it clear is given a smaller circle (tryShrink), any other joins i's island.
+void lazyNeighbours(const Model& m, Data* d, AsyncState* as, int i, double t0, double t1) {
   const int T = static_cast<int>(m.teeth.size());
-  const double window_s = t1 - t0;
+  const OrientedEllipse ei = orientedKernel(m, d->z, *as, i);
+  const double grow_i = islandReach(m, *d, i, t1 - t0);
+  const double box_m = ei.a_m + grow_i;
+  gridQuery(as, ei.center_W - Vec2(box_m, box_m), ei.center_W + Vec2(box_m, box_m));
+  as->found_copy = as->found;  // tryShrink queries the grid again
+  for (int j : as->found_copy) {
+    const KernelClock& kj = as->kernels[j];
+    if (!kj.in_grid) continue;
+    const double circles_m = kj.bound_r_m + box_m;
+    if ((kj.bound_c_W - ei.center_W).squaredNorm() > circles_m * circles_m) continue;
+    const double grow_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
+    const double gap = ellipseGapBound(ei, orientedKernel(m, d->z, *as, j));
+    if (gap > grow_i + grow_j) continue;
+    if (tryShrink(m, d, as, j, t0, t1, gap - grow_i)) continue;
+    joinOnce(as, T + i, T + j);
+    ++as->counters.kernel_wakes;
+  }
+}
+
+// Kernels of later island slots than s (each pair of islands once) that island kernel i may
+// touch over the window, through the island grid and the pair's relative speed bound.
+void islandKernelNeighbours(const Model& m, const Data& d, AsyncState* as, int s, int i,
+                            double window_s) {
+  const int T = static_cast<int>(m.teeth.size());
+  const OrientedEllipse ei = orientedKernel(m, d.z, *as, i);
+  const double box_m = ei.a_m + islandReach(m, d, i, window_s);
+  islandGridQuery(as, ei.center_W - Vec2(box_m, box_m), ei.center_W + Vec2(box_m, box_m));
+  for (int i2 : as->found) {
+    if (as->kernels[i2].island <= s) continue;
+    if (pairMayTouch(ei, orientedKernel(m, d.z, *as, i2), islandPairReach(m, d, i, i2, window_s)))
+      joinOnce(as, T + i, T + i2);
+  }
+}
+}  // namespace
+
+void islandNeighbours(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
   for (size_t s = 0; s < as->islands.size(); ++s) {
     if (!as->islands[s].alive) continue;
     for (int i : as->islands[s].kernels) {
-      const Ellipse ei = kernelEllipse(m, d->z, i);
-      const double grow_i = islandReach(m, *d, i, window_s);
-      const double reach = ei.a_m + grow_i + as->r_cap_m;
-      gridQuery(as, ei.center - Vec2(reach, reach), ei.center + Vec2(reach, reach));
-      as->found_copy = as->found;
-      for (int j : as->found_copy) {
-        const KernelClock& kj = as->kernels[j];
-        if (!kj.in_grid) continue;
-        const double grow_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
-        const double gap = ellipseGapBound(ei, kernelEllipse(m, d->z, j));
-        if (gap > grow_i + grow_j) continue;
-        if (tryShrink(m, d, as, j, t0, t1, gap - grow_i)) continue;
-        joinOnce(as, T + i, T + j);
-        ++as->counters.kernel_wakes;
-      }
-      // Kernels of later islands (each pair of islands once).
-      for (size_t s2 = s + 1; s2 < as->islands.size(); ++s2) {
-        if (!as->islands[s2].alive) continue;
-        for (int i2 : as->islands[s2].kernels) {
-          const double grow_2 = islandReach(m, *d, i2, window_s);
-          if (ellipseGapBound(ei, kernelEllipse(m, d->z, i2)) <= grow_i + grow_2)
-            joinOnce(as, T + i, T + i2);
-        }
-      }
+      lazyNeighbours(m, d, as, i, t0, t1);
+      islandKernelNeighbours(m, *d, as, static_cast<int>(s), i, t1 - t0);
     }
   }
 }
@@ -194,26 +289,25 @@ void islandProximity(const Model& m, const Data& d, const AsyncState& as, int s,
     const ToothModel& tm = m.teeth[isl.teeth[a]];
     const double pad = toothPad(m, d, as, isl.teeth[a]);
     const double r_in = tm.p_DR_D.norm(), r_out = r_in + tm.length_m;
+    const SweptSector sec =
+        sweptSector(th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out);
     for (int b = 0; b < nK; ++b) {
       const int i = isl.kernels[b];
-      const double r = m.kernels[i].semi_axis_a_m + islandReach(m, d, i, window_s);
-      const Vec2 c = d.z.segment<2>(m.kernels[i].dof_offset);
-      if (sectorDistance(c, th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out) <=
-          r + pad)
-        edges->emplace_back(a, nT + b);
+      const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d.z, as, i));
+      if (gap - islandReach(m, d, i, window_s) <= pad) edges->emplace_back(a, nT + b);
     }
   }
   for (int a = 0; a < nK; ++a) {
     const int i = isl.kernels[a];
-    const Ellipse ei = kernelEllipse(m, d.z, i);
-    const double grow_i = islandReach(m, d, i, window_s);
+    const OrientedEllipse ei = orientedKernel(m, d.z, as, i);
     for (int b = a + 1; b < nK; ++b) {
       const int j = isl.kernels[b];
-      if (ellipseGapBound(ei, kernelEllipse(m, d.z, j)) <= grow_i + islandReach(m, d, j, window_s))
+      if (pairMayTouch(ei, orientedKernel(m, d.z, as, j), islandPairReach(m, d, i, j, window_s)))
         edges->emplace_back(nT + a, nT + b);
     }
+    const double grow_i = islandReach(m, d, i, window_s);
     for (const ObstacleModel& o : m.obstacles)
-      if (obstacleClearance(o, ei.center) - ei.a_m <= grow_i) (*pinned)[nT + a] = 1;
+      if (obstacleClearance(o, ei.center_W) - ei.a_m <= grow_i) (*pinned)[nT + a] = 1;
   }
 }
 
