@@ -48,7 +48,8 @@ EVENT_DRIVEN = ["--set", "integrator.type=event_driven", "--set", "integrator.to
 ISLANDS = ["--set", "integrator.islands=true"] + EVENT_DRIVEN
 
 # Stage -> regular expression searched in the demangled function name (callgrind's "fn="); a
-# function belongs to the first stage that matches. Every libm function is "transcendental".
+# function belongs to the first stage that matches. Every libm function but NOT_TRANSCENDENTAL is
+# "transcendental".
 STAGES = [
     ("wake", r"^threshing_sim::internal::(wakeDueKernels|tryShrink|predictKernel|"
              r"advanceFreeTeeth|advanceFreeTooth)\("),
@@ -66,7 +67,8 @@ STAGES = [
     ("  centreline (centrelinePoint, centrelineMotion)",
      r"^threshing_sim::internal::(centrelinePoint|centrelineMotion)\("),
     ("  mode shapes (evaluateModes, evaluateModeCurvatures)",
-     r"^threshing_sim::(evaluateModes|evaluateModeCurvatures)\("),
+     r"^threshing_sim::(evaluateModes|evaluateModeCurvatures|interpolateModes|"
+     r"interpolateModeCurvatures)\("),
     ("contact forces", r"^threshing_sim::internal::(compliantNormalForce\w*|smoothForces|"
                        r"recordForce|contactVelocityDrift|(\(anonymous namespace\)::)?"
                        r"addGeneralised)\("),
@@ -85,6 +87,7 @@ STAGES = [
 SETUP = r"^threshing_sim::loadScene\("  # model set-up: the scene's parsing and compile
 TRANSCENDENTAL = "transcendental (libm: sin, cos, exp, ...)"
 STEPPING = r"^threshing_sim::advanceTo\("  # the stepping loop
+NOT_TRANSCENDENTAL = r"^(fmax|fmin|fabs|floor|ceil|trunc|round|lround|copysign)"  # libm, cheap
 
 
 def stream_kernel_file(folder, count, sparse=None):
@@ -199,7 +202,7 @@ def stage_counts(whole, stepping):
         rx = re.compile(pattern)
         counts[name] = stepping.inclusive(lambda f, rx=rx: bool(rx.search(f)))
     counts[TRANSCENDENTAL] = stepping.inclusive(
-        lambda f: "libm.so" in (stepping.objects.get(f) or ""))
+        lambda f: "libm.so" in (stepping.objects.get(f) or "") and not re.match(NOT_TRANSCENDENTAL, f))
     return counts
 
 

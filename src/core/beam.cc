@@ -605,16 +605,28 @@ void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const Ve
   const int n = p.n_modes;
   const int n2 = 2 * n;
   Eigen::VectorXcd& c = prop->c;
-  // Modal amplitudes c = V^-1 y0, each advanced by exp(lambda h).
+  // Modal amplitudes c = V^-1 y0, each advanced by exp(lambda h). Complex products written out
+  // in real arithmetic (the library's complex product checks for infinities and NaNs in a call
+  // per product); the values are those of the complex operators. A conjugate pair's second
+  // factor is the conjugate of the first (cexp is exactly symmetric), so one cexp per pair.
+  std::complex<double> growth(0.0, 0.0);
   for (int i = 0; i < n2; ++i) {
-    std::complex<double> ci(0.0, 0.0);
-    for (int j = 0; j < n; ++j) ci += p.V_inv(i, j) * q0[j] + p.V_inv(i, n + j) * qd0[j];
-    c[i] = ci * std::exp(p.lambda[i] * h_s);
+    double c_re = 0.0, c_im = 0.0;
+    for (int j = 0; j < n; ++j) {
+      const std::complex<double>& a = p.V_inv(i, j);
+      const std::complex<double>& b = p.V_inv(i, n + j);
+      c_re += a.real() * q0[j] + b.real() * qd0[j];
+      c_im += a.imag() * q0[j] + b.imag() * qd0[j];
+    }
+    const bool conjugate_of_previous = i > 0 && p.lambda[i] == std::conj(p.lambda[i - 1]);
+    growth = conjugate_of_previous ? std::conj(growth) : std::exp(p.lambda[i] * h_s);
+    c[i] = std::complex<double>(c_re * growth.real() - c_im * growth.imag(),
+                                c_re * growth.imag() + c_im * growth.real());
   }
   // Back to y1 = Re(V c) (the imaginary part cancels over conjugate pairs).
   for (int r = 0; r < n2; ++r) {
     double y = 0.0;
-    for (int i = 0; i < n2; ++i) y += (p.V(r, i) * c[i]).real();
+    for (int i = 0; i < n2; ++i) y += p.V(r, i).real() * c[i].real() - p.V(r, i).imag() * c[i].imag();
     (r < n ? q1[r] : qd1[r - n]) = y;
   }
 }

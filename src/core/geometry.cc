@@ -10,6 +10,7 @@
 // continuous through contact and symmetric under swapping the bodies.
 #include "threshing_sim/core/geometry.h"
 
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -370,13 +371,31 @@ struct GapRing {
   int n_samples = 0;                   // samples around the ring [-]
   double step_rad = 0;                 // angle between samples [rad]
 };
+// Ring step 2 pi / n_samples and its cosine and sine for every even sample count up to
+// kMaxDirectionSamples (index n_samples / 2), computed once: no trigonometry per pair query.
+struct RingStep {
+  double step_rad, cos_step, sin_step;
+};
+const std::array<RingStep, kMaxDirectionSamples / 2 + 1>& ringSteps() {
+  static const std::array<RingStep, kMaxDirectionSamples / 2 + 1> table = [] {
+    std::array<RingStep, kMaxDirectionSamples / 2 + 1> t{};
+    for (int n_pairs = 1; n_pairs <= kMaxDirectionSamples / 2; ++n_pairs) {
+      const double step_rad = 2.0 * kPi / (2 * n_pairs);
+      t[n_pairs] = {step_rad, std::cos(step_rad), std::sin(step_rad)};
+    }
+    return t;
+  }();
+  return table;
+}
+
 void sampleGapRing(const GapFunction& gap, double aspect, GapRing* ring) {
   const int n_pairs = static_cast<int>(
       std::fmin(kMaxDirectionSamples / 2,
                 std::fmax(kMinDirectionSamples / 2, kSamplesPerAspect * aspect / 2)));
   ring->n_samples = 2 * n_pairs;
-  ring->step_rad = 2.0 * kPi / ring->n_samples;
-  const double step_c = std::cos(ring->step_rad), step_s = std::sin(ring->step_rad);
+  const RingStep& step = ringSteps()[n_pairs];
+  ring->step_rad = step.step_rad;
+  const double step_c = step.cos_step, step_s = step.sin_step;
   Vec2 n(1.0, 0.0);
   for (int k = 0; k < n_pairs; ++k) {
     const double support_m = gap.support(n), along_m = n.dot(gap.dc_m);
