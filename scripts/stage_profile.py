@@ -66,7 +66,7 @@ STAGES = [
     ("  kernel-kernel", r"^threshing_sim::internal::(\(anonymous namespace\)::)?kernelKernel\("),
     ("  centreline (centrelinePoint, centrelineMotion)",
      r"^threshing_sim::internal::(centrelinePoint|centrelineMotion)\("),
-    ("  mode shapes (evaluateModes, evaluateModeCurvatures)",
+    ("  mode shapes (evaluateModes, interpolateModes: phi, phi', phi'')",
      r"^threshing_sim::(evaluateModes|evaluateModeCurvatures|interpolateModes|"
      r"interpolateModeCurvatures)\("),
     ("contact forces", r"^threshing_sim::internal::(compliantNormalForce\w*|smoothForces|"

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -318,26 +319,25 @@ struct QuinticHermite {
 void tabulateModes(ToothModel* tooth) {
   ToothModel& t = *tooth;
   const int n = t.n_modes;
-  t.mode_table.clear();
+  t.mode_table.reset();
   t.beta4_per_m4.resize(n);
-  if (n == 0) {
-    t.mode_table_intervals = 0;
-    t.mode_table_dx_m = 0;
-    return;
-  }
+  t.mode_table_intervals = 0;
+  t.mode_table_dx_m = 0;
+  if (n == 0) return;
   for (int i = 0; i < n; ++i) t.beta4_per_m4[i] = std::pow(t.beta_per_m[i], 4);
   // beta_n h <= 1 / kModeTablePointsPerRadian, rounded up to whole station intervals.
   const int per_station = t.n_stations - 1;
   const double needed = kModeTablePointsPerRadian * t.beta_per_m[n - 1] * t.length_m;
   const int intervals = per_station * static_cast<int>(std::ceil(needed / per_station));
-  t.mode_table_intervals = intervals;
-  t.mode_table_dx_m = t.length_m / intervals;
-  t.mode_table.resize(static_cast<size_t>(4) * n * (intervals + 1));
+  auto table = std::make_shared<std::vector<double>>(static_cast<size_t>(4) * n * (intervals + 1));
   for (int j = 0; j <= intervals; ++j) {
     // The stations' rounding (L (s / (n_s - 1))), so that each station is a point bit for bit.
     const double x_m = t.length_m * (static_cast<double>(j) / intervals);
-    evaluateModeDerivatives(t, x_m, t.mode_table.data() + static_cast<size_t>(4) * n * j);
+    evaluateModeDerivatives(t, x_m, table->data() + static_cast<size_t>(4) * n * j);
   }
+  t.mode_table = std::move(table);
+  t.mode_table_intervals = intervals;
+  t.mode_table_dx_m = t.length_m / intervals;
 }
 
 void interpolateModes(const ToothModel& tooth, double x_m, double* phi, double* dphi,
@@ -349,13 +349,13 @@ void interpolateModes(const ToothModel& tooth, double x_m, double* phi, double* 
   const double u = x / tooth.mode_table_dx_m;
   const int j = std::clamp(static_cast<int>(u), 0, last - 1);
   const QuinticHermite hb(u - j, tooth.mode_table_dx_m);
-  const double* p0 = tooth.mode_table.data() + static_cast<size_t>(4) * n * j;  // point j
-  const double* p1 = p0 + 4 * n;                                                // point j + 1
+  const double* p0 = tooth.mode_table->data() + static_cast<size_t>(4) * n * j;  // point j
+  const double* p1 = p0 + 4 * n;                                                 // point j + 1
   for (int i = 0; i < n; ++i) {
     const double f0 = p0[i], d0 = p0[n + i], dd0 = p0[2 * n + i];
     const double f1 = p1[i], d1 = p1[n + i], dd1 = p1[2 * n + i];
-    phi[i] = hb.w[0] * f0 + hb.w[1] * d0 + hb.w[2] * dd0 + hb.w[3] * f1 + hb.w[4] * d1 +
-             hb.w[5] * dd1;
+    phi[i] =
+        hb.w[0] * f0 + hb.w[1] * d0 + hb.w[2] * dd0 + hb.w[3] * f1 + hb.w[4] * d1 + hb.w[5] * dd1;
     dphi[i] = hb.dw[0] * f0 + hb.dw[1] * d0 + hb.dw[2] * dd0 + hb.dw[3] * f1 + hb.dw[4] * d1 +
               hb.dw[5] * dd1;
   }
@@ -626,7 +626,8 @@ void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const Ve
   // Back to y1 = Re(V c) (the imaginary part cancels over conjugate pairs).
   for (int r = 0; r < n2; ++r) {
     double y = 0.0;
-    for (int i = 0; i < n2; ++i) y += p.V(r, i).real() * c[i].real() - p.V(r, i).imag() * c[i].imag();
+    for (int i = 0; i < n2; ++i)
+      y += p.V(r, i).real() * c[i].real() - p.V(r, i).imag() * c[i].imag();
     (r < n ? q1[r] : qd1[r - n]) = y;
   }
 }

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <limits>
 
+#include "cos_sin_memo.h"
 #include "threshing_sim/core/constants.h"
 
 namespace threshing_sim {
@@ -41,9 +42,16 @@ constexpr int kMaxCandidates = 4;
 constexpr double kAngleTol_rad = 1e-13;
 constexpr int kMaxRefineIterations = 60;
 
+// Unit a-axis of an ellipse at angle_rad in world, (cos, sin) memoised [-].
+Vec2 axisOf(double angle_rad) {
+  const internal::CosSin cs = internal::cosSinOf(angle_rad);
+  return Vec2(cs.c, cs.s);
+}
+
 // Rotation between an ellipse frame E and world W.
 struct Rotation {
-  explicit Rotation(double angle_rad) : c(std::cos(angle_rad)), s(std::sin(angle_rad)) {}
+  explicit Rotation(double angle_rad) : Rotation(internal::cosSinOf(angle_rad)) {}
+  explicit Rotation(const internal::CosSin& cs) : c(cs.c), s(cs.s) {}
   Rotation(double cos_angle, double sin_angle) : c(cos_angle), s(sin_angle) {}
   Vec2 toWorld(const Vec2& v_E) const {
     return {c * v_E.x() - s * v_E.y(), s * v_E.x() + c * v_E.y()};
@@ -141,9 +149,7 @@ QuadrantProjection projectInFirstQuadrant(double e0_m, double e1_m, const Vec2& 
 // M are ~a^2 while n^T M n may be ~b^2). Its support function is h(n) = sqrt(n^T M n).
 struct EllipseShape {
   explicit EllipseShape(const Ellipse& e)
-      : axis_a(std::cos(e.angle_rad), std::sin(e.angle_rad)),
-        a_sq_m2(e.a_m * e.a_m),
-        b_sq_m2(e.b_m * e.b_m) {}
+      : axis_a(axisOf(e.angle_rad)), a_sq_m2(e.a_m * e.a_m), b_sq_m2(e.b_m * e.b_m) {}
   // x^T M y.
   double form(const Vec2& x, const Vec2& y) const {
     const Vec2 axis_b(-axis_a.y(), axis_a.x());
@@ -236,8 +242,7 @@ Proximity projectOntoCircle(const Vec2& p, const Ellipse& e) {
   out.point1 = p;
   const Vec2 v_W = p - e.center;
   const double r_m = v_W.norm();
-  const Vec2 outward_W =
-      r_m > 0 ? Vec2(v_W / r_m) : Vec2(std::cos(e.angle_rad), std::sin(e.angle_rad));
+  const Vec2 outward_W = r_m > 0 ? Vec2(v_W / r_m) : axisOf(e.angle_rad);
   out.point2 = e.center + e.a_m * outward_W;
   out.distance_m = r_m - e.a_m;
   out.normal = -outward_W;

@@ -511,7 +511,7 @@ TEST(BeamTest, RigidToothHasEmptyModalData) {
   EXPECT_EQ(toothStiffness(tooth, 80.0).size(), 0);
   EXPECT_EQ(toothFrequenciesHz(tooth, 80.0).size(), 0);
   EXPECT_EQ(tooth.mode_table_intervals, 0);
-  EXPECT_TRUE(tooth.mode_table.empty());
+  EXPECT_EQ(tooth.mode_table, nullptr);
   interpolateModes(tooth, 0.03, &phi, &dphi);
   EXPECT_EQ(phi.size(), 0);
 }
@@ -551,6 +551,11 @@ TEST(BeamTest, ModeTableMatchesEvaluateModesForOneTo64Modes) {
     EXPECT_LE(tooth.beta_per_m[n - 1] * tooth.mode_table_dx_m, 1.0 / kModeTablePointsPerRadian);
     EXPECT_EQ(tooth.mode_table_intervals % (tooth.n_stations - 1), 0);
     EXPECT_LE(tooth.mode_table_intervals, 3500);
+    ASSERT_NE(tooth.mode_table, nullptr);
+    EXPECT_EQ(tooth.mode_table->size(), 4u * n * (tooth.mode_table_intervals + 1));
+    // A copy of the tooth (an island's sub-model) shares the table.
+    const ToothModel copy = tooth;
+    EXPECT_EQ(copy.mode_table.get(), tooth.mode_table.get());
     const std::array<double, 3> err = tableError(tooth, 4000, 1000u + n);
     EXPECT_LT(err[0], 5e-12) << n << " modes: phi";
     EXPECT_LT(err[1], 1e-10) << n << " modes: phi'";

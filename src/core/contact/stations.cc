@@ -192,8 +192,8 @@ CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, cons
     ws->centreline.scratch_phi.resize(n);
     ws->centreline.scratch_dphi.resize(n);
     ws->centreline.scratch_ddphi.resize(n);
-    interpolateModes(tm, x_m, ws->centreline.scratch_phi.data(),
-                     ws->centreline.scratch_dphi.data(), ws->centreline.scratch_ddphi.data());
+    interpolateModes(tm, x_m, ws->centreline.scratch_phi.data(), ws->centreline.scratch_dphi.data(),
+                     ws->centreline.scratch_ddphi.data());
     w = ws->centreline.scratch_phi.dot(q);
     w1 = ws->centreline.scratch_dphi.dot(q);
     w2 = ws->centreline.scratch_ddphi.dot(q);
