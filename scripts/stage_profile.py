@@ -14,13 +14,16 @@ every stage of STAGES (the one table that maps function names to stages), per ru
 event (impacts of the simulate summary) and per integrator step (island steps on the island
 scheme, steps on the global one).
 
-A stage's inclusive count is the sum over the calls that enter the stage from outside it (caller
-not in the stage, callee in it) of the calls' inclusive costs, read from the raw callgrind file:
-the inclusive figures of `callgrind_annotate --inclusive=yes` count a stage twice where two of
-its functions call each other. Recursive activations (callgrind's name'2) are inside their
-stage; a stage entered again through a function of another stage is counted twice. Stages nest (the right-hand side holds the narrow phase and the
-contact forces), so the rows do not add up to the total. The whole run's and advanceTo's
-counts are checked against callgrind_annotate's.
+Each case runs twice under callgrind: whole (the whole run; the model set-up, loadScene) and
+collecting inside advanceTo only (the stepping loop and every other stage). A stage's inclusive
+count is the sum over the calls that enter the stage from outside it (caller not in the stage,
+callee in it) of the calls' inclusive costs, read from the raw callgrind file: the inclusive
+figures of `callgrind_annotate --inclusive=yes` count a stage twice where two of its functions
+call each other. Recursive activations (callgrind's name'2) are inside their stage; a stage
+entered again through a function of another stage is counted twice. Stages nest (the
+right-hand side holds the narrow phase and the contact forces), so the rows do not add up to
+the total. The totals and advanceTo's count are checked against callgrind_annotate's, and
+advanceTo of the whole run against the stepping-only profile.
 
     python3 scripts/stage_profile.py                  # prints the table
     python3 scripts/stage_profile.py --docs           # and splices it into docs/bench_islands.md
