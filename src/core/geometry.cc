@@ -182,8 +182,9 @@ struct GapFunction {
   struct Derivatives {
     double value, slope, curvature, rounding;
   };
-  Derivatives derivatives(double theta_rad) const {
-    const Vec2 n(std::cos(theta_rad), std::sin(theta_rad)), t(-n.y(), n.x());
+  // Along the unit direction n = n(theta).
+  Derivatives derivativesAlong(const Vec2& n) const {
+    const Vec2 t(-n.y(), n.x());
     Derivatives out{n.dot(dc_m), t.dot(dc_m), -n.dot(dc_m), std::abs(n.dot(dc_m))};
     for (const EllipseShape* shape : {&shape1, &shape2}) {
       // h = sqrt(q), q = n^T M n; h' = t^T M n / h; h'' = (t^T M t - q) / h - (t^T M n)^2 / h^3.
@@ -204,12 +205,28 @@ struct GapMaximum {
   double theta_rad, value_m;
 };
 
+// The unit direction n turned by step_rad. A small turn (every Newton step near convergence)
+// takes its cosine and sine from their Taylor series, exact to rounding below kSmallTurn_rad
+// (the first omitted terms, step^10 / 10! and step^11 / 11!, are below 1e-19), and rotates n;
+// a larger one evaluates the direction of theta + step afresh.
+constexpr double kSmallTurn_rad = 0.0625;
+Vec2 turned(const Vec2& n, double theta_rad, double step_rad) {
+  if (std::abs(step_rad) > kSmallTurn_rad) {
+    return Vec2(std::cos(theta_rad + step_rad), std::sin(theta_rad + step_rad));
+  }
+  const double d2 = step_rad * step_rad;
+  const double c = 1.0 - d2 / 2 * (1.0 - d2 / 12 * (1.0 - d2 / 30 * (1.0 - d2 / 56)));
+  const double s = step_rad * (1.0 - d2 / 6 * (1.0 - d2 / 20 * (1.0 - d2 / 42 * (1.0 - d2 / 72))));
+  return Vec2(c * n.x() - s * n.y(), s * n.x() + c * n.y());
+}
+
 // Local maximum of psi in [lo, hi] starting from theta with psi(theta) >= psi(lo), psi(hi):
 // Newton steps where psi is concave and the step stays in the nearer half of the bracket (so a
 // rejected Newton step is not retried), golden-section steps uphill otherwise; the best point so
 // far always stays bracketed, so the iteration cannot escape to another local maximum.
 GapMaximum maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, double hi_rad) {
-  GapFunction::Derivatives at = gap.derivatives(theta_rad);
+  Vec2 n = axisOf(theta_rad);  // direction of theta, turned along with it
+  GapFunction::Derivatives at = gap.derivativesAlong(n);
   for (int i = 0; i < kMaxRefineIterations; ++i) {
     const double uphill_rad = (at.slope > 0 ? hi_rad : lo_rad) - theta_rad;
     double step_rad = kGoldenFraction * uphill_rad;
@@ -222,12 +239,14 @@ GapMaximum maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, 
     // Accept an uphill step, or a level one (within rounding, where only the slope still steers)
     // that flattens the slope, and shrink the bracket behind it; otherwise shrink it to the step.
     const double trial_rad = theta_rad + step_rad;
-    const GapFunction::Derivatives at_trial = gap.derivatives(trial_rad);
+    const Vec2 n_trial = turned(n, theta_rad, step_rad);
+    const GapFunction::Derivatives at_trial = gap.derivativesAlong(n_trial);
     const bool level = std::abs(at_trial.value - at.value) <= at.rounding;
     if (at_trial.value > at.value + at.rounding ||
         (level && std::abs(at_trial.slope) <= std::abs(at.slope))) {
       (step_rad > 0 ? lo_rad : hi_rad) = theta_rad;
       theta_rad = trial_rad;
+      n = n_trial;
       at = at_trial;
     } else {
       (step_rad > 0 ? hi_rad : lo_rad) = trial_rad;
