@@ -9,7 +9,8 @@ Measures, with the same pinned, cached bench_work_precision points as the rest o
    rest at rest out of reach); under the island scheme and, where affordable, the global one.
 2. Events per kernel per simulated second by kind (RunStats::scheduler).
 3. Instructions per contact event and per island step, by callgrind (valgrind), on the single
-   strike and the 100- and 1000-kernel streams.
+   strike and the 100- and 1000-kernel streams; and per stage of the step
+   (scripts/stage_profile.py, skipped by --quick).
 4. The node's real-time factor on the stream at 1, 10, 100 and 1000 kernels.
 5. The issue's targets, each with its measured figure.
 
@@ -25,6 +26,7 @@ import subprocess
 import tempfile
 
 import bench  # scripts/bench.py: Runner, stream files, node runs, CSV helpers
+import stage_profile  # scripts/stage_profile.py: instructions per stage (imports no bench*)
 from tslib import markdown, plots
 
 STREAM = bench.BENCH_DIR / "stream.yaml"
@@ -154,6 +156,17 @@ def instructions(gen_dir, quick):
     return rows
 
 
+def stage_table(gen_dir, quick):
+    """The current "Instructions per stage" table of scripts/stage_profile.py, on this
+    benchmark's kernel files (None under --quick or without valgrind)."""
+    if quick or shutil.which("valgrind") is None:
+        return None
+    case_list = stage_profile.cases(lambda n, sparse: kernel_file(
+        n, ("sparse", sparse) if sparse is not None else False, gen_dir))
+    results = stage_profile.profile(bench.BIN_DIR / "simulate", case_list, say=bench.say)
+    return stage_profile.table(results)
+
+
 def node_table(gen_dir, quick):
     if quick:
         return []
@@ -255,7 +268,7 @@ def targets(scal, instr, node):
     return out
 
 
-def write_doc(scal, instr, node, tgt, out_dir, fig_rel):
+def write_doc(scal, instr, node, tgt, out_dir, fig_rel, stages=None):
     lines = ["| case | target | measured | met |", "|---|---|---|---|"]
     for case, goal, value, met in tgt:
         lines.append(f"| {case} | {goal} | {fmt(value)} | {'yes' if met else '**no**'} |")
@@ -316,8 +329,23 @@ and by the island integrator's accepted steps.
 ## The node's real-time factor (stream, island scheme)
 
 {chr(10).join(nd) if node else "(not measured in this run)"}
-"""
+
+{stages_section(out_dir, stages)}"""
     return doc, target_table
+
+
+def stages_section(out_dir, stages):
+    """The "Instructions per stage" section: the recorded "before" table of the page (or of
+    docs/bench_islands.md) kept, the current one from this run (or kept when not measured)."""
+    old = ""
+    for page in (pathlib.Path(out_dir) / "bench_islands.md", bench.DOCS / "bench_islands.md"):
+        if page.exists():
+            old = page.read_text()
+            if markdown.section_body(old, "stage-profile-before") is not None:
+                break
+    before = markdown.section_body(old, "stage-profile-before")
+    current = stages or markdown.section_body(old, "stage-profile") or "(not measured in this run)"
+    return stage_profile.section(current, before)
 
 
 def run(args, runner, gen_dir, out, fig_dir):
@@ -330,7 +358,8 @@ def run(args, runner, gen_dir, out, fig_dir):
     node = [] if args.no_node else node_table(gen_dir, quick)
     bench.write_csv(fig_dir / "islands_node.csv", node)
     tgt = targets(scal, instr, node)
-    doc, table = write_doc(scal, instr, node, tgt, out, "bench/")
+    stages = stage_table(gen_dir, quick)
+    doc, table = write_doc(scal, instr, node, tgt, out, "bench/", stages)
     (out / "bench_islands.md").write_text(doc)
     if not quick and not args.no_readme and not args.out:
         markdown.splice("islands-table", table)

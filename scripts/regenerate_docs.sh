@@ -17,6 +17,9 @@
 #   bench            scripts/bench.py                          (docs/benchmarks.md + docs/bench*)
 #   islands          scripts/bench.py --part islands           (docs/architecture.md +
 #                                                               docs/bench_islands.md)
+#   stage-profile    scripts/stage_profile.py --docs           (docs/bench_islands.md,
+#                    "Instructions per stage" alone; the islands part includes it; about 8
+#                    minutes under valgrind)
 #   sweeps           scripts/sweep_overhead.py --workers 2 1 --cluster --docs (README +
 #                    docs/sweeps*; not a default part: its ratio needs an otherwise idle machine)
 # Usage: scripts/regenerate_docs.sh [PART ...]   (default: all parts, in the order above; about
@@ -33,7 +36,8 @@ parts=("$@")
 
 bash scripts/setup.sh
 # The instruction counts need valgrind (not part of the build's set-up).
-if printf '%s\n' "${parts[@]}" | grep -qx 'profile\|free-teeth' && ! command -v valgrind >/dev/null; then
+if printf '%s\n' "${parts[@]}" | grep -qx 'profile\|free-teeth\|stage-profile\|islands' &&
+  ! command -v valgrind >/dev/null; then
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends valgrind >/dev/null
 fi
 for part in "${parts[@]}"; do
@@ -67,6 +71,7 @@ for part in "${parts[@]}"; do
     findings) $PY scripts/compare_teeth.py --findings ;;
     bench) $PY scripts/bench.py ;;
     islands) $PY scripts/bench.py --part islands ;;
+    stage-profile) $PY scripts/stage_profile.py --docs ;;
     sweeps) $PY scripts/sweep_overhead.py --workers 2 1 --cluster --docs ;;
     *) echo "regenerate_docs: unknown part '$part'" >&2; exit 2 ;;
   esac

@@ -18,6 +18,9 @@ SECTIONS = {
     "profile-streams": "docs/performance.md",  # scripts/profile_core.sh --streams
     "free-teeth": "docs/performance.md",    # scripts/compare_free_teeth.py --callgrind
     "islands-table": "docs/architecture.md",  # scripts/bench.py --part islands
+    "stage-profile": "docs/bench_islands.md",  # scripts/stage_profile.py --docs
+    # scripts/stage_profile.py --docs --section stage-profile-before --simulate <main's build>
+    "stage-profile-before": "docs/bench_islands.md",
     "bench-table": "docs/benchmarks.md",    # scripts/bench.py
     "scaling-table": "docs/benchmarks.md",  # scripts/bench.py
     "stability-table": "docs/numerical_stability.md",  # scripts/stability_table.py
@@ -46,6 +49,15 @@ def splice_text(text, name, body, where="the text"):
     if i < 0 or j < i:
         raise SystemExit(f"{where}: no {begin} ... {end} markers")
     return text[:i + len(begin)] + "\n" + body.rstrip() + "\n" + text[j:]
+
+
+def section_body(text, name):
+    """The lines between section name's markers in text, or None when it has no markers."""
+    begin, end = markers(name)
+    i, j = text.find(begin), text.find(end)
+    if i < 0 or j < i:
+        return None
+    return text[i + len(begin):j].strip("\n")
 
 
 def splice(name, body, path=None):

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <sstream>
 #include <stdexcept>
 
@@ -217,6 +218,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
                              H.noalias() += weight_m * dphi * dphi.transpose();
                            });
   }
+  tabulateModes(&t);
   if (t.beam_model == ToothBeamModel::kLargeDeflection) compileLargeDeflection(&t);
 }
 
@@ -262,6 +264,120 @@ void evaluateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi) {
     (*ddphi)[i] =
         tooth.norm_C[i] * beta * beta * (a * exp_z + b / exp_z + std::cos(z) - sigma * std::sin(z));
   }
+}
+
+namespace {
+
+// phi, phi', phi'', phi''' of every mode at x (one exponential and one sine and cosine per
+// mode, the cancellation-free form of evaluateModes), into d[k * n + i] [1/(sqrt(kg) m^k)].
+void evaluateModeDerivatives(const ToothModel& tooth, double x_m, double* d) {
+  const int n = tooth.n_modes;
+  const auto& half_one_minus_sigma = halfOneMinusSigmaTable();
+  for (int i = 0; i < n; ++i) {
+    const double beta = tooth.beta_per_m[i];
+    const double z = beta * x_m;
+    const double exp_z = std::exp(z);
+    const double exp_minus_z = 1.0 / exp_z;
+    const double cos_z = std::cos(z);
+    const double sin_z = std::sin(z);
+    const double sigma = tooth.sigma[i];
+    const double a = half_one_minus_sigma[i];  // (1 - sigma) / 2
+    const double b = 0.5 * (1.0 + sigma);      // (1 + sigma) / 2
+    const double c0 = tooth.norm_C[i], c1 = c0 * beta, c2 = c1 * beta, c3 = c2 * beta;
+    d[i] = c0 * (a * exp_z + b * exp_minus_z - cos_z + sigma * sin_z);
+    d[n + i] = c1 * (a * exp_z - b * exp_minus_z + sin_z + sigma * cos_z);
+    d[2 * n + i] = c2 * (a * exp_z + b * exp_minus_z + cos_z - sigma * sin_z);
+    d[3 * n + i] = c3 * (a * exp_z - b * exp_minus_z - sin_z - sigma * cos_z);
+  }
+}
+
+// Quintic Hermite basis on one table interval of length h at s in [0, 1]: weights of
+// (f, f', f'') at its start (w[0..2]) and end (w[3..5]) for the value (w) and for the
+// x-derivative (dw).
+struct QuinticHermite {
+  double w[6], dw[6];
+  QuinticHermite(double s, double h) {
+    const double s2 = s * s, s3 = s2 * s, s4 = s3 * s, s5 = s4 * s;
+    const double h2 = h * h;
+    w[0] = 1 - 10 * s3 + 15 * s4 - 6 * s5;
+    w[1] = h * (s - 6 * s3 + 8 * s4 - 3 * s5);
+    w[2] = 0.5 * h2 * (s2 - 3 * s3 + 3 * s4 - s5);
+    w[3] = 10 * s3 - 15 * s4 + 6 * s5;
+    w[4] = h * (-4 * s3 + 7 * s4 - 3 * s5);
+    w[5] = 0.5 * h2 * (s3 - 2 * s4 + s5);
+    dw[0] = (-30 * s2 + 60 * s3 - 30 * s4) / h;
+    dw[1] = 1 - 18 * s2 + 32 * s3 - 15 * s4;
+    dw[2] = 0.5 * h * (2 * s - 9 * s2 + 12 * s3 - 5 * s4);
+    dw[3] = -dw[0];
+    dw[4] = -12 * s2 + 28 * s3 - 15 * s4;
+    dw[5] = 0.5 * h * (3 * s2 - 8 * s3 + 5 * s4);
+  }
+};
+
+}  // namespace
+
+void tabulateModes(ToothModel* tooth) {
+  ToothModel& t = *tooth;
+  const int n = t.n_modes;
+  t.mode_table.reset();
+  t.beta4_per_m4.resize(n);
+  t.mode_table_intervals = 0;
+  t.mode_table_dx_m = 0;
+  if (n == 0) return;
+  for (int i = 0; i < n; ++i) t.beta4_per_m4[i] = std::pow(t.beta_per_m[i], 4);
+  // beta_n h <= 1 / kModeTablePointsPerRadian, rounded up to whole station intervals.
+  const int per_station = t.n_stations - 1;
+  const double needed = kModeTablePointsPerRadian * t.beta_per_m[n - 1] * t.length_m;
+  const int intervals = per_station * static_cast<int>(std::ceil(needed / per_station));
+  auto table = std::make_shared<std::vector<double>>(static_cast<size_t>(4) * n * (intervals + 1));
+  for (int j = 0; j <= intervals; ++j) {
+    // The stations' rounding (L (s / (n_s - 1))), so that each station is a point bit for bit.
+    const double x_m = t.length_m * (static_cast<double>(j) / intervals);
+    evaluateModeDerivatives(t, x_m, table->data() + static_cast<size_t>(4) * n * j);
+  }
+  t.mode_table = std::move(table);
+  t.mode_table_intervals = intervals;
+  t.mode_table_dx_m = t.length_m / intervals;
+}
+
+void interpolateModes(const ToothModel& tooth, double x_m, double* phi, double* dphi,
+                      double* ddphi) {
+  const int n = tooth.n_modes;
+  if (n == 0) return;
+  const double x = std::clamp(x_m, 0.0, tooth.length_m);
+  const int last = tooth.mode_table_intervals;
+  const double u = x / tooth.mode_table_dx_m;
+  const int j = std::clamp(static_cast<int>(u), 0, last - 1);
+  const QuinticHermite hb(u - j, tooth.mode_table_dx_m);
+  const double* p0 = tooth.mode_table->data() + static_cast<size_t>(4) * n * j;  // point j
+  const double* p1 = p0 + 4 * n;                                                 // point j + 1
+  for (int i = 0; i < n; ++i) {
+    const double f0 = p0[i], d0 = p0[n + i], dd0 = p0[2 * n + i];
+    const double f1 = p1[i], d1 = p1[n + i], dd1 = p1[2 * n + i];
+    phi[i] =
+        hb.w[0] * f0 + hb.w[1] * d0 + hb.w[2] * dd0 + hb.w[3] * f1 + hb.w[4] * d1 + hb.w[5] * dd1;
+    dphi[i] = hb.dw[0] * f0 + hb.dw[1] * d0 + hb.dw[2] * dd0 + hb.dw[3] * f1 + hb.dw[4] * d1 +
+              hb.dw[5] * dd1;
+  }
+  if (ddphi == nullptr) return;
+  for (int i = 0; i < n; ++i) {
+    const double b4 = tooth.beta4_per_m4[i];
+    ddphi[i] = hb.w[0] * p0[2 * n + i] + hb.w[1] * p0[3 * n + i] + hb.w[2] * b4 * p0[i] +
+               hb.w[3] * p1[2 * n + i] + hb.w[4] * p1[3 * n + i] + hb.w[5] * b4 * p1[i];
+  }
+}
+
+void interpolateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
+  phi->resize(tooth.n_modes);
+  dphi->resize(tooth.n_modes);
+  interpolateModes(tooth, x_m, phi->data(), dphi->data());
+}
+
+void interpolateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi) {
+  const int n = tooth.n_modes;
+  ddphi->resize(n);
+  double phi[kMaxModes], dphi[kMaxModes];
+  interpolateModes(tooth, x_m, phi, dphi, ddphi->data());
 }
 
 void interpolateH(const ToothModel& tooth, double x_m, MatX* H) {
@@ -489,16 +605,29 @@ void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const Ve
   const int n = p.n_modes;
   const int n2 = 2 * n;
   Eigen::VectorXcd& c = prop->c;
-  // Modal amplitudes c = V^-1 y0, each advanced by exp(lambda h).
+  // Modal amplitudes c = V^-1 y0, each advanced by exp(lambda h). Complex products written out
+  // in real arithmetic (the library's complex product checks for infinities and NaNs in a call
+  // per product); the values are those of the complex operators. A conjugate pair's second
+  // factor is the conjugate of the first (cexp is exactly symmetric), so one cexp per pair.
+  std::complex<double> growth(0.0, 0.0);
   for (int i = 0; i < n2; ++i) {
-    std::complex<double> ci(0.0, 0.0);
-    for (int j = 0; j < n; ++j) ci += p.V_inv(i, j) * q0[j] + p.V_inv(i, n + j) * qd0[j];
-    c[i] = ci * std::exp(p.lambda[i] * h_s);
+    double c_re = 0.0, c_im = 0.0;
+    for (int j = 0; j < n; ++j) {
+      const std::complex<double>& a = p.V_inv(i, j);
+      const std::complex<double>& b = p.V_inv(i, n + j);
+      c_re += a.real() * q0[j] + b.real() * qd0[j];
+      c_im += a.imag() * q0[j] + b.imag() * qd0[j];
+    }
+    const bool conjugate_of_previous = i > 0 && p.lambda[i] == std::conj(p.lambda[i - 1]);
+    growth = conjugate_of_previous ? std::conj(growth) : std::exp(p.lambda[i] * h_s);
+    c[i] = std::complex<double>(c_re * growth.real() - c_im * growth.imag(),
+                                c_re * growth.imag() + c_im * growth.real());
   }
   // Back to y1 = Re(V c) (the imaginary part cancels over conjugate pairs).
   for (int r = 0; r < n2; ++r) {
     double y = 0.0;
-    for (int i = 0; i < n2; ++i) y += (p.V(r, i) * c[i]).real();
+    for (int i = 0; i < n2; ++i)
+      y += p.V(r, i).real() * c[i].real() - p.V(r, i).imag() * c[i].imag();
     (r < n ? q1[r] : qd1[r - n]) = y;
   }
 }

@@ -10,9 +10,11 @@
 // continuous through contact and symmetric under swapping the bodies.
 #include "threshing_sim/core/geometry.h"
 
+#include <array>
 #include <cmath>
 #include <limits>
 
+#include "cos_sin_memo.h"
 #include "threshing_sim/core/constants.h"
 
 namespace threshing_sim {
@@ -40,9 +42,16 @@ constexpr int kMaxCandidates = 4;
 constexpr double kAngleTol_rad = 1e-13;
 constexpr int kMaxRefineIterations = 60;
 
+// Unit a-axis of an ellipse at angle_rad in world, (cos, sin) memoised [-].
+Vec2 axisOf(double angle_rad) {
+  const internal::CosSin cs = internal::cosSinOf(angle_rad);
+  return Vec2(cs.c, cs.s);
+}
+
 // Rotation between an ellipse frame E and world W.
 struct Rotation {
-  explicit Rotation(double angle_rad) : c(std::cos(angle_rad)), s(std::sin(angle_rad)) {}
+  explicit Rotation(double angle_rad) : Rotation(internal::cosSinOf(angle_rad)) {}
+  explicit Rotation(const internal::CosSin& cs) : c(cs.c), s(cs.s) {}
   Rotation(double cos_angle, double sin_angle) : c(cos_angle), s(sin_angle) {}
   Vec2 toWorld(const Vec2& v_E) const {
     return {c * v_E.x() - s * v_E.y(), s * v_E.x() + c * v_E.y()};
@@ -140,9 +149,7 @@ QuadrantProjection projectInFirstQuadrant(double e0_m, double e1_m, const Vec2& 
 // M are ~a^2 while n^T M n may be ~b^2). Its support function is h(n) = sqrt(n^T M n).
 struct EllipseShape {
   explicit EllipseShape(const Ellipse& e)
-      : axis_a(std::cos(e.angle_rad), std::sin(e.angle_rad)),
-        a_sq_m2(e.a_m * e.a_m),
-        b_sq_m2(e.b_m * e.b_m) {}
+      : axis_a(axisOf(e.angle_rad)), a_sq_m2(e.a_m * e.a_m), b_sq_m2(e.b_m * e.b_m) {}
   // x^T M y.
   double form(const Vec2& x, const Vec2& y) const {
     const Vec2 axis_b(-axis_a.y(), axis_a.x());
@@ -175,8 +182,9 @@ struct GapFunction {
   struct Derivatives {
     double value, slope, curvature, rounding;
   };
-  Derivatives derivatives(double theta_rad) const {
-    const Vec2 n(std::cos(theta_rad), std::sin(theta_rad)), t(-n.y(), n.x());
+  // Along the unit direction n = n(theta).
+  Derivatives derivativesAlong(const Vec2& n) const {
+    const Vec2 t(-n.y(), n.x());
     Derivatives out{n.dot(dc_m), t.dot(dc_m), -n.dot(dc_m), std::abs(n.dot(dc_m))};
     for (const EllipseShape* shape : {&shape1, &shape2}) {
       // h = sqrt(q), q = n^T M n; h' = t^T M n / h; h'' = (t^T M t - q) / h - (t^T M n)^2 / h^3.
@@ -197,12 +205,28 @@ struct GapMaximum {
   double theta_rad, value_m;
 };
 
+// The unit direction n turned by step_rad. A small turn (every Newton step near convergence)
+// takes its cosine and sine from their Taylor series, exact to rounding below kSmallTurn_rad
+// (the first omitted terms, step^10 / 10! and step^11 / 11!, are below 1e-19), and rotates n;
+// a larger one evaluates the direction of theta + step afresh.
+constexpr double kSmallTurn_rad = 0.0625;
+Vec2 turned(const Vec2& n, double theta_rad, double step_rad) {
+  if (std::abs(step_rad) > kSmallTurn_rad) {
+    return Vec2(std::cos(theta_rad + step_rad), std::sin(theta_rad + step_rad));
+  }
+  const double d2 = step_rad * step_rad;
+  const double c = 1.0 - d2 / 2 * (1.0 - d2 / 12 * (1.0 - d2 / 30 * (1.0 - d2 / 56)));
+  const double s = step_rad * (1.0 - d2 / 6 * (1.0 - d2 / 20 * (1.0 - d2 / 42 * (1.0 - d2 / 72))));
+  return Vec2(c * n.x() - s * n.y(), s * n.x() + c * n.y());
+}
+
 // Local maximum of psi in [lo, hi] starting from theta with psi(theta) >= psi(lo), psi(hi):
 // Newton steps where psi is concave and the step stays in the nearer half of the bracket (so a
 // rejected Newton step is not retried), golden-section steps uphill otherwise; the best point so
 // far always stays bracketed, so the iteration cannot escape to another local maximum.
 GapMaximum maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, double hi_rad) {
-  GapFunction::Derivatives at = gap.derivatives(theta_rad);
+  Vec2 n = axisOf(theta_rad);  // direction of theta, turned along with it
+  GapFunction::Derivatives at = gap.derivativesAlong(n);
   for (int i = 0; i < kMaxRefineIterations; ++i) {
     const double uphill_rad = (at.slope > 0 ? hi_rad : lo_rad) - theta_rad;
     double step_rad = kGoldenFraction * uphill_rad;
@@ -215,12 +239,14 @@ GapMaximum maximiseGap(const GapFunction& gap, double lo_rad, double theta_rad, 
     // Accept an uphill step, or a level one (within rounding, where only the slope still steers)
     // that flattens the slope, and shrink the bracket behind it; otherwise shrink it to the step.
     const double trial_rad = theta_rad + step_rad;
-    const GapFunction::Derivatives at_trial = gap.derivatives(trial_rad);
+    const Vec2 n_trial = turned(n, theta_rad, step_rad);
+    const GapFunction::Derivatives at_trial = gap.derivativesAlong(n_trial);
     const bool level = std::abs(at_trial.value - at.value) <= at.rounding;
     if (at_trial.value > at.value + at.rounding ||
         (level && std::abs(at_trial.slope) <= std::abs(at.slope))) {
       (step_rad > 0 ? lo_rad : hi_rad) = theta_rad;
       theta_rad = trial_rad;
+      n = n_trial;
       at = at_trial;
     } else {
       (step_rad > 0 ? hi_rad : lo_rad) = trial_rad;
@@ -235,8 +261,7 @@ Proximity projectOntoCircle(const Vec2& p, const Ellipse& e) {
   out.point1 = p;
   const Vec2 v_W = p - e.center;
   const double r_m = v_W.norm();
-  const Vec2 outward_W =
-      r_m > 0 ? Vec2(v_W / r_m) : Vec2(std::cos(e.angle_rad), std::sin(e.angle_rad));
+  const Vec2 outward_W = r_m > 0 ? Vec2(v_W / r_m) : axisOf(e.angle_rad);
   out.point2 = e.center + e.a_m * outward_W;
   out.distance_m = r_m - e.a_m;
   out.normal = -outward_W;
@@ -370,13 +395,31 @@ struct GapRing {
   int n_samples = 0;                   // samples around the ring [-]
   double step_rad = 0;                 // angle between samples [rad]
 };
+// Ring step 2 pi / n_samples and its cosine and sine for every even sample count up to
+// kMaxDirectionSamples (index n_samples / 2), computed once: no trigonometry per pair query.
+struct RingStep {
+  double step_rad, cos_step, sin_step;
+};
+const std::array<RingStep, kMaxDirectionSamples / 2 + 1>& ringSteps() {
+  static const std::array<RingStep, kMaxDirectionSamples / 2 + 1> table = [] {
+    std::array<RingStep, kMaxDirectionSamples / 2 + 1> t{};
+    for (int n_pairs = 1; n_pairs <= kMaxDirectionSamples / 2; ++n_pairs) {
+      const double step_rad = 2.0 * kPi / (2 * n_pairs);
+      t[n_pairs] = {step_rad, std::cos(step_rad), std::sin(step_rad)};
+    }
+    return t;
+  }();
+  return table;
+}
+
 void sampleGapRing(const GapFunction& gap, double aspect, GapRing* ring) {
   const int n_pairs = static_cast<int>(
       std::fmin(kMaxDirectionSamples / 2,
                 std::fmax(kMinDirectionSamples / 2, kSamplesPerAspect * aspect / 2)));
   ring->n_samples = 2 * n_pairs;
-  ring->step_rad = 2.0 * kPi / ring->n_samples;
-  const double step_c = std::cos(ring->step_rad), step_s = std::sin(ring->step_rad);
+  const RingStep& step = ringSteps()[n_pairs];
+  ring->step_rad = step.step_rad;
+  const double step_c = step.cos_step, step_s = step.sin_step;
   Vec2 n(1.0, 0.0);
   for (int k = 0; k < n_pairs; ++k) {
     const double support_m = gap.support(n), along_m = n.dot(gap.dc_m);

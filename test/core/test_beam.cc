@@ -1,7 +1,10 @@
 // Unit tests of the assumed-mode tooth model (beam.h) and toothFrequenciesHz (simulator.h).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -507,6 +510,98 @@ TEST(BeamTest, RigidToothHasEmptyModalData) {
   EXPECT_EQ(H.size(), 0);
   EXPECT_EQ(toothStiffness(tooth, 80.0).size(), 0);
   EXPECT_EQ(toothFrequenciesHz(tooth, 80.0).size(), 0);
+  EXPECT_EQ(tooth.mode_table_intervals, 0);
+  EXPECT_EQ(tooth.mode_table, nullptr);
+  interpolateModes(tooth, 0.03, &phi, &dphi);
+  EXPECT_EQ(phi.size(), 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The mode table (interpolateModes): the step's phi, phi', phi'' without exp, sin or cos.
+
+// Largest interpolation error of the table over `samples` random x (and the ends), per
+// derivative order, relative to each mode's scale 2 C_i beta_i^k (|phi_i^(k)| <= ~2 C beta^k).
+std::array<double, 3> tableError(const ToothModel& tooth, int samples, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, tooth.length_m);
+  std::array<double, 3> worst{0, 0, 0};
+  VecX phi, dphi, ddphi, t_phi, t_dphi, t_ddphi(tooth.n_modes);
+  for (int k = 0; k < samples + 2; ++k) {
+    const double x = k == 0 ? 0.0 : k == 1 ? tooth.length_m : uniform(rng);
+    evaluateModes(tooth, x, &phi, &dphi);
+    evaluateModeCurvatures(tooth, x, &ddphi);
+    t_phi.resize(tooth.n_modes);
+    t_dphi.resize(tooth.n_modes);
+    interpolateModes(tooth, x, t_phi.data(), t_dphi.data(), t_ddphi.data());
+    for (int i = 0; i < tooth.n_modes; ++i) {
+      const double scale = 2 * tooth.norm_C[i], beta = tooth.beta_per_m[i];
+      worst[0] = std::max(worst[0], std::abs(t_phi[i] - phi[i]) / scale);
+      worst[1] = std::max(worst[1], std::abs(t_dphi[i] - dphi[i]) / (scale * beta));
+      worst[2] = std::max(worst[2], std::abs(t_ddphi[i] - ddphi[i]) / (scale * beta * beta));
+    }
+  }
+  return worst;
+}
+
+TEST(BeamTest, ModeTableMatchesEvaluateModesForOneTo64Modes) {
+  for (int n : {1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64}) {
+    const ToothModel tooth = makeNylonTooth(n);
+    // The density rule: beta_n h <= 1 / kModeTablePointsPerRadian, whole station intervals,
+    // and a few thousand points at most (compile cost).
+    EXPECT_LE(tooth.beta_per_m[n - 1] * tooth.mode_table_dx_m, 1.0 / kModeTablePointsPerRadian);
+    EXPECT_EQ(tooth.mode_table_intervals % (tooth.n_stations - 1), 0);
+    EXPECT_LE(tooth.mode_table_intervals, 3500);
+    ASSERT_NE(tooth.mode_table, nullptr);
+    EXPECT_EQ(tooth.mode_table->size(), 4u * n * (tooth.mode_table_intervals + 1));
+    // A copy of the tooth (an island's sub-model) shares the table.
+    const ToothModel copy = tooth;
+    EXPECT_EQ(copy.mode_table.get(), tooth.mode_table.get());
+    const std::array<double, 3> err = tableError(tooth, 4000, 1000u + n);
+    EXPECT_LT(err[0], 5e-12) << n << " modes: phi";
+    EXPECT_LT(err[1], 1e-10) << n << " modes: phi'";
+    EXPECT_LT(err[2], 5e-12) << n << " modes: phi''";
+    RecordProperty("table_error_" + std::to_string(n) + "_modes",
+                   fmt(err[0]) + " " + fmt(err[1]) + " " + fmt(err[2]));
+  }
+}
+
+TEST(BeamTest, ModeTableSlopeIsTheDerivativeOfItsValue) {
+  // phi' of the table is the derivative of its phi: a central difference of the interpolated
+  // phi agrees with it to the difference's own error, across table intervals too.
+  const ToothModel tooth = makeNylonTooth(8);
+  VecX phi_a, phi_b, dphi_a, dphi_b, phi, dphi;
+  const double h = 1e-6 * tooth.mode_table_dx_m;
+  for (int k = 1; k < 50; ++k) {
+    const double x = tooth.length_m * k / 50.3;
+    interpolateModes(tooth, x - h, &phi_a, &dphi_a);
+    interpolateModes(tooth, x + h, &phi_b, &dphi_b);
+    interpolateModes(tooth, x, &phi, &dphi);
+    const VecX fd = (phi_b - phi_a) / (2 * h);
+    for (int i = 0; i < tooth.n_modes; ++i) {
+      EXPECT_NEAR(fd[i], dphi[i], 1e-6 * 2 * tooth.norm_C[i] * tooth.beta_per_m[i]);
+    }
+  }
+  // Continuous at a table point: both sides' limits agree to rounding.
+  const double x_j = 3 * tooth.mode_table_dx_m;
+  interpolateModes(tooth, std::nextafter(x_j, 0.0), &phi_a, &dphi_a);
+  interpolateModes(tooth, x_j, &phi_b, &dphi_b);
+  for (int i = 0; i < tooth.n_modes; ++i) {
+    EXPECT_NEAR(phi_a[i], phi_b[i], 1e-13 * tooth.norm_C[i]);
+    EXPECT_NEAR(dphi_a[i], dphi_b[i], 1e-12 * tooth.norm_C[i] * tooth.beta_per_m[i]);
+  }
+}
+
+TEST(BeamTest, ModeTableIsExactAtTheStations) {
+  // Every station is a table point: the step's phi there is the compiled phi_s to rounding.
+  const ToothModel tooth = makeNylonTooth(6);
+  VecX phi, dphi;
+  for (int s = 0; s < tooth.n_stations; ++s) {
+    interpolateModes(tooth, tooth.station_x_m[s], &phi, &dphi);
+    for (int i = 0; i < tooth.n_modes; ++i) {
+      EXPECT_NEAR(phi[i], tooth.phi_s(s, i), 1e-14 * tooth.norm_C[i]) << s;
+      EXPECT_NEAR(dphi[i], tooth.dphi_s(s, i), 1e-13 * tooth.norm_C[i] * tooth.beta_per_m[i]);
+    }
+  }
 }
 
 }  // namespace

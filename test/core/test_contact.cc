@@ -227,7 +227,7 @@ TEST(ContactJacobian, ShearCorrectedSectionsTurnTheSurfacePointByPsi) {
     const ContactGeom gs = evaluate(shear, mo.z, mo.u, mo.theta, mo.omega, pair);
     const ToothModel& tm = shear.teeth[0];
     VecX phi, dphi;
-    evaluateModes(tm, gs.tooth_x_m, &phi, &dphi);
+    interpolateModes(tm, gs.tooth_x_m, &phi, &dphi);  // the step's phi' (the mode table)
     double turn = 0.0;
     for (int i = 0; i < 4; ++i)
       turn += (tm.rotation_factor[i] - 1.0) * dphi[i] * mo.u[tm.dof_offset + i];

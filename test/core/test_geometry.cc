@@ -7,8 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <random>
+#include <vector>
 
+#include "../../src/core/cos_sin_memo.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/geometry.h"
 
@@ -549,6 +552,27 @@ TEST(CurvatureRadius, VerticesCircleAndThreePointCircle) {
     // The point query reports the same radius at its closest point.
     EXPECT_NEAR(pointEllipse(p1 + 0.1 * outwardNormal(e, p1), e).radius2_m, rho, 1e-12 * rho);
   }
+}
+
+// The memoised cosine and sine are the bits std::cos and std::sin give, on a miss, on a hit
+// and after the slot was taken by another angle; +0 and -0 are different angles (sin differs in
+// sign), and nearby angles do not share a value.
+TEST(CosSinMemo, SameBitsAsTheLibraryOnHitsAndMisses) {
+  auto same = [](double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> angle(-50.0, 50.0);
+  std::vector<double> angles = {0.0, -0.0, kPi, 1e-300, -1e-300, 1.0, std::nextafter(1.0, 2.0)};
+  for (int i = 0; i < 500; ++i) angles.push_back(angle(rng));
+  for (int pass = 0; pass < 3; ++pass) {  // pass 0 fills, later passes hit or evict
+    for (double a : angles) {
+      const internal::CosSin cs = internal::cosSinOf(a);
+      EXPECT_TRUE(same(cs.c, std::cos(a))) << a;
+      EXPECT_TRUE(same(cs.s, std::sin(a))) << a;
+    }
+  }
+  EXPECT_TRUE(std::signbit(internal::cosSinOf(-0.0).s));
+  EXPECT_FALSE(std::signbit(internal::cosSinOf(0.0).s));
+  EXPECT_NE(internal::cosSinOf(1.0).s, internal::cosSinOf(std::nextafter(1.0, 2.0)).s);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -80,7 +81,15 @@ struct ToothModel {
   MatX phi_s;                       // phi_i(x_s), n_stations x n [1/sqrt(kg)]
   MatX dphi_s;                      // phi_i'(x_s), n_stations x n [1/(sqrt(kg) m)]
   std::vector<MatX> H_s;            // H(x_s) = int_0^x phi' phi'^T, n x n each [1/(kg m)]
-  int dof_offset = 0;               // first index of this tooth's q in the generalised vector
+  // Mode table of the step (beam.h interpolateModes): phi^(k)(x_j), k = 0..3, at the points
+  // x_j = j L / mode_table_intervals; mode i of point j and order k at (4 j + k) n + i
+  // [1/(sqrt(kg) m^k)]. The fourth derivative is beta^4 phi (no column). Shared between copies
+  // of the tooth (the island scheme's sub-models): immutable once compiled.
+  int mode_table_intervals = 0;  // intervals of the mode table (0: no modes) [-]
+  double mode_table_dx_m = 0;    // spacing of its points, L / intervals [m]
+  std::shared_ptr<const std::vector<double>> mode_table;  // 4 n (intervals + 1) values, or null
+  VecX beta4_per_m4;   // beta_i^4, the fourth derivative over phi [1/m^4], size n
+  int dof_offset = 0;  // first index of this tooth's q in the generalised vector
   // Large-deflection tooth only (beam_model kLargeDeflection; q in rad, section angle
   // theta(s) = sum_i q_i phi_i(s)); see large_deflection.h. N collocation nodes s_a.
   int ld_intervals = 8;  // collocation intervals (ldIntervalsFor(n_modes)), N = 8 per interval [-]

@@ -35,8 +35,7 @@ double hertzConstant(double E_star, double r_in, double r_out) {
 
 // Half-width of an ellipse along the unit direction n (its support value h(n)) [m].
 struct EllipseWidth {
-  explicit EllipseWidth(const Ellipse& e)
-      : axis(std::cos(e.angle_rad), std::sin(e.angle_rad)), a_m(e.a_m), b_m(e.b_m) {}
+  explicit EllipseWidth(const Ellipse& e) : axis(unitVector(e.angle_rad)), a_m(e.a_m), b_m(e.b_m) {}
   double operator()(const Vec2& n) const {
     const double na = a_m * n.dot(axis), nb = b_m * cross(axis, n);
     return std::sqrt(na * na + nb * nb);

@@ -44,15 +44,15 @@ void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, c
       out = fr;
       continue;
     }
-    // -Omega^2 K_G q by plain loops (a dynamic-size product costs more than the arithmetic).
+    // -Omega^2 K_G q and the diagonal terms by plain loops (dynamic-size Eigen expressions
+    // cost more than the arithmetic at a few modes); the operations of the array expression
+    // they replace, in its order.
     for (int i = 0; i < n; ++i) {
       double kq = 0.0;
       for (int j = 0; j < n; ++j) kq += tm.K_G(i, j) * q[j];
-      out[i] = -w2 * kq;
+      out[i] = -w2 * kq + ((-(tm.omega0_sq[i] - w2) * q[i] - tm.damping_coeff[i] * qd[i]) -
+                           drive.alpha_radps2 * tm.p_inertia[i]);
     }
-    out.array() += -(tm.omega0_sq.array() - w2) * q.array() -
-                   tm.damping_coeff.array() * qd.array() -
-                   drive.alpha_radps2 * tm.p_inertia.array();
   }
   // Kernels: gravity, and the pedicel while it holds.
   for (size_t i = 0; i < m.kernels.size(); ++i) {

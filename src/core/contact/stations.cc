@@ -52,7 +52,7 @@ Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const Vec
     *dr_dx = rot * (r_s.x() * tm.e1_D + r_s.y() * tm.e2_D);
     return rot * (r_T.x() * tm.e1_D + r_T.y() * tm.e2_D);
   }
-  evaluateModes(tm, x_m, &ws->centreline.scratch_phi, &ws->centreline.scratch_dphi);
+  interpolateModes(tm, x_m, &ws->centreline.scratch_phi, &ws->centreline.scratch_dphi);
   int s = 0;
   double t = 0;
   stationInterval(tm, x_m, &s, &t);
@@ -189,8 +189,11 @@ CentrelineMotion centrelineMotion(const Model& m, int tooth, const VecX& z, cons
   if (n > 0) {
     const auto q = z.segment(tm.dof_offset, n);
     const auto qd = u.segment(tm.dof_offset, n);
-    evaluateModes(tm, x_m, &ws->centreline.scratch_phi, &ws->centreline.scratch_dphi);
-    evaluateModeCurvatures(tm, x_m, &ws->centreline.scratch_ddphi);
+    ws->centreline.scratch_phi.resize(n);
+    ws->centreline.scratch_dphi.resize(n);
+    ws->centreline.scratch_ddphi.resize(n);
+    interpolateModes(tm, x_m, ws->centreline.scratch_phi.data(), ws->centreline.scratch_dphi.data(),
+                     ws->centreline.scratch_ddphi.data());
     w = ws->centreline.scratch_phi.dot(q);
     w1 = ws->centreline.scratch_dphi.dot(q);
     w2 = ws->centreline.scratch_ddphi.dot(q);

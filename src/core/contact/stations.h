@@ -71,7 +71,7 @@ struct StationPair {
 // The foreshortening w_c(x) = -q^T H(x) q / 2 blends the stations' values linearly, as H(x)
 // blends the station matrices; updateStations stored them for this q (or, with `direct`,
 // they are computed here for the interval holding x). Leaves phi(x) and phi'(x) of a modal
-// tooth in ws->centreline.scratch_phi and scratch_dphi.
+// tooth (interpolateModes: the mode table) in ws->centreline.scratch_phi and scratch_dphi.
 Vec2 centrelinePoint(const ToothModel& tm, int tooth, const Eigen::Ref<const VecX>& q,
                      const Rotation2& rot, double x_m, Workspace* ws, Vec2* dr_dx,
                      StationPair* direct = nullptr);
