@@ -202,6 +202,14 @@ struct Model {
   bool compiled = false;
 };
 
+// Restitutions below this are treated as it: the Hunt-Crossley factor diverges as e -> 0 [-].
+constexpr double kHuntCrossleyMinRestitution = 0.01;
+
+// The Hunt-Crossley damping factor c* = chi v_in that gives restitution e: the root in
+// (0, 1/e) of ln(1 + c) - ln(1 - c e) = c (1 + e), in closed form (no integration); 0 for e >= 1,
+// e below kHuntCrossleyMinRestitution raised to it [-].
+double huntCrossleyFactor(double restitution);
+
 // Derives every "derived" field above, lays out the generalised coordinates and validates
 // the model. Throws std::invalid_argument naming the offending field on bad values.
 void compileModel(Model* model);
