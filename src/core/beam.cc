@@ -306,8 +306,11 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
   return f;
 }
 
-StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
-                                       double omega_radps) {
+namespace {
+
+// Residual flexibility (clamped, see residualFlexibility) and the static one it came from.
+StationFlexibility residualAndStatic(const ToothModel& tooth, double drum_radius_m,
+                                     double omega_radps, StationFlexibility* exact_out) {
   const int n_pt = kResidualPoints;
   StationFlexibility r;
   if (tooth.n_modes == 0) {
@@ -321,22 +324,24 @@ StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radi
   r.ww = exact.ww - modal.ww;
   r.wt = exact.wt - modal.wt;
   r.tt = exact.tt - modal.tt;
-  // Rounding can leave a block slightly indefinite where the modes capture nearly everything
-  // (the root): clamp to the nearest positive semidefinite block.
-  for (int s = 0; s < n_pt; ++s) {
-    r.ww[s] = std::max(r.ww[s], 0.0);
-    r.tt[s] = std::max(r.tt[s], 0.0);
-    const double limit = std::sqrt(r.ww[s] * r.tt[s]);
-    r.wt[s] = std::clamp(r.wt[s], -limit, limit);
-  }
+  for (int s = 0; s < n_pt; ++s) clampResidualBlock(&r.ww[s], &r.wt[s], &r.tt[s]);
+  if (exact_out != nullptr) *exact_out = exact;
   return r;
 }
 
-void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth) {
+}  // namespace
+
+StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                       double omega_radps) {
+  return residualAndStatic(tooth, drum_radius_m, omega_radps, nullptr);
+}
+
+void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
+                     ToothModel* tooth) {
   ToothModel& t = *tooth;
-  StationFlexibility r;
+  StationFlexibility r, exact;
   if (t.static_correction) {
-    r = residualFlexibility(t, drum_radius_m, omega_radps);
+    r = residualAndStatic(t, drum_radius_m, omega_radps, &exact);
   } else {
     r.ww = r.wt = r.tt = VecX::Zero(kResidualPoints);
   }
@@ -344,11 +349,8 @@ void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth
   t.residual_ww = r.ww;
   t.residual_wt = r.wt;
   t.residual_tt = r.tt;
-  // The truncated modes start at omega_{n+1}; a change of Omega^2 by 1e-3 of its square moves
-  // their static flexibility by about 1e-3.
-  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
-  t.residual_speed_window_radps2 = 1e-3 * std::pow(cantileverBetaL(t.n_modes), 4) * EI /
-                                   (t.mass_per_length_kgpm * std::pow(t.length_m, 4));
+  compileResidualTable(drum_radius_m, std::max(speed_bound_radps, std::abs(omega_radps)), exact,
+                       &t);
 }
 
 double residualAt(const VecX& table, double length_m, double x_m) {

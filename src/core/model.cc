@@ -124,6 +124,7 @@ void checkGlobals(const Model& m) {
   requireFinite("drum.speed", m.drum.initial_speed_radps);
   requireFinite("drum.angle", m.drum.initial_angle_rad);
   requirePositive("drum.max_acceleration", m.drum.max_acceleration_radps2);
+  requirePositive("drum.max_speed", m.drum.max_speed_radps);
   requireFinite("gravity.x", m.gravity_mps2.x());
   requireFinite("gravity.y", m.gravity_mps2.y());
   requirePositive("duration", m.duration_s);
@@ -162,7 +163,8 @@ void compileToothAt(Model* model, size_t k) {
   if (rod) t.static_correction = false;
   try {
     compileTooth(m.drum.radius_m, &m.teeth[k]);
-    compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, &m.teeth[k]);
+    compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
+                    &m.teeth[k]);
   } catch (const std::invalid_argument& e) {
     // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
     std::string what = e.what();
@@ -286,6 +288,7 @@ void compileContactLaws(Model* model) {
 void compileModel(Model* model) {
   Model& m = *model;
   checkGlobals(m);
+  m.drum.speed_bound_radps = std::max(m.drum.max_speed_radps, std::abs(m.drum.initial_speed_radps));
   // Generalised coordinates: the teeth's modal coordinates first, then the kernels'.
   int offset = 0;
   compileTeeth(model, &offset);

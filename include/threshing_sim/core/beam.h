@@ -5,6 +5,9 @@
 //   q'' + D q' + [Lambda + Omega^2 (K_G - I)] q = -dOmega/dt p + Q.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/model.h"
 
@@ -63,8 +66,38 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
 StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
                                        double omega_radps);
 
-// Fills the residual_* fields of a compiled tooth for drum speed omega_radps.
-void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth);
+// Rounding can leave a residual block slightly indefinite where the modes capture nearly
+// everything (the root): clamps (ww, wt, tt) to the nearest positive semidefinite block.
+inline void clampResidualBlock(double* ww, double* wt, double* tt) {
+  *ww = std::max(*ww, 0.0);
+  *tt = std::max(*tt, 0.0);
+  const double limit = std::sqrt(*ww * *tt);
+  *wt = std::clamp(*wt, -limit, limit);
+}
+
+// Fills the residual_* fields of a compiled tooth: the tables at drum speed omega_radps and
+// (compileResidualTable) their interpolation over |Omega| <= max(speed_bound, |omega|).
+void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
+                     ToothModel* tooth);
+
+// The (unclamped) residual flexibility over Omega^2 in [0, speed_bound_radps^2]: panels of
+// Chebyshev-Lobatto nodes in Omega^2 (residual_panels, residual_nodes_*), refined until the
+// interpolant is within 1e-8 of the largest entry of static_scale (the static flexibility at
+// some speed) or at the rounding of the static solve (residual_table_error: the estimate);
+// empty without static correction or modes. Needs compileTooth.
+void compileResidualTable(double drum_radius_m, double speed_bound_radps,
+                          const StationFlexibility& static_scale, ToothModel* tooth);
+
+// The residual flexibility block (ww [m/N], wt [1/N], tt [1/(N m)]) of a compiled tooth at
+// material point x_m for drum speed omega_radps: the compiled tables at residual_omega_radps,
+// else the interpolation in Omega^2 (clamped to the table's range), clamped to a positive
+// semidefinite block at the two neighbouring points and blended linearly. Allocation-free.
+void residualAtSpeed(const ToothModel& tooth, double omega_radps, double x_m, double* ww,
+                     double* wt, double* tt);
+
+// The barycentric Lagrange basis ell[0..n_nodes) of the Chebyshev-Lobatto nodes
+// x_j = cos(pi j / (n_nodes - 1)) at x in [-1, 1] (sums to 1; exact at the nodes).
+void lobattoBasis(int n_nodes, double x, double* ell);
 
 // A table at kResidualPoints equally spaced points on [0, length_m] (one of those above)
 // linearly interpolated at x_m.
