@@ -148,6 +148,39 @@ double sectionRotationFactor(const ToothModel& t, double beta_per_m) {
   return 1.0 / (1.0 + E_over_kappa_G * r_g_sq_m2 * beta_per_m * beta_per_m);
 }
 
+namespace {
+
+// Centrifugal stiffening K_G = int N phi' phi'^T, tangential inertia load p = int rho A (R + x) phi
+// (axial force N(x) = rho A [R (L - x) + (L^2 - x^2) / 2]) and the foreshortening matrices
+// H(x_s) = int_0^{x_s} phi' phi'^T, by one composite rule over the station intervals (each
+// point's mode shapes serve all three). Needs the modal constants and stations.
+void integrateModes(double R, ToothModel* tooth) {
+  ToothModel& t = *tooth;
+  const int n = t.n_modes;
+  const double L = t.length_m, rhoA = t.mass_per_length_kgpm;
+  t.K_G.setZero(n, n);
+  t.p_inertia.setZero(n);
+  t.H_s.assign(t.n_stations, MatX::Zero(n, n));
+  VecX phi(n), dphi(n);
+  MatX outer(n, n);
+  const int n_per_length = subintervalsPerLength(n > 0 ? t.beta_per_m[n - 1] * L : 0.0);
+  for (int s = 1; s < t.n_stations; ++s) {
+    MatX& H = t.H_s[s];
+    H = t.H_s[s - 1];
+    forEachQuadraturePoint(
+        t.station_x_m[s - 1], t.station_x_m[s], L, n_per_length, [&](double x_m, double weight_m) {
+          evaluateModes(t, x_m, &phi, &dphi);
+          outer.noalias() = dphi * dphi.transpose();
+          const double axial = rhoA * (R * (L - x_m) + 0.5 * (L * L - x_m * x_m));
+          H += weight_m * outer;
+          t.K_G += (weight_m * axial) * outer;
+          t.p_inertia += (weight_m * rhoA * (R + x_m)) * phi;
+        });
+  }
+}
+
+}  // namespace
+
 void compileTooth(double drum_radius_m, ToothModel* tooth) {
   validateTooth(drum_radius_m, *tooth);
   ToothModel& t = *tooth;
@@ -185,19 +218,6 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
   t.rotation_factor.resize(n);
   for (int i = 0; i < n; ++i) t.rotation_factor[i] = sectionRotationFactor(t, t.beta_per_m[i]);
 
-  // Centrifugal stiffening K_G = int N phi' phi'^T and tangential inertia load
-  // p = int rho A (R + x) phi, with the axial force N(x) = rho A [R (L - x) + (L^2 - x^2) / 2].
-  t.K_G.setZero(n, n);
-  t.p_inertia.setZero(n);
-  VecX phi(n), dphi(n);
-  const int n_per_length = subintervalsPerLength(n > 0 ? t.beta_per_m[n - 1] * L : 0.0);
-  forEachQuadraturePoint(0.0, L, L, n_per_length, [&](double x_m, double weight_m) {
-    evaluateModes(t, x_m, &phi, &dphi);
-    const double axial_force = rhoA * (R * (L - x_m) + 0.5 * (L * L - x_m * x_m));
-    t.K_G.noalias() += (weight_m * axial_force) * dphi * dphi.transpose();
-    t.p_inertia += (weight_m * rhoA * (R + x_m)) * phi;
-  });
-
   // Polar inertia of the undeformed tooth about the drum axis: int rho A (R + x)^2 dx.
   t.I0_kgm2 = rhoA * (R * R * L + R * L * L + L * L * L / 3);
 
@@ -206,6 +226,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
   t.station_x_m.resize(n_stations);
   t.phi_s.resize(n_stations, n);
   t.dphi_s.resize(n_stations, n);
+  VecX phi(n), dphi(n);
   for (int s = 0; s < n_stations; ++s) {
     t.station_x_m[s] = L * (static_cast<double>(s) / (n_stations - 1));
     if (n == 0) continue;  // rigid tooth: no mode shapes (a row of a 0-column matrix is UB)
@@ -213,18 +234,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
     t.phi_s.row(s) = phi.transpose();
     t.dphi_s.row(s) = dphi.transpose();
   }
-
-  // Foreshortening matrices H(x_s) = int_0^{x_s} phi' phi'^T, accumulated station to station.
-  t.H_s.assign(n_stations, MatX::Zero(n, n));
-  for (int s = 1; s < n_stations; ++s) {
-    MatX& H = t.H_s[s];
-    H = t.H_s[s - 1];
-    forEachQuadraturePoint(t.station_x_m[s - 1], t.station_x_m[s], L, n_per_length,
-                           [&](double x_m, double weight_m) {
-                             evaluateModes(t, x_m, &phi, &dphi);
-                             H.noalias() += weight_m * dphi * dphi.transpose();
-                           });
-  }
+  integrateModes(R, &t);
   if (t.beam_model == ToothBeamModel::kLargeDeflection) compileLargeDeflection(&t);
 }
 

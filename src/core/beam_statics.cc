@@ -38,30 +38,32 @@ constexpr int kG0[4][4] = {{36, 3, -36, 3}, {3, 4, -3, -1}, {-36, -3, 36, -3}, {
 constexpr int kG1[4][4] = {{36, 6, -36, 0}, {6, 2, -6, -1}, {-36, -6, 36, 0}, {0, -1, 0, 6}};
 constexpr int kG2[4][4] = {{72, 15, -72, -6}, {15, 4, -15, -3}, {-72, -15, 72, 6}, {-6, -3, 6, 18}};
 
-// Lower band of the stiffness in the scaled dofs [N/m], root dofs removed.
-Band assembleBand(const ToothModel& t, double R, double omega_radps, int n_el) {
+// Lower bands of the stiffness in the scaled dofs, root dofs removed: the bending part [N/m] and
+// the rotational part per unit Omega^2 (axial force and centrifugal softening) [N s^2/m].
+void assembleBands(const ToothModel& t, double R, int n_el, Band* bending, Band* rotation) {
   const Real L = t.length_m, h = L / n_el;
   const Real EI = static_cast<Real>(t.youngs_modulus_Pa) * t.second_moment_m4;
-  const Real rhoA_w2 = static_cast<Real>(t.mass_per_length_kgpm) * omega_radps * omega_radps;
-  Band band(2 * n_el, std::array<Real, kBand + 1>{});
-  const Real bending = EI / (h * h * h), mass = rhoA_w2 * h / 420;
+  const Real rhoA = t.mass_per_length_kgpm;
+  bending->assign(2 * n_el, std::array<Real, kBand + 1>{});
+  rotation->assign(2 * n_el, std::array<Real, kBand + 1>{});
+  const Real stiffness = EI / (h * h * h), mass = rhoA * h / 420;
   for (int e = 0; e < n_el; ++e) {
-    // Axial force N(x) = rho A Omega^2 [R (L - x) + (L^2 - x^2) / 2] at x = (e + s) h, as
+    // Axial force per Omega^2, rho A [R (L - x) + (L^2 - x^2) / 2] at x = (e + s) h, as
     // a0 + a1 s + a2 s^2, divided by h (the slopes are N'(s) / h), with G_k's denominators.
     const Real x0 = e * h;
-    const Real a0 = rhoA_w2 * (R * (L - x0) + (L * L - x0 * x0) / 2) / (30 * h);
-    const Real a1 = -rhoA_w2 * (R + x0) / 60;
-    const Real a2 = -rhoA_w2 * h / (2 * 210);
+    const Real a0 = rhoA * (R * (L - x0) + (L * L - x0 * x0) / 2) / (30 * h);
+    const Real a1 = -rhoA * (R + x0) / 60;
+    const Real a2 = -rhoA * h / (2 * 210);
     const int first = 2 * e - 2;  // global index of the element's first dof
     for (int j = 0; j < 4; ++j) {
       if (first + j < 0) continue;  // root dofs
       for (int i = j; i < 4; ++i) {
-        band[first + j][i - j] +=
-            bending * kB[i][j] + a0 * kG0[i][j] + a1 * kG1[i][j] + a2 * kG2[i][j] - mass * kM[i][j];
+        (*bending)[first + j][i - j] += stiffness * kB[i][j];
+        (*rotation)[first + j][i - j] +=
+            a0 * kG0[i][j] + a1 * kG1[i][j] + a2 * kG2[i][j] - mass * kM[i][j];
       }
     }
   }
-  return band;
 }
 
 // In-place banded L D L^T: band[j][0] becomes d_j, band[j][k] becomes L(j + k, j). Throws if a
@@ -70,8 +72,14 @@ void factorBand(double omega_radps, Band* band) {
   Band& b = *band;
   const int n = static_cast<int>(b.size());
   for (int j = 0; j < n; ++j) {
+    // v[p - p0] = L(j, p) d_p for the columns p0..j-1 that reach row j.
+    const int p0 = std::max(0, j - kBand);
+    Real v[kBand];
     Real d = b[j][0];
-    for (int p = std::max(0, j - kBand); p < j; ++p) d -= b[p][j - p] * b[p][j - p] * b[p][0];
+    for (int p = p0; p < j; ++p) {
+      v[p - p0] = b[p][j - p] * b[p][0];
+      d -= b[p][j - p] * v[p - p0];
+    }
     if (!(d > 0)) {
       std::ostringstream message;
       message << "tooth.stiffness: not positive definite at drum speed " << omega_radps
@@ -79,10 +87,11 @@ void factorBand(double omega_radps, Band* band) {
       throw std::invalid_argument(message.str());
     }
     b[j][0] = d;
+    const Real inverse = 1 / d;
     for (int i = j + 1; i <= std::min(n - 1, j + kBand); ++i) {
       Real l = b[j][i - j];
-      for (int p = std::max(0, i - kBand); p < j; ++p) l -= b[p][i - p] * b[p][j - p] * b[p][0];
-      b[j][i - j] = l / d;
+      for (int p = std::max(p0, i - kBand); p < j; ++p) l -= b[p][i - p] * v[p - p0];
+      b[j][i - j] = l * inverse;
     }
   }
 }
@@ -108,28 +117,42 @@ Band invertBand(const Band& f) {
 
 }  // namespace
 
-StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
-                                     double omega_radps, int n_points, int n_elements) {
+StaticFlexibilitySolver::StaticFlexibilitySolver(const ToothModel& tooth, double drum_radius_m,
+                                                 int n_points, int n_elements)
+    : n_points_(n_points) {
   // Element count a multiple of the point intervals, so that every point is a node.
-  const int per = n_elements > 0 ? std::max(1, n_elements / (n_points - 1))
-                                 : (256 + n_points - 2) / (n_points - 1);
-  const int n_el = per * (n_points - 1);
-  const Real h = static_cast<Real>(tooth.length_m) / n_el;
-  Band band = assembleBand(tooth, drum_radius_m, omega_radps, n_el);
+  per_ = n_elements > 0 ? std::max(1, n_elements / (n_points - 1))
+                        : (256 + n_points - 2) / (n_points - 1);
+  const int n_el = per_ * (n_points - 1);
+  h_m_ = static_cast<long double>(tooth.length_m) / n_el;
+  assembleBands(tooth, drum_radius_m, n_el, &bending_, &rotation_);
+}
+
+StationFlexibility StaticFlexibilitySolver::operator()(double omega_radps) const {
+  const Real w2 = static_cast<Real>(omega_radps) * omega_radps;
+  Band band(bending_.size());
+  for (size_t i = 0; i < band.size(); ++i) {
+    for (int k = 0; k <= kBand; ++k) band[i][k] = bending_[i][k] + w2 * rotation_[i][k];
+  }
   factorBand(omega_radps, &band);
   const Band z = invertBand(band);
   StationFlexibility f;
-  f.ww.setZero(n_points);
-  f.wt.setZero(n_points);
-  f.tt.setZero(n_points);
-  for (int s = 1; s < n_points; ++s) {
-    const int dof = 2 * (s * per - 1);  // w of node s * per (node 0, the root, is removed)
+  f.ww.setZero(n_points_);
+  f.wt.setZero(n_points_);
+  f.tt.setZero(n_points_);
+  for (int s = 1; s < n_points_; ++s) {
+    const int dof = 2 * (s * per_ - 1);  // w of node s * per (node 0, the root, is removed)
     // Back from the scaled rotation dof h w' to w'.
     f.ww[s] = static_cast<double>(z[dof][0]);
-    f.wt[s] = static_cast<double>(z[dof][1] / h);
-    f.tt[s] = static_cast<double>(z[dof + 1][0] / (h * h));
+    f.wt[s] = static_cast<double>(z[dof][1] / h_m_);
+    f.tt[s] = static_cast<double>(z[dof + 1][0] / (h_m_ * h_m_));
   }
   return f;
+}
+
+StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                     double omega_radps, int n_points, int n_elements) {
+  return StaticFlexibilitySolver(tooth, drum_radius_m, n_points, n_elements)(omega_radps);
 }
 
 }  // namespace threshing_sim

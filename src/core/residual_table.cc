@@ -34,7 +34,7 @@ class ResidualSampler {
  public:
   ResidualSampler(const ToothModel& tooth, double drum_radius_m)
       : t_(tooth),
-        R_(drum_radius_m),
+        statics_(tooth, drum_radius_m, kResidualPoints),
         phi_(kResidualPoints, tooth.n_modes),
         dphi_(kResidualPoints, tooth.n_modes) {
     VecX phi, dphi;
@@ -48,7 +48,7 @@ class ResidualSampler {
   // Residual (static minus modal) at u.
   Sample operator()(double u_radps2) const {
     const double omega = std::sqrt(u_radps2);
-    const StationFlexibility exact = staticFlexibility(t_, R_, omega, kResidualPoints);
+    const StationFlexibility exact = statics_(omega);
     const Eigen::PartialPivLU<MatX> lu(toothStiffness(t_, omega));
     const MatX k_phi = lu.solve(phi_.transpose()), k_dphi = lu.solve(dphi_.transpose());
     Sample r;
@@ -63,9 +63,9 @@ class ResidualSampler {
 
  private:
   const ToothModel& t_;
-  double R_;   // drum radius [m]
-  MatX phi_;   // phi_i(x_s) [1/sqrt(kg)]
-  MatX dphi_;  // phi_i'(x_s) [1/(sqrt(kg) m)]
+  StaticFlexibilitySolver statics_;  // the tooth's static flexibility
+  MatX phi_;                         // phi_i(x_s) [1/sqrt(kg)]
+  MatX dphi_;                        // phi_i'(x_s) [1/(sqrt(kg) m)]
 };
 
 // The panel table under construction.

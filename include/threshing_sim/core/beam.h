@@ -6,7 +6,9 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <vector>
 
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/model.h"
@@ -54,6 +56,23 @@ void interpolateH(const ToothModel& tooth, double x_m, MatX* H);
 // default, at least 256 elements). Needs the section fields of compileTooth.
 StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
                                      double omega_radps, int n_points, int n_elements = 0);
+
+// staticFlexibility at many drum speeds of one tooth: the stiffness's bending and rotational (per
+// Omega^2) bands are assembled once, each call combines, factors and inverts them (banded
+// L D L^T, selected inversion, in long double).
+class StaticFlexibilitySolver {
+ public:
+  StaticFlexibilitySolver(const ToothModel& tooth, double drum_radius_m, int n_points,
+                          int n_elements = 0);
+  StationFlexibility operator()(double omega_radps) const;
+
+ private:
+  int n_points_ = 0;                                  // points x_j [-]
+  int per_ = 1;                                       // elements per point interval [-]
+  long double h_m_ = 0;                               // element length [m]
+  std::vector<std::array<long double, 4>> bending_;   // band of the bending stiffness [N/m]
+  std::vector<std::array<long double, 4>> rotation_;  // band per Omega^2 [N s^2/m]
+};
 
 // The part of it that the n retained modes represent: Phi_n^T K_n^-1 Phi_n (K_n full, from
 // toothStiffness), at the same points. Needs compileTooth.
