@@ -138,6 +138,32 @@ void checkGlobals(const Model& m) {
     fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
 }
 
+// The residual flexibility depends on the tooth's section, material, length, modes and static
+// correction, not on its mount angle: tooth k takes that of an earlier tooth equal in these
+// (the teeth of a drum are usually alike). Returns whether it found one.
+bool copyResidualOfTwin(Model* model, size_t k) {
+  ToothModel& t = model->teeth[k];
+  for (size_t j = 0; j < k; ++j) {
+    const ToothModel& o = model->teeth[j];
+    if (o.length_m != t.length_m || o.diameter_m != t.diameter_m ||
+        o.youngs_modulus_Pa != t.youngs_modulus_Pa || o.density_kgpm3 != t.density_kgpm3 ||
+        o.n_modes != t.n_modes || o.beam_model != t.beam_model ||
+        o.static_correction != t.static_correction)
+      continue;
+    t.residual_omega_radps = o.residual_omega_radps;
+    t.residual_ww = o.residual_ww;
+    t.residual_wt = o.residual_wt;
+    t.residual_tt = o.residual_tt;
+    t.residual_panels = o.residual_panels;
+    t.residual_nodes_ww = o.residual_nodes_ww;
+    t.residual_nodes_wt = o.residual_nodes_wt;
+    t.residual_nodes_tt = o.residual_nodes_tt;
+    t.residual_table_error = o.residual_table_error;
+    return true;
+  }
+  return false;
+}
+
 // Tooth k: checked, its mode count chosen (automatic modes), its modal data and residual
 // flexibility compiled. Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff:
 // use modes: 0.
@@ -163,8 +189,10 @@ void compileToothAt(Model* model, size_t k) {
   if (rod) t.static_correction = false;
   try {
     compileTooth(m.drum.radius_m, &m.teeth[k]);
-    compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
-                    &m.teeth[k]);
+    if (!copyResidualOfTwin(&m, k)) {
+      compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
+                      &m.teeth[k]);
+    }
   } catch (const std::invalid_argument& e) {
     // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
     std::string what = e.what();

@@ -190,6 +190,24 @@ TEST(StaticCorrection, SpeedTableMatchesDirectResidual) {
   EXPECT_EQ(d.omega_target_radps, -150.0);
 }
 
+// Alike teeth at other mount angles share the first one's residual tables (compiled once), and
+// those are what compileResidual gives each of them; another material compiles its own.
+TEST(StaticCorrection, AlikeTeethShareTheResidualTables) {
+  Model m;
+  m.teeth.resize(3);
+  m.teeth[1].mount_angle_rad = 2.0;
+  m.teeth[2].youngs_modulus_Pa = 2e9;
+  compileModel(&m);
+  ToothModel direct = m.teeth[1];
+  compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
+                  &direct);
+  EXPECT_EQ(m.teeth[1].residual_ww, direct.residual_ww);
+  EXPECT_EQ(m.teeth[1].residual_nodes_tt, direct.residual_nodes_tt);
+  EXPECT_EQ(m.teeth[1].residual_nodes_ww, m.teeth[0].residual_nodes_ww);
+  EXPECT_NE(m.teeth[2].residual_ww[kResidualPoints - 1],
+            m.teeth[0].residual_ww[kResidualPoints - 1]);
+}
+
 // Rotating at 800 rpm: the centrifugal tension stiffens the soft tooth (tip flexibility about
 // half the static one), and the finite-element solution is converged: doubling the elements
 // moves it by < 3e-6 (the slope under a couple, most; against a residual of >= 1 % of it).
