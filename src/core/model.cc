@@ -138,27 +138,28 @@ void checkGlobals(const Model& m) {
     fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
 }
 
-// The residual flexibility depends on the tooth's section, material, length, modes and static
-// correction, not on its mount angle: tooth k takes that of an earlier tooth equal in these
-// (the teeth of a drum are usually alike). Returns whether it found one.
-bool copyResidualOfTwin(Model* model, size_t k) {
+// A modal tooth's compiled data depend on its mount angle only through its root and axes
+// (e1_D, e2_D, p_DR_D): tooth k takes the data of an earlier modal tooth equal in every other
+// scene value (the teeth of a drum are usually alike), with its own angle. Returns whether it
+// found one.
+bool copyTwin(Model* model, size_t k) {
   ToothModel& t = model->teeth[k];
+  if (t.beam_model != ToothBeamModel::kModal || !std::isfinite(t.mount_angle_rad)) return false;
   for (size_t j = 0; j < k; ++j) {
     const ToothModel& o = model->teeth[j];
-    if (o.length_m != t.length_m || o.diameter_m != t.diameter_m ||
-        o.youngs_modulus_Pa != t.youngs_modulus_Pa || o.density_kgpm3 != t.density_kgpm3 ||
-        o.n_modes != t.n_modes || o.beam_model != t.beam_model ||
-        o.static_correction != t.static_correction)
+    if (o.beam_model != t.beam_model || o.length_m != t.length_m || o.diameter_m != t.diameter_m ||
+        o.youngs_modulus_Pa != t.youngs_modulus_Pa || o.poisson_ratio != t.poisson_ratio ||
+        o.density_kgpm3 != t.density_kgpm3 || o.n_modes != t.n_modes ||
+        o.damping_ratio != t.damping_ratio || o.n_stations != t.n_stations ||
+        o.static_correction != t.static_correction || o.section_rotation != t.section_rotation ||
+        o.modes_auto != t.modes_auto)
       continue;
-    t.residual_omega_radps = o.residual_omega_radps;
-    t.residual_ww = o.residual_ww;
-    t.residual_wt = o.residual_wt;
-    t.residual_tt = o.residual_tt;
-    t.residual_panels = o.residual_panels;
-    t.residual_nodes_ww = o.residual_nodes_ww;
-    t.residual_nodes_wt = o.residual_nodes_wt;
-    t.residual_nodes_tt = o.residual_nodes_tt;
-    t.residual_table_error = o.residual_table_error;
+    const double angle_rad = t.mount_angle_rad;
+    t = o;
+    t.mount_angle_rad = angle_rad;
+    t.e1_D = Vec2(std::cos(angle_rad), std::sin(angle_rad));
+    t.e2_D = Vec2(-t.e1_D.y(), t.e1_D.x());
+    t.p_DR_D = model->drum.radius_m * t.e1_D;
     return true;
   }
   return false;
@@ -188,8 +189,8 @@ void compileToothAt(Model* model, size_t k) {
   // The rod truncates no modes: there is no residual flexibility to correct.
   if (rod) t.static_correction = false;
   try {
-    compileTooth(m.drum.radius_m, &m.teeth[k]);
-    if (!copyResidualOfTwin(&m, k)) {
+    if (!copyTwin(&m, k)) {
+      compileTooth(m.drum.radius_m, &m.teeth[k]);
       compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
                       &m.teeth[k]);
     }

@@ -190,17 +190,25 @@ TEST(StaticCorrection, SpeedTableMatchesDirectResidual) {
   EXPECT_EQ(d.omega_target_radps, -150.0);
 }
 
-// Alike teeth at other mount angles share the first one's residual tables (compiled once), and
-// those are what compileResidual gives each of them; another material compiles its own.
+// Alike teeth at other mount angles share the first one's compiled data (compiled once) but for
+// their root and axes, and those are what compileTooth and compileResidual give each of them;
+// another material compiles its own.
 TEST(StaticCorrection, AlikeTeethShareTheResidualTables) {
   Model m;
   m.teeth.resize(3);
   m.teeth[1].mount_angle_rad = 2.0;
   m.teeth[2].youngs_modulus_Pa = 2e9;
   compileModel(&m);
-  ToothModel direct = m.teeth[1];
-  compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
-                  &direct);
+  ToothModel direct;
+  direct.mount_angle_rad = 2.0;
+  compileTooth(m.drum.radius_m, &direct);
+  compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps, &direct);
+  EXPECT_EQ(m.teeth[1].e1_D, direct.e1_D);
+  EXPECT_EQ(m.teeth[1].e2_D, direct.e2_D);
+  EXPECT_EQ(m.teeth[1].p_DR_D, direct.p_DR_D);
+  EXPECT_EQ(m.teeth[1].K_G, direct.K_G);
+  EXPECT_EQ(m.teeth[1].H_s[3], direct.H_s[3]);
+  EXPECT_EQ(m.teeth[1].p_inertia, direct.p_inertia);
   EXPECT_EQ(m.teeth[1].residual_ww, direct.residual_ww);
   EXPECT_EQ(m.teeth[1].residual_nodes_tt, direct.residual_nodes_tt);
   EXPECT_EQ(m.teeth[1].residual_nodes_ww, m.teeth[0].residual_nodes_ww);
