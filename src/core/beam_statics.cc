@@ -66,12 +66,32 @@ void assembleBands(const ToothModel& t, double R, int n_el, Band* bending, Band*
   }
 }
 
+[[noreturn]] void throwNotPositive(double omega_radps, double pivot, int dof) {
+  std::ostringstream message;
+  message << "tooth.stiffness: not positive definite at drum speed " << omega_radps
+          << " rad/s (pivot " << pivot << " at dof " << dof << ")";
+  throw std::invalid_argument(message.str());
+}
+
 // In-place banded L D L^T: band[j][0] becomes d_j, band[j][k] becomes L(j + k, j). Throws if a
 // pivot is not positive (the tooth would buckle under its rotation).
 void factorBand(double omega_radps, Band* band) {
   Band& b = *band;
   const int n = static_cast<int>(b.size());
   for (int j = 0; j < n; ++j) {
+    if (j >= kBand && j + kBand < n) {
+      // Interior column, the general loop below written out.
+      const Real l0 = b[j - 3][3], l1 = b[j - 2][2], l2 = b[j - 1][1];
+      const Real v0 = l0 * b[j - 3][0], v1 = l1 * b[j - 2][0], v2 = l2 * b[j - 1][0];
+      const Real d = b[j][0] - l0 * v0 - l1 * v1 - l2 * v2;
+      if (!(d > 0)) throwNotPositive(omega_radps, static_cast<double>(d), j);
+      const Real inverse = 1 / d;
+      b[j][0] = d;
+      b[j][1] = (b[j][1] - b[j - 2][3] * v1 - b[j - 1][2] * v2) * inverse;
+      b[j][2] = (b[j][2] - b[j - 1][3] * v2) * inverse;
+      b[j][3] = b[j][3] * inverse;
+      continue;
+    }
     // v[p - p0] = L(j, p) d_p for the columns p0..j-1 that reach row j.
     const int p0 = std::max(0, j - kBand);
     Real v[kBand];
@@ -80,12 +100,7 @@ void factorBand(double omega_radps, Band* band) {
       v[p - p0] = b[p][j - p] * b[p][0];
       d -= b[p][j - p] * v[p - p0];
     }
-    if (!(d > 0)) {
-      std::ostringstream message;
-      message << "tooth.stiffness: not positive definite at drum speed " << omega_radps
-              << " rad/s (pivot " << static_cast<double>(d) << " at dof " << j << ")";
-      throw std::invalid_argument(message.str());
-    }
+    if (!(d > 0)) throwNotPositive(omega_radps, static_cast<double>(d), j);
     b[j][0] = d;
     const Real inverse = 1 / d;
     for (int i = j + 1; i <= std::min(n - 1, j + kBand); ++i) {
@@ -103,6 +118,15 @@ Band invertBand(const Band& f) {
   Band z(n, std::array<Real, kBand + 1>{});
   for (int i = n - 1; i >= 0; --i) {
     const int m = std::min(kBand, n - 1 - i);
+    if (m == kBand) {
+      // Interior row, the general loop below written out: Z(i + a, i) for a = 3, 2, 1.
+      const Real f1 = f[i][1], f2 = f[i][2], f3 = f[i][3];
+      z[i][3] = -(f1 * z[i + 1][2] + f2 * z[i + 2][1] + f3 * z[i + 3][0]);
+      z[i][2] = -(f1 * z[i + 1][1] + f2 * z[i + 2][0] + f3 * z[i + 2][1]);
+      z[i][1] = -(f1 * z[i + 1][0] + f2 * z[i + 1][1] + f3 * z[i + 1][2]);
+      z[i][0] = 1 / f[i][0] - (f1 * z[i][1] + f2 * z[i][2] + f3 * z[i][3]);
+      continue;
+    }
     for (int a = m; a >= 1; --a) {
       Real s = 0;  // sum over b of L(i + b, i) Z(i + b, i + a)
       for (int b = 1; b <= m; ++b) s += f[i][b] * z[i + std::min(a, b)][std::abs(b - a)];
