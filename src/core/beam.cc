@@ -316,53 +316,6 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
   return f;
 }
 
-namespace {
-
-// Residual flexibility (clamped, see residualFlexibility) and the static one it came from.
-StationFlexibility residualAndStatic(const ToothModel& tooth, double drum_radius_m,
-                                     double omega_radps, StationFlexibility* exact_out) {
-  const int n_pt = kResidualPoints;
-  StationFlexibility r;
-  if (tooth.n_modes == 0) {
-    r.ww.setZero(n_pt);
-    r.wt.setZero(n_pt);
-    r.tt.setZero(n_pt);
-    return r;
-  }
-  const StationFlexibility exact = staticFlexibility(tooth, drum_radius_m, omega_radps, n_pt);
-  const StationFlexibility modal = modalFlexibility(tooth, omega_radps, n_pt);
-  r.ww = exact.ww - modal.ww;
-  r.wt = exact.wt - modal.wt;
-  r.tt = exact.tt - modal.tt;
-  for (int s = 0; s < n_pt; ++s) clampResidualBlock(&r.ww[s], &r.wt[s], &r.tt[s]);
-  if (exact_out != nullptr) *exact_out = exact;
-  return r;
-}
-
-}  // namespace
-
-StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
-                                       double omega_radps) {
-  return residualAndStatic(tooth, drum_radius_m, omega_radps, nullptr);
-}
-
-void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
-                     ToothModel* tooth) {
-  ToothModel& t = *tooth;
-  StationFlexibility r, exact;
-  if (t.static_correction) {
-    r = residualAndStatic(t, drum_radius_m, omega_radps, &exact);
-  } else {
-    r.ww = r.wt = r.tt = VecX::Zero(kResidualPoints);
-  }
-  t.residual_omega_radps = omega_radps;
-  t.residual_ww = r.ww;
-  t.residual_wt = r.wt;
-  t.residual_tt = r.tt;
-  compileResidualTable(drum_radius_m, std::max(speed_bound_radps, std::abs(omega_radps)), exact,
-                       &t);
-}
-
 double residualAt(const VecX& table, double length_m, double x_m) {
   const int last = static_cast<int>(table.size()) - 1;
   const double u = std::clamp(x_m / length_m, 0.0, 1.0) * last;

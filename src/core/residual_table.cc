@@ -5,10 +5,10 @@
 // It is a smooth (rational) function of u = Omega^2, with poles at negative u only (the rotating
 // tooth stiffens for R >= 0): it is interpolated in u at Chebyshev-Lobatto nodes on panels
 // covering [0, speed_bound^2]. A panel takes 3, 5, 9 or 17 nested nodes, each level accepted
-// when the one before predicted its new nodes to kTableTolerance of the static flexibility, or
-// when that prediction error stops falling (the rounding of the static solve, ~1e-10 of it in
-// long double, ~1e-6 where long double is double, e.g. under valgrind); panels that need more
-// are halved.
+// when the one before predicted its new nodes to kTableTolerance of the static flexibility (or
+// to 10 x the static solve's rounding, measured at rest against the closed form, if larger:
+// ~1e-10 of it in x86 long double, ~1e-6 where long double is double, e.g. under valgrind), or
+// when that prediction error stops falling; panels that need more are halved.
 
 #include <algorithm>
 #include <array>
@@ -45,10 +45,18 @@ class ResidualSampler {
     }
   }
 
-  // Residual (static minus modal) at u.
-  Sample operator()(double u_radps2) const {
-    const double omega = std::sqrt(u_radps2);
+  // Residual (static minus modal) at u; *static_out (if given) the static flexibility.
+  Sample operator()(double u_radps2, Sample* static_out = nullptr) const {
+    return at(std::sqrt(u_radps2), static_out);
+  }
+
+  // The same at drum speed omega_radps.
+  Sample at(double omega, Sample* static_out = nullptr) const {
     const StationFlexibility exact = statics_(omega);
+    if (static_out != nullptr) {
+      for (int s = 0; s < kResidualPoints; ++s)
+        static_out->row(s) << exact.ww[s], exact.wt[s], exact.tt[s];
+    }
     const Eigen::PartialPivLU<MatX> lu(toothStiffness(t_, omega));
     const MatX k_phi = lu.solve(phi_.transpose()), k_dphi = lu.solve(dphi_.transpose());
     Sample r;
@@ -60,6 +68,8 @@ class ResidualSampler {
     }
     return r;
   }
+
+  const ToothModel& tooth() const { return t_; }
 
  private:
   const ToothModel& t_;
@@ -74,7 +84,22 @@ struct TableBuild {
   std::vector<Sample> nodes;
   Eigen::RowVector3d scale;  // largest static flexibility entry of ww, wt, tt [m/N, 1/N, 1/(N m)]
   double error = 0;          // largest accepted prediction error / scale [-]
+  double tolerance = kTableTolerance;  // kTableTolerance, or 10 x the static solve's rounding [-]
 };
+
+// The static solve's rounding, measured at rest against the closed form of docs/model.md §9b
+// (w = x^3 / (3 EI), x^2 / (2 EI), x / EI at the points), over scale.
+double roundingAtRest(const ToothModel& t, const Sample& at_rest, const Eigen::RowVector3d& scale) {
+  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
+  double worst = 0.0;
+  for (int s = 0; s < kResidualPoints; ++s) {
+    const double x = t.length_m * s / (kResidualPoints - 1);
+    const Eigen::RowVector3d exact(x * x * x / (3 * EI), x * x / (2 * EI), x / EI);
+    worst =
+        std::max(worst, ((at_rest.row(s) - exact).cwiseAbs().array() / scale.array()).maxCoeff());
+  }
+  return worst;
+}
 
 // Error of the level-m interpolant (nodes v[j * 16 / (m - 1)]) at fine node idx, over scale.
 double predictionError(const std::array<Sample, kFineNodes>& v, int m, int idx,
@@ -95,11 +120,20 @@ void buildPanel(const ResidualSampler& sample, double u_lo, double u_hi, int dep
   auto at = [&](int idx) {
     v[idx] = sample(std::max(0.0, mid + half * std::cos(kPi * idx / (kFineNodes - 1))));
   };
-  for (int idx : {0, 8, 16}) at(idx);
+  if (u_lo == 0.0 && depth == 0) {
+    // The rest node first: it measures the rounding the tolerance must stay above.
+    Sample at_rest;
+    v[16] = sample(0.0, &at_rest);
+    out->tolerance =
+        std::max(kTableTolerance, 10 * roundingAtRest(sample.tooth(), at_rest, out->scale));
+  } else {
+    at(16);
+  }
+  for (int idx : {0, 8}) at(idx);
   int m = 3;
   double error = INFINITY;
   bool noise_floor = false;  // a level no better than the one before: rounding, not shape
-  while (m < kFineNodes && !(error <= kTableTolerance) && !noise_floor) {
+  while (m < kFineNodes && !(error <= out->tolerance) && !noise_floor) {
     const int m2 = 2 * m - 1, step2 = (kFineNodes - 1) / (m2 - 1);
     const double previous = error;
     error = 0.0;
@@ -110,7 +144,7 @@ void buildPanel(const ResidualSampler& sample, double u_lo, double u_hi, int dep
     noise_floor = error > 0.25 * previous;
     m = m2;
   }
-  if (!(error <= kTableTolerance) && !noise_floor && depth < kMaxPanelDepth) {
+  if (!(error <= out->tolerance) && !noise_floor && depth < kMaxPanelDepth) {
     buildPanel(sample, u_lo, mid, depth + 1, out);
     buildPanel(sample, mid, u_hi, depth + 1, out);
     return;
@@ -137,21 +171,49 @@ void lobattoBasis(int n_nodes, double x, double* ell) {
   for (int j = 0; j < n_nodes; ++j) ell[j] /= sum;
 }
 
-void compileResidualTable(double drum_radius_m, double speed_bound_radps,
-                          const StationFlexibility& static_scale, ToothModel* tooth) {
+namespace {
+
+// A residual sample clamped point by point to positive semidefinite blocks.
+StationFlexibility clamped(const Sample& r) {
+  StationFlexibility f;
+  f.ww = r.col(0);
+  f.wt = r.col(1);
+  f.tt = r.col(2);
+  for (int s = 0; s < kResidualPoints; ++s) clampResidualBlock(&f.ww[s], &f.wt[s], &f.tt[s]);
+  return f;
+}
+
+}  // namespace
+
+StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
+                                       double omega_radps) {
+  if (tooth.n_modes == 0) return clamped(Sample::Zero());
+  return clamped(ResidualSampler(tooth, drum_radius_m).at(omega_radps));
+}
+
+void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
+                     ToothModel* tooth) {
   ToothModel& t = *tooth;
+  const int P = kResidualPoints;
+  t.residual_omega_radps = omega_radps;
   t.residual_panels.clear();
   t.residual_table_error = 0.0;
-  const int P = kResidualPoints;
   if (!t.static_correction || t.n_modes == 0) {
+    t.residual_ww = t.residual_wt = t.residual_tt = VecX::Zero(P);
     t.residual_nodes_ww = t.residual_nodes_wt = t.residual_nodes_tt = MatX::Zero(P, 0);
     return;
   }
+  // The tables at the scene's speed, then over [0, max(speed_bound, |omega|)^2] in Omega^2.
   const ResidualSampler sample(t, drum_radius_m);
+  Sample exact;
+  const StationFlexibility r = clamped(sample.at(omega_radps, &exact));
+  t.residual_ww = r.ww;
+  t.residual_wt = r.wt;
+  t.residual_tt = r.tt;
   TableBuild build;
-  build.scale << static_scale.ww.cwiseAbs().maxCoeff(), static_scale.wt.cwiseAbs().maxCoeff(),
-      static_scale.tt.cwiseAbs().maxCoeff();
-  buildPanel(sample, 0.0, speed_bound_radps * speed_bound_radps, 0, &build);
+  build.scale = exact.cwiseAbs().colwise().maxCoeff();
+  const double bound = std::max(speed_bound_radps, std::abs(omega_radps));
+  buildPanel(sample, 0.0, bound * bound, 0, &build);
   const int n = static_cast<int>(build.nodes.size());
   t.residual_nodes_ww.resize(P, n);
   t.residual_nodes_wt.resize(P, n);

@@ -94,18 +94,14 @@ inline void clampResidualBlock(double* ww, double* wt, double* tt) {
   *wt = std::clamp(*wt, -limit, limit);
 }
 
-// Fills the residual_* fields of a compiled tooth: the tables at drum speed omega_radps and
-// (compileResidualTable) their interpolation over |Omega| <= max(speed_bound, |omega|).
+// Fills the residual_* fields of a compiled tooth: the tables at drum speed omega_radps
+// (residualFlexibility) and the (unclamped) residual over Omega^2 in [0, max(speed_bound,
+// |omega|)^2], at the Chebyshev-Lobatto nodes in Omega^2 of panels (residual_panels,
+// residual_nodes_*) refined until the interpolant is within 1e-8 of the static flexibility's
+// largest entry (or 10 x the static solve's rounding, if larger; residual_table_error: the
+// estimate). Zeros and no panels without static correction or modes (src/core/residual_table.cc).
 void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
                      ToothModel* tooth);
-
-// The (unclamped) residual flexibility over Omega^2 in [0, speed_bound_radps^2]: panels of
-// Chebyshev-Lobatto nodes in Omega^2 (residual_panels, residual_nodes_*), refined until the
-// interpolant is within 1e-8 of the largest entry of static_scale (the static flexibility at
-// some speed) or at the rounding of the static solve (residual_table_error: the estimate);
-// empty without static correction or modes. Needs compileTooth.
-void compileResidualTable(double drum_radius_m, double speed_bound_radps,
-                          const StationFlexibility& static_scale, ToothModel* tooth);
 
 // The residual flexibility block (ww [m/N], wt [1/N], tt [1/(N m)]) of a compiled tooth at
 // material point x_m for drum speed omega_radps: the compiled tables at residual_omega_radps,
