@@ -28,21 +28,30 @@ constexpr int kMaxPanelDepth = 10;        // halvings of [0, speed_bound^2] at m
 
 using Sample = Eigen::Matrix<double, kResidualPoints, 3>;  // columns ww, wt, tt
 
-// The static and (unclamped) residual flexibility at u = Omega^2, the mode shapes at the points
-// evaluated once.
+// The static and (unclamped) residual flexibility at u = Omega^2. The modal part
+// Phi K(u)^-1 Phi^T needs no factorisation per speed: with K(u) = Lambda + u (K_G - I) and
+// Lambda^-1/2 (K_G - I) Lambda^-1/2 = V diag(mu) V^T, K(u)^-1 = C diag(1 / (1 + u mu)) C^T,
+// C = Lambda^-1/2 V, so it is sum_j a_sj b_sj / (1 + u mu_j) with a = Phi C, b = Phi' C at the
+// points, evaluated once.
 class ResidualSampler {
  public:
   ResidualSampler(const ToothModel& tooth, double drum_radius_m)
-      : t_(tooth),
-        statics_(tooth, drum_radius_m, kResidualPoints),
-        phi_(kResidualPoints, tooth.n_modes),
-        dphi_(kResidualPoints, tooth.n_modes) {
+      : t_(tooth), statics_(tooth, drum_radius_m, kResidualPoints) {
+    const int n = tooth.n_modes;
+    MatX phi_s(kResidualPoints, n), dphi_s(kResidualPoints, n);
     VecX phi, dphi;
     for (int s = 0; s < kResidualPoints; ++s) {
       evaluateModes(t_, t_.length_m * s / (kResidualPoints - 1), &phi, &dphi);
-      phi_.row(s) = phi.transpose();
-      dphi_.row(s) = dphi.transpose();
+      phi_s.row(s) = phi.transpose();
+      dphi_s.row(s) = dphi.transpose();
     }
+    const VecX scale = tooth.omega0_sq.cwiseSqrt().cwiseInverse();  // Lambda^-1/2
+    const MatX S = scale.asDiagonal() * (tooth.K_G - MatX::Identity(n, n)) * scale.asDiagonal();
+    const Eigen::SelfAdjointEigenSolver<MatX> eig(S);
+    const MatX C = scale.asDiagonal() * eig.eigenvectors();
+    mu_ = eig.eigenvalues();
+    a_ = phi_s * C;
+    b_ = dphi_s * C;
   }
 
   // Residual (static minus modal) at u; *static_out (if given) the static flexibility.
@@ -57,14 +66,16 @@ class ResidualSampler {
       for (int s = 0; s < kResidualPoints; ++s)
         static_out->row(s) << exact.ww[s], exact.wt[s], exact.tt[s];
     }
-    const Eigen::PartialPivLU<MatX> lu(toothStiffness(t_, omega));
-    const MatX k_phi = lu.solve(phi_.transpose()), k_dphi = lu.solve(dphi_.transpose());
+    const VecX g = (VecX::Ones(mu_.size()) + (omega * omega) * mu_).cwiseInverse();
     Sample r;
     for (int s = 0; s < kResidualPoints; ++s) {
-      r(s, 0) = exact.ww[s] - phi_.row(s).dot(k_phi.col(s));
-      r(s, 1) =
-          exact.wt[s] - 0.5 * (phi_.row(s).dot(k_dphi.col(s)) + dphi_.row(s).dot(k_phi.col(s)));
-      r(s, 2) = exact.tt[s] - dphi_.row(s).dot(k_dphi.col(s));
+      double ww = 0.0, wt = 0.0, tt = 0.0;
+      for (int j = 0; j < g.size(); ++j) {
+        ww += a_(s, j) * a_(s, j) * g[j];
+        wt += a_(s, j) * b_(s, j) * g[j];
+        tt += b_(s, j) * b_(s, j) * g[j];
+      }
+      r.row(s) << exact.ww[s] - ww, exact.wt[s] - wt, exact.tt[s] - tt;
     }
     return r;
   }
@@ -74,8 +85,9 @@ class ResidualSampler {
  private:
   const ToothModel& t_;
   StaticFlexibilitySolver statics_;  // the tooth's static flexibility
-  MatX phi_;                         // phi_i(x_s) [1/sqrt(kg)]
-  MatX dphi_;                        // phi_i'(x_s) [1/(sqrt(kg) m)]
+  VecX mu_;                          // mu_j [s^2]
+  MatX a_;                           // Phi C at the points [m/N]^(1/2)
+  MatX b_;                           // Phi' C at the points [1/(N m)]^(1/2)
 };
 
 // The panel table under construction.
