@@ -33,17 +33,24 @@ constexpr std::array<double, kGaussPoints> kGaussWeight = {
     0.10122853629037625915, 0.22238103445337447054, 0.31370664587788728734, 0.36268378337836198297,
     0.36268378337836198297, 0.31370664587788728734, 0.22238103445337447054, 0.10122853629037625915};
 
-// Sub-intervals per tooth length: with beta_64 L ~ 200, the fastest integrand (phi_64'^2) turns
-// by ~2.3 rad per sub-interval, where the 8-point rule is accurate to ~1e-14.
-constexpr int kSubintervalsPerLength = 176;
+// Radians of the fastest integrand (phi_n'^2, which turns at 2 beta_n) per sub-interval: the
+// 8-point rule integrates it to ~1e-14 at 2.27 rad (176 sub-intervals per length for 64 modes).
+constexpr double kRadiansPerSubinterval = 2.267;
+
+// Sub-intervals per tooth length for the K_G, p and H integrals of a tooth whose highest
+// retained mode has beta L = beta_L_max: proportional to it, so that few modes cost few points.
+int subintervalsPerLength(double beta_L_max) {
+  return std::max(1, static_cast<int>(std::ceil(2.0 * beta_L_max / kRadiansPerSubinterval)));
+}
 
 // Calls add(x, weight) at the nodes of a composite Gauss-Legendre rule on [a, b]; the number of
 // sub-intervals is proportional to (b - a) / length_m so any sub-range is integrated as finely
-// as the whole tooth (the 1e-9 keeps a rounding excess on L / n_stations from adding one).
+// as the whole tooth (n_per_length sub-intervals per length; the 1e-9 keeps a rounding excess on
+// L / n_stations from adding one).
 template <typename AddFn>
-void forEachQuadraturePoint(double a_m, double b_m, double length_m, AddFn add) {
-  const int n_sub = std::max(
-      1, static_cast<int>(std::ceil(kSubintervalsPerLength * (b_m - a_m) / length_m - 1e-9)));
+void forEachQuadraturePoint(double a_m, double b_m, double length_m, int n_per_length, AddFn add) {
+  const int n_sub =
+      std::max(1, static_cast<int>(std::ceil(n_per_length * (b_m - a_m) / length_m - 1e-9)));
   const double half_width_m = 0.5 * (b_m - a_m) / n_sub;
   for (int k = 0; k < n_sub; ++k) {
     const double mid_m = a_m + (2 * k + 1) * half_width_m;
@@ -142,6 +149,39 @@ double sectionRotationFactor(const ToothModel& t, double beta_per_m) {
   return 1.0 / (1.0 + E_over_kappa_G * r_g_sq_m2 * beta_per_m * beta_per_m);
 }
 
+namespace {
+
+// Centrifugal stiffening K_G = int N phi' phi'^T, tangential inertia load p = int rho A (R + x) phi
+// (axial force N(x) = rho A [R (L - x) + (L^2 - x^2) / 2]) and the foreshortening matrices
+// H(x_s) = int_0^{x_s} phi' phi'^T, by one composite rule over the station intervals (each
+// point's mode shapes serve all three). Needs the modal constants and stations.
+void integrateModes(double R, ToothModel* tooth) {
+  ToothModel& t = *tooth;
+  const int n = t.n_modes;
+  const double L = t.length_m, rhoA = t.mass_per_length_kgpm;
+  t.K_G.setZero(n, n);
+  t.p_inertia.setZero(n);
+  t.H_s.assign(t.n_stations, MatX::Zero(n, n));
+  VecX phi(n), dphi(n);
+  MatX outer(n, n);
+  const int n_per_length = subintervalsPerLength(n > 0 ? t.beta_per_m[n - 1] * L : 0.0);
+  for (int s = 1; s < t.n_stations; ++s) {
+    MatX& H = t.H_s[s];
+    H = t.H_s[s - 1];
+    forEachQuadraturePoint(
+        t.station_x_m[s - 1], t.station_x_m[s], L, n_per_length, [&](double x_m, double weight_m) {
+          evaluateModes(t, x_m, &phi, &dphi);
+          outer.noalias() = dphi * dphi.transpose();
+          const double axial = rhoA * (R * (L - x_m) + 0.5 * (L * L - x_m * x_m));
+          H += weight_m * outer;
+          t.K_G += (weight_m * axial) * outer;
+          t.p_inertia += (weight_m * rhoA * (R + x_m)) * phi;
+        });
+  }
+}
+
+}  // namespace
+
 void compileTooth(double drum_radius_m, ToothModel* tooth) {
   validateTooth(drum_radius_m, *tooth);
   ToothModel& t = *tooth;
@@ -179,18 +219,6 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
   t.rotation_factor.resize(n);
   for (int i = 0; i < n; ++i) t.rotation_factor[i] = sectionRotationFactor(t, t.beta_per_m[i]);
 
-  // Centrifugal stiffening K_G = int N phi' phi'^T and tangential inertia load
-  // p = int rho A (R + x) phi, with the axial force N(x) = rho A [R (L - x) + (L^2 - x^2) / 2].
-  t.K_G.setZero(n, n);
-  t.p_inertia.setZero(n);
-  VecX phi(n), dphi(n);
-  forEachQuadraturePoint(0.0, L, L, [&](double x_m, double weight_m) {
-    evaluateModes(t, x_m, &phi, &dphi);
-    const double axial_force = rhoA * (R * (L - x_m) + 0.5 * (L * L - x_m * x_m));
-    t.K_G.noalias() += (weight_m * axial_force) * dphi * dphi.transpose();
-    t.p_inertia += (weight_m * rhoA * (R + x_m)) * phi;
-  });
-
   // Polar inertia of the undeformed tooth about the drum axis: int rho A (R + x)^2 dx.
   t.I0_kgm2 = rhoA * (R * R * L + R * L * L + L * L * L / 3);
 
@@ -199,6 +227,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
   t.station_x_m.resize(n_stations);
   t.phi_s.resize(n_stations, n);
   t.dphi_s.resize(n_stations, n);
+  VecX phi(n), dphi(n);
   for (int s = 0; s < n_stations; ++s) {
     t.station_x_m[s] = L * (static_cast<double>(s) / (n_stations - 1));
     if (n == 0) continue;  // rigid tooth: no mode shapes (a row of a 0-column matrix is UB)
@@ -206,18 +235,7 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
     t.phi_s.row(s) = phi.transpose();
     t.dphi_s.row(s) = dphi.transpose();
   }
-
-  // Foreshortening matrices H(x_s) = int_0^{x_s} phi' phi'^T, accumulated station to station.
-  t.H_s.assign(n_stations, MatX::Zero(n, n));
-  for (int s = 1; s < n_stations; ++s) {
-    MatX& H = t.H_s[s];
-    H = t.H_s[s - 1];
-    forEachQuadraturePoint(t.station_x_m[s - 1], t.station_x_m[s], L,
-                           [&](double x_m, double weight_m) {
-                             evaluateModes(t, x_m, &phi, &dphi);
-                             H.noalias() += weight_m * dphi * dphi.transpose();
-                           });
-  }
+  integrateModes(R, &t);
   tabulateModes(&t);
   if (t.beam_model == ToothBeamModel::kLargeDeflection) compileLargeDeflection(&t);
 }
@@ -396,77 +414,6 @@ void interpolateH(const ToothModel& tooth, double x_m, MatX* H) {
   *H = (1.0 - t) * tooth.H_s[s] + t * tooth.H_s[s + 1];
 }
 
-namespace {
-
-// Cubic Hermite shape functions of a beam element of length h at s in [0, 1]: values N,
-// slopes dN/dx and curvatures d2N/dx2, for the element dofs (w_a, w'_a, w_b, w'_b).
-void hermiteShapes(double s, double h, Eigen::Vector4d* N, Eigen::Vector4d* dN,
-                   Eigen::Vector4d* ddN) {
-  const double s2 = s * s, s3 = s2 * s;
-  *N << 1 - 3 * s2 + 2 * s3, h * (s - 2 * s2 + s3), 3 * s2 - 2 * s3, h * (s3 - s2);
-  *dN << (-6 * s + 6 * s2) / h, 1 - 4 * s + 3 * s2, (6 * s - 6 * s2) / h, 3 * s2 - 2 * s;
-  *ddN << (-6 + 12 * s) / (h * h), (-4 + 6 * s) / h, (6 - 12 * s) / (h * h), (6 * s - 2) / h;
-}
-
-// Stiffness of the clamped-free rotating beam on n_el equal Hermite elements, root dofs
-// removed: dofs (w_1, w'_1, ..., w_n, w'_n) [N/m, N, N m].
-MatX rotatingBeamStiffness(const ToothModel& t, double R, double omega_radps, int n_el) {
-  const double L = t.length_m, h = L / n_el;
-  const double EI = t.youngs_modulus_Pa * t.second_moment_m4, rhoA = t.mass_per_length_kgpm;
-  const double w2 = omega_radps * omega_radps;
-  // 4-point Gauss-Legendre on [0, 1]: exact for the degree-6 integrands below.
-  constexpr double kNode[4] = {0.06943184420297371, 0.33000947820757187, 0.66999052179242813,
-                               0.93056815579702629};
-  constexpr double kWeight[4] = {0.17392742256872693, 0.32607257743127307, 0.32607257743127307,
-                                 0.17392742256872693};
-  const int n_full = 2 * (n_el + 1);
-  MatX K = MatX::Zero(n_full, n_full);
-  Eigen::Vector4d N, dN, ddN;
-  for (int e = 0; e < n_el; ++e) {
-    Eigen::Matrix4d Ke = Eigen::Matrix4d::Zero();
-    for (int g = 0; g < 4; ++g) {
-      hermiteShapes(kNode[g], h, &N, &dN, &ddN);
-      const double x = (e + kNode[g]) * h;
-      const double axial_N = rhoA * w2 * (R * (L - x) + 0.5 * (L * L - x * x));
-      Ke += kWeight[g] * h *
-            (EI * ddN * ddN.transpose() + axial_N * dN * dN.transpose() -
-             rhoA * w2 * N * N.transpose());
-    }
-    K.block<4, 4>(2 * e, 2 * e) += Ke;
-  }
-  return K.bottomRightCorner(n_full - 2, n_full - 2);
-}
-
-}  // namespace
-
-StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
-                                     double omega_radps, int n_points, int n_elements) {
-  // Element count a multiple of the point intervals, so that every point is a node.
-  const int per = n_elements > 0 ? std::max(1, n_elements / (n_points - 1))
-                                 : (256 + n_points - 2) / (n_points - 1);
-  const int n_el = per * (n_points - 1);
-  const Eigen::PartialPivLU<MatX> lu(
-      rotatingBeamStiffness(tooth, drum_radius_m, omega_radps, n_el));
-  StationFlexibility f;
-  f.ww.setZero(n_points);
-  f.wt.setZero(n_points);
-  f.tt.setZero(n_points);
-  VecX load = VecX::Zero(2 * n_el);
-  for (int s = 1; s < n_points; ++s) {
-    const int dof = 2 * (s * per - 1);  // w of node s * per (node 0, the root, is removed)
-    load.setZero();
-    load[dof] = 1.0;
-    const VecX under_force = lu.solve(load);
-    load.setZero();
-    load[dof + 1] = 1.0;
-    const VecX under_couple = lu.solve(load);
-    f.ww[s] = under_force[dof];
-    f.wt[s] = 0.5 * (under_force[dof + 1] + under_couple[dof]);  // equal by reciprocity
-    f.tt[s] = under_couple[dof + 1];
-  }
-  return f;
-}
-
 StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps, int n_points) {
   StationFlexibility f;
   f.ww.setZero(n_points);
@@ -483,51 +430,6 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
     f.tt[s] = dphi.dot(k_dphi);
   }
   return f;
-}
-
-StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
-                                       double omega_radps) {
-  const int n_pt = kResidualPoints;
-  StationFlexibility r;
-  if (tooth.n_modes == 0) {
-    r.ww.setZero(n_pt);
-    r.wt.setZero(n_pt);
-    r.tt.setZero(n_pt);
-    return r;
-  }
-  const StationFlexibility exact = staticFlexibility(tooth, drum_radius_m, omega_radps, n_pt);
-  const StationFlexibility modal = modalFlexibility(tooth, omega_radps, n_pt);
-  r.ww = exact.ww - modal.ww;
-  r.wt = exact.wt - modal.wt;
-  r.tt = exact.tt - modal.tt;
-  // Rounding can leave a block slightly indefinite where the modes capture nearly everything
-  // (the root): clamp to the nearest positive semidefinite block.
-  for (int s = 0; s < n_pt; ++s) {
-    r.ww[s] = std::max(r.ww[s], 0.0);
-    r.tt[s] = std::max(r.tt[s], 0.0);
-    const double limit = std::sqrt(r.ww[s] * r.tt[s]);
-    r.wt[s] = std::clamp(r.wt[s], -limit, limit);
-  }
-  return r;
-}
-
-void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth) {
-  ToothModel& t = *tooth;
-  StationFlexibility r;
-  if (t.static_correction) {
-    r = residualFlexibility(t, drum_radius_m, omega_radps);
-  } else {
-    r.ww = r.wt = r.tt = VecX::Zero(kResidualPoints);
-  }
-  t.residual_omega_radps = omega_radps;
-  t.residual_ww = r.ww;
-  t.residual_wt = r.wt;
-  t.residual_tt = r.tt;
-  // The truncated modes start at omega_{n+1}; a change of Omega^2 by 1e-3 of its square moves
-  // their static flexibility by about 1e-3.
-  const double EI = t.youngs_modulus_Pa * t.second_moment_m4;
-  t.residual_speed_window_radps2 = 1e-3 * std::pow(cantileverBetaL(t.n_modes), 4) * EI /
-                                   (t.mass_per_length_kgpm * std::pow(t.length_m, 4));
 }
 
 double residualAt(const VecX& table, double length_m, double x_m) {

@@ -1,16 +1,31 @@
 // The drum drive (drive.h): the commanded target and the ramp law over a step.
 #include "drive.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
+#include "internal.h"
 #include "threshing_sim/core/simulator.h"
 
 namespace threshing_sim {
 
 void setDrumTarget(const Model& model, Data* data, double omega_target_radps) {
-  (void)model;
-  data->omega_target_radps = omega_target_radps;
+  // Within the drum's speed bound, which the residual flexibility is tabulated over.
+  const double bound = model.drum.speed_bound_radps;
+  data->omega_target_radps =
+      bound > 0 ? std::clamp(omega_target_radps, -bound, bound) : omega_target_radps;
+  // The free teeth's exact propagators at the target speed are built here, at the command, so
+  // that reaching it costs the step no factorisation (they are kept per tooth, keyed on speed).
+  if (!model.integrator.exact_free_teeth || !data->ws || !model.compiled) return;
+  const int T = static_cast<int>(model.teeth.size());
+  std::vector<internal::ToothPropagator>& prop = data->ws->ed.prop;
+  if (prop.size() != static_cast<size_t>(T)) prop.resize(T);
+  for (int k = 0; k < T; ++k) {
+    if (model.teeth[k].n_modes > 0)
+      internal::buildToothPropagator(model, k, data->omega_target_radps, &prop[k]);
+  }
 }
 
 namespace internal {

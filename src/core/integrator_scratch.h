@@ -156,6 +156,13 @@ struct TimeSteppingScratch {
   std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
   double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
   double iteration_h = -1;      // and the step [s]
+  // A modal tooth's iteration matrix is A + Omega^2 B with A = I + h theta D + h^2 theta^2 Lambda
+  // (diagonal) and B = h^2 theta^2 (K_G - I): with A^-1/2 B A^-1/2 = V diag(mu) V^T, its inverse
+  // is C diag(1 / (1 + Omega^2 mu)) C^T, C = A^-1/2 V; a drum ramp then costs no factorisation.
+  std::vector<MatX> iteration_basis;   // C of each tooth [-]
+  std::vector<VecX> iteration_mu;      // mu of each tooth [s^2]
+  std::vector<MatX> iteration_scaled;  // C diag(1 / (1 + Omega^2 mu)) (scratch) [-]
+  double iteration_basis_h = -1;       // the step C and mu were built for [s]
 };
 
 }  // namespace threshing_sim

@@ -5,8 +5,6 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
-#include <map>
-#include <mutex>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -32,44 +30,50 @@ void requireFinite(const std::string& field, double value) {
   if (!std::isfinite(value)) fail(field, "must be finite", value);
 }
 
-// Restitution reached by the dimensionless Hunt-Crossley impact
-//   x'' = -x^{3/2} (1 + c x'),  x(0) = 0, x'(0) = 1,
-// with the force clamped at zero (no adhesion): the exit speed -x' when contact ends.
-double huntCrossleyRestitution(double c) {
-  // Integrate with RK4 at a step small against the dimensionless contact time (~3.2).
-  const double h = 1e-3;
-  double x = 0.0, v = 1.0;
-  auto acc = [c](double xx, double vv) {
-    if (xx <= 0.0) return 0.0;
-    const double f = xx * std::sqrt(xx) * (1.0 + c * vv);
-    return f > 0.0 ? -f : 0.0;
-  };
-  for (int i = 0; i < 200000; ++i) {
-    const double k1x = v, k1v = acc(x, v);
-    const double k2x = v + 0.5 * h * k1v, k2v = acc(x + 0.5 * h * k1x, v + 0.5 * h * k1v);
-    const double k3x = v + 0.5 * h * k2v, k3v = acc(x + 0.5 * h * k2x, v + 0.5 * h * k2v);
-    const double k4x = v + h * k3v, k4v = acc(x + h * k3x, v + h * k3v);
-    x += h / 6.0 * (k1x + 2 * k2x + 2 * k3x + k4x);
-    v += h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v);
-    // Contact ends when the bodies part or the (clamped) force vanishes on the way out.
-    if (x <= 0.0 || (v < 0.0 && 1.0 + c * v <= 0.0)) return -v;
+// g(c) = G(c) / c^2 with G(c) = ln(1 + c) - ln(1 - c e) - c (1 + e): the phase-plane relation of
+// the dimensionless Hunt-Crossley impact (see huntCrossleyFactor) for the damping factor c.
+// Its power series sum_{k>=2} c^(k-2) (e^k - (-1)^k) / k where c is small (no cancellation).
+double huntCrossleyRelation(double c, double e) {
+  if (c < 0.125) {
+    double sum = 0.0, c_pow = 1.0, e_pow = e, sign = -1.0;  // c^(k-2), e^(k-1), (-1)^(k-1)
+    for (int k = 2; k <= 40; ++k) {
+      e_pow *= e;
+      sign = -sign;
+      sum += c_pow * (e_pow - sign) / k;
+      c_pow *= c;
+    }
+    return sum;
   }
-  return 0.0;
+  return (std::log1p(c) - std::log1p(-c * e) - c * (1.0 + e)) / (c * c);
 }
 
-// Inverts huntCrossleyRestitution by bisection: the damping factor c* = chi v_in giving e.
-double solveHuntCrossleyFactor(double e) {
-  if (e >= 1.0) return 0.0;
-  const double e_min = 0.01;  // below this the factor diverges; treat as almost plastic
-  const double target = std::max(e, e_min);
-  double lo = 0.0, hi = 1.0;
-  while (huntCrossleyRestitution(hi) > target && hi < 1e6) hi *= 2.0;
-  for (int it = 0; it < 60; ++it) {
-    const double mid = 0.5 * (lo + hi);
-    (huntCrossleyRestitution(mid) > target ? lo : hi) = mid;
+}  // namespace
+
+// Dimensionless impact x'' = -x^{3/2} (1 + c x'), x(0) = 0, x'(0) = 1: v dv/dx = -x^{3/2} (1 + c v)
+// integrates to v/c - ln(1 + c v)/c^2 = const, so the exit speed v_out = -e satisfies
+// ln(1 + c) - ln(1 - c e) = c (1 + e) (docs/model.md §4). g (above) rises through its only root
+// in (0, 1/e): safeguarded Newton on it, bracketed by bisection.
+double huntCrossleyFactor(double restitution) {
+  if (restitution >= 1.0) return 0.0;
+  const double e = std::max(restitution, kHuntCrossleyMinRestitution);
+  double lo = 0.0, hi = 1.0 / e;  // g(lo) < 0 < g(hi)
+  // Start: the small-c expansion g ~ -(1 - e^2)/2 + c (1 + e^3)/3, within the bracket.
+  double c = std::min(1.5 * (1.0 - e * e) / (1.0 + e * e * e), 0.5 / e);
+  for (int it = 0; it < 200; ++it) {
+    const double g = huntCrossleyRelation(c, e);
+    if (!(g < 0.0 || g > 0.0)) return c;
+    (g < 0.0 ? lo : hi) = c;
+    // g' = (B - 2 g) / c with B = G'(c) / c = e^2 / (1 - c e) - 1 / (1 + c).
+    const double B = e * e / (1.0 - c * e) - 1.0 / (1.0 + c);
+    double next = c - g * c / (B - 2.0 * g);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    if (std::abs(next - c) <= 4 * std::numeric_limits<double>::epsilon() * c) return next;
+    c = next;
   }
-  return 0.5 * (lo + hi);
+  return c;
 }
+
+namespace {
 
 // Shortest Hertz contact time [s] of a kernel of the model struck by the flank of tooth t at
 // its tip speed |Omega_0| (R + L) (at least 1 m/s): F = K delta^{3/2} with K = 4/3 E* sqrt(R*),
@@ -114,31 +118,13 @@ int chooseModeCount(const Model& m, const ToothModel& t, double t_c) {
   while (n < kMaxModes && std::pow(cantileverBetaL(n), 2) * scale < omega_needed) ++n;
   return n;
 }
-// solveHuntCrossleyFactor, remembered per restitution (the bisection costs about 1e6 flops, paid
-// three times by every compile; sweeps, tests and fuzzing compile thousands of scenes in one
-// process). The value is the same bit for bit; the memory holds at most kMaxRemembered values.
-double huntCrossleyFactor(double e) {
-  constexpr std::size_t kMaxRemembered = 256;
-  static std::mutex mutex;
-  static std::map<double, double> remembered;
-  {
-    const std::lock_guard<std::mutex> lock(mutex);
-    const auto it = remembered.find(e);
-    if (it != remembered.end()) return it->second;
-  }
-  const double factor = solveHuntCrossleyFactor(e);
-  const std::lock_guard<std::mutex> lock(mutex);
-  if (remembered.size() >= kMaxRemembered) remembered.clear();
-  remembered.emplace(e, factor);
-  return factor;
-}
-
 // The drum and the global values: checked.
 void checkGlobals(const Model& m) {
   requirePositive("drum.radius", m.drum.radius_m);
   requireFinite("drum.speed", m.drum.initial_speed_radps);
   requireFinite("drum.angle", m.drum.initial_angle_rad);
   requirePositive("drum.max_acceleration", m.drum.max_acceleration_radps2);
+  requirePositive("drum.max_speed", m.drum.max_speed_radps);
   requireFinite("gravity.x", m.gravity_mps2.x());
   requireFinite("gravity.y", m.gravity_mps2.y());
   requirePositive("duration", m.duration_s);
@@ -150,6 +136,33 @@ void checkGlobals(const Model& m) {
   requirePositive("integrator.zeno_velocity", m.integrator.zeno_velocity_mps);
   if (!(m.integrator.theta >= 0.5 && m.integrator.theta <= 1.0))
     fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
+}
+
+// A modal tooth's compiled data depend on its mount angle only through its root and axes
+// (e1_D, e2_D, p_DR_D): tooth k takes the data of an earlier modal tooth equal in every other
+// scene value (the teeth of a drum are usually alike), with its own angle. Returns whether it
+// found one.
+bool copyTwin(Model* model, size_t k) {
+  ToothModel& t = model->teeth[k];
+  if (t.beam_model != ToothBeamModel::kModal || !std::isfinite(t.mount_angle_rad)) return false;
+  for (size_t j = 0; j < k; ++j) {
+    const ToothModel& o = model->teeth[j];
+    if (o.beam_model != t.beam_model || o.length_m != t.length_m || o.diameter_m != t.diameter_m ||
+        o.youngs_modulus_Pa != t.youngs_modulus_Pa || o.poisson_ratio != t.poisson_ratio ||
+        o.density_kgpm3 != t.density_kgpm3 || o.n_modes != t.n_modes ||
+        o.damping_ratio != t.damping_ratio || o.n_stations != t.n_stations ||
+        o.static_correction != t.static_correction || o.section_rotation != t.section_rotation ||
+        o.modes_auto != t.modes_auto)
+      continue;
+    const double angle_rad = t.mount_angle_rad;
+    t = o;
+    t.mount_angle_rad = angle_rad;
+    t.e1_D = Vec2(std::cos(angle_rad), std::sin(angle_rad));
+    t.e2_D = Vec2(-t.e1_D.y(), t.e1_D.x());
+    t.p_DR_D = model->drum.radius_m * t.e1_D;
+    return true;
+  }
+  return false;
 }
 
 // Tooth k: checked, its mode count chosen (automatic modes), its modal data and residual
@@ -176,8 +189,11 @@ void compileToothAt(Model* model, size_t k) {
   // The rod truncates no modes: there is no residual flexibility to correct.
   if (rod) t.static_correction = false;
   try {
-    compileTooth(m.drum.radius_m, &m.teeth[k]);
-    compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, &m.teeth[k]);
+    if (!copyTwin(&m, k)) {
+      compileTooth(m.drum.radius_m, &m.teeth[k]);
+      compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
+                      &m.teeth[k]);
+    }
   } catch (const std::invalid_argument& e) {
     // beam.cc names fields "tooth.<field>"; report them as "teeth.<k>.<field>".
     std::string what = e.what();
@@ -301,6 +317,7 @@ void compileContactLaws(Model* model) {
 void compileModel(Model* model) {
   Model& m = *model;
   checkGlobals(m);
+  m.drum.speed_bound_radps = std::max(m.drum.max_speed_radps, std::abs(m.drum.initial_speed_radps));
   // Generalised coordinates: the teeth's modal coordinates first, then the kernels'.
   int offset = 0;
   compileTeeth(model, &offset);

@@ -121,15 +121,13 @@ void resetData(const Model& model, Data* data) {
   data->events.reserve(4096);
   clearStats(&data->stats);
   data->ws->ts.iteration_omega = -1;
+  data->ws->ts.iteration_basis_h = -1;  // C and mu are this model's
   data->ws->ed.h = 0;
   // The free-tooth propagators are rebuilt for this model on first use.
   for (internal::ToothPropagator& prop : data->ws->ed.prop) prop.n_modes = -1;
   // The large-deflection caches are keyed on q and z only: forget another model's.
   data->ws->ld_cfg_q.clear();
   data->ws->ld_minv_valid = false;
-  // So are the residual tables of other drum speeds (an island slot reuses its workspace for
-  // other teeth: a table is valid only for the tooth it was built for).
-  data->ws->narrow.tooth_residual.clear();
   resetBodies(model, data);
   internal::resetAsync(data);
   data->stats.energy_initial_J = mechanicalEnergy(model, *data);

@@ -162,6 +162,11 @@ const KeySpec kSchema[] = {
        return num(d.model.drum.max_acceleration_radps2);
      },
      "Bound on the drum's angular acceleration when it follows a new target speed."},
+    {"drum.max_speed", KeyKind::kValue, "number", "rad/s", Bound{0.0, 1e4, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.drum.max_speed_radps); },
+     "Bound on |Omega| and on any commanded target speed (larger targets are clamped to "
+     "max(max_speed, |speed|)); the residual flexibility of the truncated modes is tabulated "
+     "up to it at compile time."},
     {"drum.angle", KeyKind::kValue, "number", "rad", Bound{-1e4, 1e4, false, false},
      [](const SchemaDefaults& d) -> std::string { return num(d.model.drum.initial_angle_rad); },
      "Initial drum angle theta(0)."},
@@ -780,6 +785,7 @@ void readDrum(const Section& scene, DrumModel* drum) {
   drum->radius_m = s.number("radius", drum->radius_m);
   drum->initial_speed_radps = s.number("speed", drum->initial_speed_radps);
   drum->max_acceleration_radps2 = s.number("max_acceleration", drum->max_acceleration_radps2);
+  drum->max_speed_radps = s.number("max_speed", drum->max_speed_radps);
   drum->initial_angle_rad = s.number("angle", drum->initial_angle_rad);
 }
 

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -306,6 +307,58 @@ TEST(Allocations, IslandsFormAndSplitTimeStepping) {
   EXPECT_EQ(islandAllocationsAfterWarmUp(m, 5, 60, &built, &dissolved), 0);
   EXPECT_GT(built, 0);
   EXPECT_GT(dissolved, 0);
+}
+
+// A drum speed change during contact: the drum is commanded from 800 to 1200 rpm at the start
+// (2e4 rad/s^2: a 2.1 ms ramp through the strike at ~0.3 ms) and the steps up to 3 ms, past the
+// ramp's end, are counted. The residual flexibility is interpolated in Omega^2 from the compiled
+// table, and the free tooth's exact propagator at the target speed is built by setDrumTarget,
+// at the command: the ramp and its end cost the steps no factorisation and no allocation.
+long allocationsThroughRamp(const Model& m, double target_radps, double t_end_s, int warm_steps) {
+  Data d;
+  auto run = [&](bool count) {
+    resetData(m, &d);
+    setDrumTarget(m, &d, target_radps);
+    for (int i = 0; i < warm_steps; ++i) step(m, &d);
+    const size_t events_before = d.events.size();
+    const double omega_before = d.omega_radps;
+    void* probe[2];
+    backtrace(probe, 2);
+    if (count) openWindow();
+    int failed = 0;
+    while (d.t_s < t_end_s) failed += step(m, &d) == StepStatus::kFailed ? 1 : 0;
+    const long n = count ? closeWindow() : 0;
+    EXPECT_EQ(failed, 0);
+    EXPECT_GE(d.events.size() - events_before, 2u) << "no contact in the window";
+    EXPECT_LT(omega_before, 0.5 * (omega_before + target_radps)) << "ramp before the window";
+    EXPECT_EQ(d.omega_radps, target_radps) << "the ramp must end in the window";
+    return n;
+  };
+  run(false);  // warm-up: the very same steps
+  const long count = run(true);
+  if (count != 0) printFirstAllocation();
+  return count;
+}
+
+TEST(Allocations, DrumRampEventDriven) {
+  const Model m = loadConfig("config/default_scene.yaml",
+                             {"integrator.type=event_driven", "drum.max_acceleration=2e4"});
+  EXPECT_EQ(allocationsThroughRamp(m, 1200 * 2 * kPi / 60, 3e-3, 3), 0);
+}
+
+TEST(Allocations, DrumRampTimeStepping) {
+  const Model m = loadConfig(
+      "config/default_scene.yaml",
+      {"integrator.type=time_stepping", "integrator.dt=1e-6", "drum.max_acceleration=2e4"});
+  EXPECT_EQ(allocationsThroughRamp(m, 1200 * 2 * kPi / 60, 3e-3, 20), 0);
+}
+
+// A soft tooth (the polyurethane knead tooth) whose residual flexibility moves with the speed.
+TEST(Allocations, DrumRampSoftToothEventDriven) {
+  const Model m = loadConfig(
+      "config/scenes/knead.yaml",
+      {"integrator.type=event_driven", "drum.max_acceleration=2e4", "deflection_validity=1"});
+  EXPECT_EQ(allocationsThroughRamp(m, 1200 * 2 * kPi / 60, 3e-3, 3), 0);
 }
 
 }  // namespace

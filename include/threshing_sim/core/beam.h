@@ -5,6 +5,11 @@
 //   q'' + D q' + [Lambda + Omega^2 (K_G - I)] q = -dOmega/dt p + Q.
 #pragma once
 
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/model.h"
 
@@ -76,6 +81,23 @@ void interpolateH(const ToothModel& tooth, double x_m, MatX* H);
 StationFlexibility staticFlexibility(const ToothModel& tooth, double drum_radius_m,
                                      double omega_radps, int n_points, int n_elements = 0);
 
+// staticFlexibility at many drum speeds of one tooth: the stiffness's bending and rotational (per
+// Omega^2) bands are assembled once, each call combines, factors and inverts them (banded
+// L D L^T, selected inversion, in long double).
+class StaticFlexibilitySolver {
+ public:
+  StaticFlexibilitySolver(const ToothModel& tooth, double drum_radius_m, int n_points,
+                          int n_elements = 0);
+  StationFlexibility operator()(double omega_radps) const;
+
+ private:
+  int n_points_ = 0;                                  // points x_j [-]
+  int per_ = 1;                                       // elements per point interval [-]
+  long double h_m_ = 0;                               // element length [m]
+  std::vector<std::array<long double, 4>> bending_;   // band of the bending stiffness [N/m]
+  std::vector<std::array<long double, 4>> rotation_;  // band per Omega^2 [N s^2/m]
+};
+
 // The part of it that the n retained modes represent: Phi_n^T K_n^-1 Phi_n (K_n full, from
 // toothStiffness), at the same points. Needs compileTooth.
 StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps, int n_points);
@@ -87,8 +109,34 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
 StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
                                        double omega_radps);
 
-// Fills the residual_* fields of a compiled tooth for drum speed omega_radps.
-void compileResidual(double drum_radius_m, double omega_radps, ToothModel* tooth);
+// Rounding can leave a residual block slightly indefinite where the modes capture nearly
+// everything (the root): clamps (ww, wt, tt) to the nearest positive semidefinite block.
+inline void clampResidualBlock(double* ww, double* wt, double* tt) {
+  *ww = std::max(*ww, 0.0);
+  *tt = std::max(*tt, 0.0);
+  const double limit = std::sqrt(*ww * *tt);
+  *wt = std::clamp(*wt, -limit, limit);
+}
+
+// Fills the residual_* fields of a compiled tooth: the tables at drum speed omega_radps
+// (residualFlexibility) and the (unclamped) residual over Omega^2 in [0, max(speed_bound,
+// |omega|)^2], at the Chebyshev-Lobatto nodes in Omega^2 of panels (residual_panels,
+// residual_nodes_*) refined until the interpolant is within 1e-8 of the static flexibility's
+// largest entry (or 10 x the static solve's rounding, if larger; residual_table_error: the
+// estimate). Zeros and no panels without static correction or modes (src/core/residual_table.cc).
+void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
+                     ToothModel* tooth);
+
+// The residual flexibility block (ww [m/N], wt [1/N], tt [1/(N m)]) of a compiled tooth at
+// material point x_m for drum speed omega_radps: the compiled tables at residual_omega_radps,
+// else the interpolation in Omega^2 (clamped to the table's range), clamped to a positive
+// semidefinite block at the two neighbouring points and blended linearly. Allocation-free.
+void residualAtSpeed(const ToothModel& tooth, double omega_radps, double x_m, double* ww,
+                     double* wt, double* tt);
+
+// The barycentric Lagrange basis ell[0..n_nodes) of the Chebyshev-Lobatto nodes
+// x_j = cos(pi j / (n_nodes - 1)) at x in [-1, 1] (sums to 1; exact at the nodes).
+void lobattoBasis(int n_nodes, double x, double* ell);
 
 // A table at kResidualPoints equally spaced points on [0, length_m] (one of those above)
 // linearly interpolated at x_m.

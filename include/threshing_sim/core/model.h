@@ -38,6 +38,21 @@ struct DrumModel {
   double initial_speed_radps = 83.78;     // Omega(0) and initial target [rad/s] (800 rpm)
   double initial_angle_rad = 0.0;         // theta(0) [rad]
   double max_acceleration_radps2 = 200.;  // |dOmega/dt| bound [rad/s^2]
+  double max_speed_radps = 400.0;         // bound on |Omega| and on any commanded target
+                                          // (drum.max_speed) [rad/s]
+  // --- derived by compileModel() ---
+  double speed_bound_radps = 0;  // max(max_speed, |Omega(0)|): targets are clamped to it, the
+                                 // residual flexibility is tabulated up to it [rad/s]
+};
+
+// A panel of the residual flexibility's table over the drum speed: Omega^2 in [u_lo, u_hi],
+// n_nodes Chebyshev-Lobatto nodes u_j = (u_lo + u_hi) / 2 + (u_hi - u_lo) / 2 cos(pi j / (n - 1)),
+// stored from column first_node of the ToothModel's residual_nodes_* tables.
+struct ResidualPanel {
+  double u_lo_radps2 = 0;  // lower end in Omega^2 [1/s^2]
+  double u_hi_radps2 = 0;  // upper end in Omega^2 [1/s^2]
+  int n_nodes = 0;         // 3, 5, 9 or 17 [-]
+  int first_node = 0;      // column of node j = 0 [-]
 };
 
 // One flexible tooth: an Euler-Bernoulli cantilever of round section on the drum.
@@ -107,13 +122,20 @@ struct ToothModel {
   double contact_time_s = 0;      // Hertz contact time estimate the automatic count used [s]
   // Residual flexibility of the truncated modes (docs/model.md §9b) at kResidualPoints (beam.h)
   // equally spaced points, at drum speed residual_omega_radps; a massless spring in series
-  // with the Hertz contact (contact/narrow_phase.cc). Reused at other drum speeds within
-  // residual_speed_window_radps2 of Omega^2 (see contact/narrow_phase.cc residualAtSpeed).
-  double residual_omega_radps = 0;          // drum speed of the tables below [rad/s]
-  double residual_speed_window_radps2 = 0;  // |Omega^2 - residual_omega^2| the tables serve [1/s^2]
-  VecX residual_ww;                         // w under a unit force at the same point [m/N]
-  VecX residual_wt;                         // w under a unit couple (= w' under a force) [1/N]
-  VecX residual_tt;                         // w' under a unit couple [1/(N m)]
+  // with the Hertz contact (contact/narrow_phase.cc).
+  double residual_omega_radps = 0;  // drum speed of the tables below [rad/s]
+  VecX residual_ww;                 // w under a unit force at the same point [m/N]
+  VecX residual_wt;                 // w under a unit couple (= w' under a force) [1/N]
+  VecX residual_tt;                 // w' under a unit couple [1/(N m)]
+  // The same (unclamped) over the drum's reachable speeds, Omega^2 in [0, speed_bound^2]: values
+  // at the Chebyshev-Lobatto nodes in Omega^2 of each panel (residualAtSpeed, beam.h), one
+  // column per node, kResidualPoints rows.
+  std::vector<ResidualPanel> residual_panels;  // panels covering [0, speed_bound^2]
+  MatX residual_nodes_ww;                      // [m/N]
+  MatX residual_nodes_wt;                      // [1/N]
+  MatX residual_nodes_tt;                      // [1/(N m)]
+  double residual_table_error = 0;  // estimated interpolation error, relative to each table's
+                                    // largest entry (checked against direct solves) [-]
 };
 
 // ToothModel::n_modes value asking compileModel to choose the count.
@@ -210,6 +232,14 @@ struct Model {
   bool has_large_deflection = false;  // some tooth is a large-deflection rod
   bool compiled = false;
 };
+
+// Restitutions below this are treated as it: the Hunt-Crossley factor diverges as e -> 0 [-].
+constexpr double kHuntCrossleyMinRestitution = 0.01;
+
+// The Hunt-Crossley damping factor c* = chi v_in that gives restitution e: the root in
+// (0, 1/e) of ln(1 + c) - ln(1 - c e) = c (1 + e), in closed form (no integration); 0 for e >= 1,
+// e below kHuntCrossleyMinRestitution raised to it [-].
+double huntCrossleyFactor(double restitution);
 
 // Derives every "derived" field above, lays out the generalised coordinates and validates
 // the model. Throws std::invalid_argument naming the offending field on bad values.

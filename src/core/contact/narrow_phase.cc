@@ -63,31 +63,6 @@ void kernelRow(const Vec2& p_W, const Vec2& c_W, const Vec2& dir, double sign, S
   (*w)[2] = sign * cross(p_W - c_W, dir);
 }
 
-// Residual flexibility of tooth k at material point x_m for drum speed omega_radps, as the
-// 2 x 2 block (ww, wt, tt) of w and w' under a force and a couple: the compiled table where
-// Omega^2 is within its window, else one built once per speed into ws->narrow.tooth_residual.
-void residualAtSpeed(const Model& m, int k, double omega_radps, double x_m, Workspace* ws,
-                     double* ww, double* wt, double* tt) {
-  const ToothModel& tm = m.teeth[k];
-  const double w2 = omega_radps * omega_radps;
-  const double window = tm.residual_speed_window_radps2;
-  const VecX *t_ww = &tm.residual_ww, *t_wt = &tm.residual_wt, *t_tt = &tm.residual_tt;
-  if (tm.static_correction &&
-      std::abs(w2 - tm.residual_omega_radps * tm.residual_omega_radps) > window) {
-    if (ws->narrow.tooth_residual.size() < m.teeth.size())
-      ws->narrow.tooth_residual.resize(m.teeth.size());
-    ResidualCache& cache = ws->narrow.tooth_residual[k];
-    if (!(std::abs(w2 - cache.omega_radps * cache.omega_radps) <= window)) {
-      cache.table = residualFlexibility(tm, m.drum.radius_m, omega_radps);
-      cache.omega_radps = omega_radps;
-    }
-    t_ww = &cache.table.ww, t_wt = &cache.table.wt, t_tt = &cache.table.tt;
-  }
-  *ww = residualAt(*t_ww, tm.length_m, x_m);
-  *wt = residualAt(*t_wt, tm.length_m, x_m);
-  *tt = residualAt(*t_tt, tm.length_m, x_m);
-}
-
 // What every pair function is given: the pair and its evaluation's arguments (see
 // evaluateContact), and the kernel of the pair (body 1) as an ellipse.
 struct NarrowInput {
@@ -368,7 +343,7 @@ void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
   }
   // The truncated modes' compliance along n: the load (e2.n, (J r_t n).n) on (w, w').
   double r_ww, r_wt, r_tt;
-  residualAtSpeed(in.m, in.pair.a, in.drive.omega_radps, g->tooth_x_m, ws, &r_ww, &r_wt, &r_tt);
+  residualAtSpeed(in.m.teeth[in.pair.a], in.drive.omega_radps, g->tooth_x_m, &r_ww, &r_wt, &r_tt);
   g->residual_mpN = e2n * e2n * r_ww + 2 * e2n * jrn * r_wt + jrn * jrn * r_tt;
 }
 

@@ -47,17 +47,9 @@ struct ContactGeom {
   bool far = false;  // only a lower bound of the gap was computed (no Jacobians)
 };
 
-// A tooth's residual flexibility table at a drum speed outside the window of the one compiled
-// into its ToothModel (see residualAtSpeed in src/core/contact/narrow_phase.cc).
-struct ResidualCache {
-  double omega_radps = std::numeric_limits<double>::quiet_NaN();  // drum speed built at [rad/s]
-  StationFlexibility table;  // residualFlexibility at that speed [m/N, 1/N, 1/(N m)]
-};
-
-// The narrow phase's memory across calls (Workspace::narrow).
-struct NarrowPhaseScratch {
-  std::vector<ResidualCache> tooth_residual;  // per tooth (drum speed changed)
-};
+// The narrow phase's memory across calls (Workspace::narrow): none since the residual
+// flexibility is tabulated over the drum speed at compile time (ToothModel::residual_panels).
+struct NarrowPhaseScratch {};
 
 // Narrow phase for one pair: gap, normal, Jacobians, relative velocities, Hertz constant.
 // Requires updateStations for z first. If a cheap lower bound of the gap exceeds far_m, only

@@ -5,6 +5,7 @@
 // This file: the step as its list of stages (timeSteppingStep), the drum and the iteration
 // matrices at its start (stage 1), the clock (stage 8) and its end (stage 10). The other stages
 // live in the files of this folder; context.h lists them.
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -18,12 +19,39 @@ namespace time_stepping {
 
 namespace {
 
+// C and mu of each modal tooth for step h (TimeSteppingScratch::iteration_basis): built when h
+// changes (the first step, a recovery's smaller steps), never for a new drum speed.
+void updateIterationBasis(const Model& m, double h, Workspace* ws) {
+  TimeSteppingScratch& ts = ws->ts;
+  const size_t T = m.teeth.size();
+  if (ts.iteration_basis_h == h && ts.iteration_basis.size() == T) return;
+  const double th = m.integrator.theta;
+  ts.iteration_basis.resize(T);
+  ts.iteration_mu.resize(T);
+  ts.iteration_scaled.resize(T);
+  for (size_t k = 0; k < T; ++k) {
+    const ToothModel& tm = m.teeth[k];
+    const int n = tm.n_modes;
+    ts.iteration_scaled[k].resize(n, n);
+    if (tm.beam_model == ToothBeamModel::kLargeDeflection || n == 0) continue;
+    const VecX a = VecX::Ones(n) + (h * th) * tm.damping_coeff + (h * h * th * th) * tm.omega0_sq;
+    const VecX a_inv_sqrt = a.cwiseSqrt().cwiseInverse();
+    const MatX B = (h * h * th * th) * (tm.K_G - MatX::Identity(n, n));
+    const Eigen::SelfAdjointEigenSolver<MatX> eig(a_inv_sqrt.asDiagonal() * B *
+                                                  a_inv_sqrt.asDiagonal());
+    ts.iteration_basis[k] = a_inv_sqrt.asDiagonal() * eig.eigenvectors();
+    ts.iteration_mu[k] = eig.eigenvalues();
+  }
+  ts.iteration_basis_h = h;
+}
+
 // (I + h theta D + h^2 theta^2 K(Omega))^-1 per tooth, rebuilt only when Omega or h changes
 // (a recovery crosses an interval with smaller steps).
 void updateIterationMatrices(const Model& m, double omega, double h, Workspace* ws) {
   if (ws->ts.iteration_omega == omega && ws->ts.iteration_h == h &&
       ws->ts.iteration_inverse.size() == m.teeth.size())
     return;
+  updateIterationBasis(m, h, ws);
   const double th = m.integrator.theta;
   const size_t T = m.teeth.size();
   ws->ts.iteration_inverse.resize(T);
@@ -54,8 +82,12 @@ void updateIterationMatrices(const Model& m, double omega, double h, Workspace* 
     W.diagonal().array() += 1.0 + h * th * tm.damping_coeff.array();
     ws->ts.iteration_inverse[k].resize(n, n);
     if (n == 0) continue;
-    ws->ts.iteration_lu[k].compute(W);
-    ws->ts.iteration_inverse[k] = ws->ts.iteration_lu[k].inverse();
+    // W^-1 = C diag(1 / (1 + Omega^2 mu)) C^T: products into storage of fixed size.
+    const MatX& C = ws->ts.iteration_basis[k];
+    MatX& scaled = ws->ts.iteration_scaled[k];
+    for (int j = 0; j < n; ++j)
+      scaled.col(j) = C.col(j) / (1.0 + omega * omega * ws->ts.iteration_mu[k][j]);
+    ws->ts.iteration_inverse[k].noalias() = scaled * C.transpose();
   }
   ws->ts.iteration_omega = omega;
   ws->ts.iteration_h = h;
