@@ -15,6 +15,7 @@
 
 #include "eigen_solvers.h"
 #include "internal.h"
+#include "modal_propagator.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/simulator.h"
@@ -463,44 +464,16 @@ bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPr
   A.topRightCorner(n, n).setIdentity();
   A.bottomLeftCorner(n, n) = -S;
   A.bottomRightCorner(n, n).diagonal() = -tm.damping_coeff;
-  const MatX A_s = s.asDiagonal() * A * s.cwiseInverse().asDiagonal();
-  // Eigendecomposition A_s = V_s diag(lambda) V_s^-1 (complex conjugate pairs of damped modes).
-  const Eigen::EigenSolver<MatX> solver(A_s, true);
-  if (solver.info() != Eigen::Success) return false;
-  prop->lambda = solver.eigenvalues();
-  const Eigen::MatrixXcd V_s = solver.eigenvectors();
-  const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(V_s);
-  const Eigen::MatrixXcd V_s_inv = lu.inverse();
   prop->c.resize(n2);
-  // Usable only if the factors rebuild A_s (a defective, e.g. critically damped, A would not).
-  const Eigen::MatrixXcd rebuilt = V_s * prop->lambda.asDiagonal() * V_s_inv;
-  const double scale = A_s.cwiseAbs().maxCoeff();
-  const double residual = (rebuilt - A_s.cast<std::complex<double>>()).cwiseAbs().maxCoeff();
-  // The balancing folded in: exp(A h) = diag(1/s) V_s exp(lambda h) V_s^-1 diag(s).
-  prop->V = s.cwiseInverse().cast<std::complex<double>>().asDiagonal() * V_s;
-  prop->V_inv = V_s_inv * s.cast<std::complex<double>>().asDiagonal();
-  prop->valid = prop->V_inv.allFinite() && prop->V.allFinite() && residual <= 1e-9 * scale;
+  prop->valid = decomposeStateMatrix(A, s, &prop->lambda, &prop->V, &prop->V_inv);
   return prop->valid;
 }
 
 void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const VecX>& q0,
                     const Eigen::Ref<const VecX>& qd0, Eigen::Ref<VecX> q1, Eigen::Ref<VecX> qd1) {
   const ToothPropagator& p = *prop;
-  const int n = p.n_modes;
-  const int n2 = 2 * n;
-  Eigen::VectorXcd& c = prop->c;
-  // Modal amplitudes c = V^-1 y0, each advanced by exp(lambda h).
-  for (int i = 0; i < n2; ++i) {
-    std::complex<double> ci(0.0, 0.0);
-    for (int j = 0; j < n; ++j) ci += p.V_inv(i, j) * q0[j] + p.V_inv(i, n + j) * qd0[j];
-    c[i] = ci * std::exp(p.lambda[i] * h_s);
-  }
-  // Back to y1 = Re(V c) (the imaginary part cancels over conjugate pairs).
-  for (int r = 0; r < n2; ++r) {
-    double y = 0.0;
-    for (int i = 0; i < n2; ++i) y += (p.V(r, i) * c[i]).real();
-    (r < n ? q1[r] : qd1[r - n]) = y;
-  }
+  modalAmplitudes(p.V_inv, p.n_modes, q0, qd0, prop->c);
+  modalEvaluate(p.lambda, p.V, p.n_modes, h_s, prop->c, prop->c, q1, qd1);
 }
 
 }  // namespace internal
