@@ -50,7 +50,7 @@ struct KernelClock {
   int cell_next = -1, cell_prev = -1;  // neighbours in the cell's list (-1 = none)
   bool in_grid = false;                // listed in the grid
 
-  // Its closed form in AsyncState::pedicel_classes; -1 none, -2 not looked up yet.
+  // Its closed form in AsyncState::pedicel_classes; -1 none, -2 not looked up yet [-].
   int pedicel_class = -2;
   // At rest on its pedicel (atRest held at its prediction over the longest horizon) until
   // then: its clock jumps without another check; cleared when it leaves the calendar [s].
