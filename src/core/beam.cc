@@ -16,6 +16,7 @@
 
 #include "eigen_solvers.h"
 #include "internal.h"
+#include "modal_propagator.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/simulator.h"
@@ -481,57 +482,16 @@ bool buildToothPropagator(const Model& m, int tooth, double omega_radps, ToothPr
   A.topRightCorner(n, n).setIdentity();
   A.bottomLeftCorner(n, n) = -S;
   A.bottomRightCorner(n, n).diagonal() = -tm.damping_coeff;
-  const MatX A_s = s.asDiagonal() * A * s.cwiseInverse().asDiagonal();
-  // Eigendecomposition A_s = V_s diag(lambda) V_s^-1 (complex conjugate pairs of damped modes).
-  const Eigen::EigenSolver<MatX> solver(A_s, true);
-  if (solver.info() != Eigen::Success) return false;
-  prop->lambda = solver.eigenvalues();
-  const Eigen::MatrixXcd V_s = solver.eigenvectors();
-  const Eigen::PartialPivLU<Eigen::MatrixXcd> lu(V_s);
-  const Eigen::MatrixXcd V_s_inv = lu.inverse();
   prop->c.resize(n2);
-  // Usable only if the factors rebuild A_s (a defective, e.g. critically damped, A would not).
-  const Eigen::MatrixXcd rebuilt = V_s * prop->lambda.asDiagonal() * V_s_inv;
-  const double scale = A_s.cwiseAbs().maxCoeff();
-  const double residual = (rebuilt - A_s.cast<std::complex<double>>()).cwiseAbs().maxCoeff();
-  // The balancing folded in: exp(A h) = diag(1/s) V_s exp(lambda h) V_s^-1 diag(s).
-  prop->V = s.cwiseInverse().cast<std::complex<double>>().asDiagonal() * V_s;
-  prop->V_inv = V_s_inv * s.cast<std::complex<double>>().asDiagonal();
-  prop->valid = prop->V_inv.allFinite() && prop->V.allFinite() && residual <= 1e-9 * scale;
+  prop->valid = decomposeStateMatrix(A, s, &prop->lambda, &prop->V, &prop->V_inv);
   return prop->valid;
 }
 
 void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const VecX>& q0,
                     const Eigen::Ref<const VecX>& qd0, Eigen::Ref<VecX> q1, Eigen::Ref<VecX> qd1) {
   const ToothPropagator& p = *prop;
-  const int n = p.n_modes;
-  const int n2 = 2 * n;
-  Eigen::VectorXcd& c = prop->c;
-  // Modal amplitudes c = V^-1 y0, each advanced by exp(lambda h). Complex products written out
-  // in real arithmetic (the library's complex product checks for infinities and NaNs in a call
-  // per product); the values are those of the complex operators. A conjugate pair's second
-  // factor is the conjugate of the first (cexp is exactly symmetric), so one cexp per pair.
-  std::complex<double> growth(0.0, 0.0);
-  for (int i = 0; i < n2; ++i) {
-    double c_re = 0.0, c_im = 0.0;
-    for (int j = 0; j < n; ++j) {
-      const std::complex<double>& a = p.V_inv(i, j);
-      const std::complex<double>& b = p.V_inv(i, n + j);
-      c_re += a.real() * q0[j] + b.real() * qd0[j];
-      c_im += a.imag() * q0[j] + b.imag() * qd0[j];
-    }
-    const bool conjugate_of_previous = i > 0 && p.lambda[i] == std::conj(p.lambda[i - 1]);
-    growth = conjugate_of_previous ? std::conj(growth) : std::exp(p.lambda[i] * h_s);
-    c[i] = std::complex<double>(c_re * growth.real() - c_im * growth.imag(),
-                                c_re * growth.imag() + c_im * growth.real());
-  }
-  // Back to y1 = Re(V c) (the imaginary part cancels over conjugate pairs).
-  for (int r = 0; r < n2; ++r) {
-    double y = 0.0;
-    for (int i = 0; i < n2; ++i)
-      y += p.V(r, i).real() * c[i].real() - p.V(r, i).imag() * c[i].imag();
-    (r < n ? q1[r] : qd1[r - n]) = y;
-  }
+  modalAmplitudes(p.V_inv, p.n_modes, q0, qd0, prop->c);
+  modalEvaluate(p.lambda, p.V, p.n_modes, h_s, prop->c, prop->c, q1, qd1);
 }
 
 }  // namespace internal

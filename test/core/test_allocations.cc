@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "../../src/core/async/async.h"
+#include "sim_test_util.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/scene_loader.h"
@@ -359,6 +361,43 @@ TEST(Allocations, DrumRampSoftToothEventDriven) {
       "config/scenes/knead.yaml",
       {"integrator.type=event_driven", "drum.max_acceleration=2e4", "deflection_validity=1"});
   EXPECT_EQ(allocationsThroughRamp(m, 1200 * 2 * kPi / 60, 3e-3, 3), 0);
+}
+
+// The island scheme with idle pedicel kernels only (no island forms, so nothing builds one):
+// three near their hanging equilibrium advance by the closed form, one swinging wide by its own
+// clock; step() brings every kernel up to date each window.
+Model idlePedicelModel(IntegratorType type) {
+  Model m = testutil::bareModel(type);
+  m.integrator.islands = true;
+  m.integrator.tolerance = 1e-6;
+  for (int i = 0; i < 4; ++i) {
+    KernelModel k = testutil::makeKernel(5e-3, 1.3e-3, Vec2::Zero());
+    k.pedicel.present = true;
+    k.pedicel.p_WA_W = Vec2(0.05 * i, 0.0);
+    k.pedicel.p_KP_K = Vec2(5e-3, 0.0);
+    k.pedicel.stiffness_Npm = 1600.0;
+    k.pedicel.damping_Nspm = 0.002;
+    k.pedicel.rest_length_m = 3e-3;
+    k.inertia_kgm2 = k.mass_kg * (5e-3 * 5e-3 + 1.3e-3 * 1.3e-3) / 4.0;
+    const internal::PedicelPropagator p = internal::buildPedicelPropagator(k, m.gravity_mps2);
+    k.initial_position_m = k.pedicel.p_WA_W + p.p_AC_W + Vec2(i == 3 ? 3e-3 : 0.0, -1e-7 * i);
+    k.initial_angle_rad = p.psi_eq_rad;
+    m.kernels.push_back(k);
+  }
+  compileModel(&m);
+  return m;
+}
+
+TEST(Allocations, IdlePedicelKernelsIslandScheme) {
+  for (IntegratorType type : {IntegratorType::kEventDriven, IntegratorType::kTimeStepping}) {
+    const Model m = idlePedicelModel(type);
+    EXPECT_EQ(allocationsAfterWarmUp(m, 5, 50, 0), 0);
+    Data d;
+    resetData(m, &d);
+    for (int i = 0; i < 20; ++i) ASSERT_NE(step(m, &d), StepStatus::kFailed);
+    EXPECT_GT(d.ws->async->pedicel_closed_forms, 0);  // the closed form was exercised
+    EXPECT_GT(d.stats.scheduler.pedicel_steps, 0);    // and so was the numerical clock
+  }
 }
 
 }  // namespace

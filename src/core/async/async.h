@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "../internal.h"
+#include "pedicel_propagator.h"
 
 namespace threshing_sim {
 namespace internal {
@@ -29,7 +30,8 @@ namespace internal {
 // How a kernel moves while it touches nothing.
 enum class KernelMotion : std::uint8_t {
   kFree = 0,     // no pedicel (or broken): parabola under gravity, constant spin, closed form
-  kPedicel = 1,  // on its pedicel: its own adaptive Dormand-Prince clock over its 3 dofs
+  kPedicel = 1,  // on its pedicel: the closed form about its hanging equilibrium where that is
+                 // within tolerance, else its own adaptive Dormand-Prince clock over its 3 dofs
   kIsland = 2,   // member of an island: integrated with the island's bodies
 };
 
@@ -51,6 +53,12 @@ struct KernelClock {
   // cos psi and sin psi, which change only when the kernel's angle does.
   mutable double axis_psi_rad = std::numeric_limits<double>::quiet_NaN();  // [rad]
   mutable Vec2 axis_W = Vec2::UnitX();  // (cos, sin) of axis_psi_rad, world [-]
+
+  // Its closed form in AsyncState::pedicel_classes; -1 none, -2 not looked up yet [-].
+  int pedicel_class = -2;
+  // At rest on its pedicel (atRest held at its prediction over the longest horizon) until
+  // then: its clock jumps without another check; cleared when it leaves the calendar [s].
+  double rest_until_s = -std::numeric_limits<double>::infinity();
 };
 
 // An ellipse with its a-axis as a unit vector: the bounds below need no trigonometry.
@@ -118,19 +126,32 @@ struct AsyncState {
   std::vector<int> split_teeth, split_kernels;   // the dissolved island's bodies (global)
   std::vector<ContactEvent> window_events;       // events of this window, before time ordering
   SchedulerStats counters;                       // work by kind (copied to RunStats::scheduler)
+
+  // Closed forms of idle pedicel kernels, per class, built on first need and kept across resets
+  // (a class is its parameters: a new model finds its own).
+  std::vector<PedicelPropagator> pedicel_classes;
+  // Closed-form advances of pedicel kernels since the scheduler was created [-].
+  long pedicel_closed_forms = 0;
 };
 
 constexpr std::int64_t kEmptyCell = std::numeric_limits<std::int64_t>::min();
 
 // --- body_motion.cc: closed-form and own-clock motion of lone bodies -----------------------
-// Brings lazy kernel i to time t_s (free: closed form; pedicel: its own integrator, which may
-// break the pedicel and then continue in free flight). Returns false on a numerical failure.
+// Brings lazy kernel i to time t_s (free: closed form; pedicel: the closed form about its
+// hanging equilibrium within its validity, else its own integrator, which may break the pedicel
+// and then continue in free flight). Returns false on a numerical failure.
 bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_s);
 // Whether lazy kernel i, on its pedicel, is at rest over horizon_s (it moves by less than the
 // error scale; see atRest in body_motion.cc).
 bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s);
 // Bound on the speed of any point of lazy kernel i over the next horizon_s [m/s].
 double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i, double horizon_s);
+// Where lazy kernel i (on its pedicel, closed form valid from its state over horizon_s)
+// stays until something reaches it: its ellipse now, grown by *growth_m [m], contains it at all
+// later times. Returns false when the closed form does not hold. The kernel's class is built on
+// its first need (allocates then).
+bool pedicelEnvelope(const Model& m, const Data& d, AsyncState* as, int i, double horizon_s,
+                     double* growth_m);
 // Free tooth k over h_s at the data's (constant) drum speed: exact (as->prop[k] must be built).
 void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s);
 // Bound on |w| at the stations of tooth k while it moves freely at the data's drum speed [m].

@@ -1,8 +1,11 @@
 // Asynchronous core, stage "body motion": lone bodies between events, each on its own clock.
 //   - a free kernel (no pedicel, or a broken one) flies a parabola with constant spin: exact;
-//   - a kernel on its pedicel touching nothing: its own adaptive Dormand-Prince 5(4) over its
-//     3 dofs (6 states, fixed-size, no allocation), with the error norm and tolerance of the
-//     global integrator, breaking the pedicel at a step end as the global integrator does;
+//   - a kernel on its pedicel touching nothing: the exact propagator of its dynamics linearised
+//     about its hanging equilibrium (pedicel_propagator.h) while the amplitude keeps the
+//     linearisation error within the tolerance and the stem force below the detachment force;
+//     beyond that its own adaptive Dormand-Prince 5(4) over its 3 dofs (6 states, fixed-size,
+//     no allocation), with the error norm and tolerance of the global integrator, breaking the
+//     pedicel at a step end as the global integrator does;
 //   - a free tooth at constant drum speed: the exact solution of its linear modal equations.
 #include <Eigen/Cholesky>
 
@@ -12,40 +15,16 @@ namespace threshing_sim {
 namespace internal {
 namespace {
 
-using Vec6 = Eigen::Matrix<double, 6, 1>;  // [c_x, c_y, psi, v_x, v_y, omega] [m, rad, m/s, rad/s]
-
 inline Vec2 rotated(double angle_rad, const Vec2& v) {
   const double c = std::cos(angle_rad), s = std::sin(angle_rad);
   return Vec2(c * v.x() - s * v.y(), s * v.x() + c * v.y());
 }
 
-// Pedicel force on the kernel at state y [N] and its moment about the centre [N m]
-// (the law of pedicelForce in contact/smooth_forces.cc).
-Vec2 pedicelForceOf(const KernelModel& k, const Vec6& y, double* moment_Nm) {
-  const Vec2 r = rotated(y[2], k.pedicel.p_KP_K);
-  const Vec2 v = y.segment<2>(3) + y[5] * Vec2(-r.y(), r.x());
-  const Vec2 d = y.head<2>() + r - k.pedicel.p_WA_W;
-  const double len = d.norm();
-  if (len <= 0.0) {
-    *moment_Nm = 0.0;
-    return Vec2::Zero();
-  }
-  const Vec2 dir = d / len;
-  const double tension = k.pedicel.stiffness_Npm * (len - k.pedicel.rest_length_m) +
-                         k.pedicel.damping_Nspm * dir.dot(v);
-  const Vec2 F = -tension * dir;
-  *moment_Nm = r.x() * F.y() - r.y() * F.x();
-  return F;
-}
+using Vec6 = PedicelVec;
 
-Vec6 pedicelRhs(const KernelModel& k, const Vec2& g, const Vec6& y) {
-  double moment = 0.0;
-  const Vec2 F = pedicelForceOf(k, y, &moment);
-  Vec6 f;
-  f.head<3>() = y.tail<3>();
-  f.segment<2>(3) = g + F / k.mass_kg;
-  f[5] = moment / k.inertia_kgm2;
-  return f;
+// The kernel's rates on its pedicel (pedicel_propagator.cc, the law of pedicelForce).
+inline Vec6 pedicelRhs(const KernelModel& k, const Vec2& g, const Vec6& y) {
+  return pedicelRates(k, g, y);
 }
 
 // One Dormand-Prince step of length h; returns the scaled RMS error (the global norm).
@@ -104,6 +83,66 @@ bool atRest(const KernelModel& k, const Vec2& g, double tol, const Vec6& y, doub
   return v * dt_s + 0.5 * acc * dt_s * dt_s <= tol * 1e-2 && acc * dt_s <= tol;
 }
 
+// A state farther from the hanging equilibrium than this (centre offset over the stem's reach,
+// speed over sqrt(k/m) times that reach) is far outside any closed form's validity: it is not
+// even looked at (its class is not built) [-].
+constexpr double kNearHanging = 0.1;
+
+// The closed form of kernel i's class if its state y is near its hanging equilibrium (the
+// class is found, or built, on first need: only kernels that come near it pay for one).
+const PedicelPropagator* closedFormOf(const Model& m, AsyncState* as, int i, const Vec6& y) {
+  int& cls = as->kernels[i].pedicel_class;
+  if (cls == -1) return nullptr;
+  const KernelModel& k = m.kernels[i];
+  const PedicelModel& p = k.pedicel;
+  const double g = m.gravity_mps2.norm(), p_m = p.p_KP_K.norm();
+  if (!(g > 0.0) || !(p_m > 0.0)) {
+    cls = -1;  // no unique hanging equilibrium
+    return nullptr;
+  }
+  const double reach_m = p.rest_length_m + k.mass_kg * g / p.stiffness_Npm + p_m;
+  const Vec2 c_hang = p.p_WA_W + (reach_m / g) * m.gravity_mps2;
+  const double rate_ps = std::sqrt(p.stiffness_Npm / k.mass_kg);
+  if ((y.head<2>() - c_hang).norm() > kNearHanging * reach_m ||
+      y.segment<2>(3).norm() > kNearHanging * rate_ps * reach_m)
+    return nullptr;
+  if (cls < 0) {
+    // Classes are few (kernels of a scene share their parameters): a linear search.
+    for (size_t c = 0; c < as->pedicel_classes.size() && cls < 0; ++c)
+      if (samePedicelClass(as->pedicel_classes[c], k, m.gravity_mps2)) cls = static_cast<int>(c);
+    if (cls < 0) {
+      as->pedicel_classes.push_back(buildPedicelPropagator(k, m.gravity_mps2));
+      cls = static_cast<int>(as->pedicel_classes.size()) - 1;
+    }
+  }
+  const PedicelPropagator& prop = as->pedicel_classes[cls];
+  return prop.valid ? &prop : nullptr;
+}
+
+// Advances of at most this many closed-form spans per call; then the numerical clock takes over.
+constexpr int kMaxClosedFormSpans = 64;
+
+// The closed form from kc->t_s towards t_s, span by span while each stays within tolerance and
+// is no shorter than a quarter of the shortest modal period (below that, the numerical clock's
+// steps cost less). Leaves y and kc->t_s where it stopped; returns whether it reached t_s.
+bool pedicelClosedForm(const Model& m, AsyncState* as, int i, double t_s, Vec6* y) {
+  KernelClock& kc = as->kernels[i];
+  const PedicelPropagator* cls = closedFormOf(m, as, i, *y);
+  if (cls == nullptr) return false;
+  const PedicelPropagator& p = *cls;
+  for (int n = 0; n < kMaxClosedFormSpans && kc.t_s < t_s; ++n) {
+    const PedicelAmplitude a = pedicelAmplitude(p, m.kernels[i], *y);
+    const double span = pedicelClosedFormSpan(p, a, m.integrator.tolerance);
+    const double left = t_s - kc.t_s;
+    if (span < left && !(span >= 0.25 * p.min_period_s)) return false;
+    const double h = std::min(span, left);
+    *y = propagatePedicel(p, a, h);
+    kc.t_s = h == left ? t_s : kc.t_s + h;
+    ++as->pedicel_closed_forms;
+  }
+  return kc.t_s >= t_s;
+}
+
 // The pedicel kernel's own clock from kc->t_s to t_s. Returns false on a numerical failure or
 // the step bound; sets *broke_at_s when the pedicel broke (the kernel is then at that time).
 bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, double* broke_at_s) {
@@ -112,10 +151,14 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
   const double tol = m.integrator.tolerance;
   double h = kc.h_s > 0 ? kc.h_s : std::min(m.integrator.max_step_s, 1e-6);
   Vec6 y = kernelState(*d, k), y1;
-  if (atRest(k, m.gravity_mps2, tol, y, t_s - kc.t_s)) {
+  if (t_s <= kc.rest_until_s || atRest(k, m.gravity_mps2, tol, y, t_s - kc.t_s)) {
     ++as->counters.sleeps;
     kc.t_s = t_s;
     return true;
+  }
+  if (pedicelClosedForm(m, as, i, t_s, &y)) {
+    setKernelState(d, k, y);
+    return y.allFinite();
   }
   for (long n = 0; kc.t_s < t_s; ++n) {
     if (n > 10000000) return false;  // the work bound: no lone kernel takes 1e7 steps
@@ -133,7 +176,7 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
     if (h_try == h || h_try < h)
       h = std::max(h, h_try * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2)));
     double moment = 0.0;
-    if (pedicelForceOf(k, y, &moment).norm() > k.pedicel.detachment_force_N) {
+    if (pedicelStemForce(k, y, &moment).norm() > k.pedicel.detachment_force_N) {
       *broke_at_s = kc.t_s;
       break;
     }
@@ -162,6 +205,25 @@ bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_
   ++as->counters.free_advances;
   freeFlight(m, d, k, t_s - kc.t_s);
   kc.t_s = t_s;
+  return true;
+}
+
+bool pedicelEnvelope(const Model& m, const Data& d, AsyncState* as, int i, double horizon_s,
+                     double* growth_m) {
+  const KernelModel& k = m.kernels[i];
+  const Vec6 y = kernelState(d, k);
+  const PedicelPropagator* cls = closedFormOf(m, as, i, y);
+  if (cls == nullptr) return false;
+  const PedicelPropagator& p = *cls;
+  const PedicelAmplitude a = pedicelAmplitude(p, k, y);
+  if (!(pedicelClosedFormSpan(p, a, m.integrator.tolerance) >= horizon_s)) return false;
+  // The centre stays within E_xy of the equilibrium, the angle within E_psi of its own: each
+  // point moves at most |c - c_eq| + E_xy + a (|psi - psi_eq| + E_psi) from where it is now, plus
+  // the closed form's error (within the tolerance's position scale).
+  const double a_m = k.semi_axis_a_m;
+  *growth_m = (y.head<2>() - a.p_WC_eq_W).norm() + a.envelope.head<2>().norm() +
+              a_m * (std::abs(y[2] - a.psi_branch_rad) + a.envelope[2]) +
+              m.integrator.tolerance * 1e-2;
   return true;
 }
 

@@ -151,6 +151,7 @@ void heapPush(AsyncState* as, int i) {
 }
 
 void heapRemove(AsyncState* as, int i) {
+  as->kernels[i].rest_until_s = -std::numeric_limits<double>::infinity();
   const int pos = as->kernels[i].heap_pos;
   if (pos < 0) return;
   const int last = static_cast<int>(as->heap.size()) - 1;
@@ -225,30 +226,20 @@ double horizonFor(const Model& m, const Data& d, const AsyncState& as, int i, do
 }
 }  // namespace
 
-bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
-                   double t_window_end_s, double grow_cap_m) {
-  KernelClock& kc = as->kernels[i];
+namespace {
+// Shortens *horizon_s so that kernel i's ellipse e, grown by v_mps times the horizon, leaves
+// every other lazy kernel its share of the gap and every obstacle a margin. A neighbour or
+// obstacle that does not leave room even for min_horizon_s is a join when add_joins (else
+// nothing is added). Returns whether every one left that room.
+bool fitHorizon(const Model& m, const Data& d, AsyncState* as, int i, const OrientedEllipse& e,
+                double v_mps, double min_horizon_s, bool add_joins, double* horizon_s) {
   const KernelModel& k = m.kernels[i];
   const int T = static_cast<int>(m.teeth.size());
   const double margin = m.broadphase_margin_m;
-  ++as->counters.predictions;
-  // Horizon: the circle may grow by at most the cap (and never past the grid's radius).
-  const double cap = std::min(grow_cap_m, as->r_cap_m - k.semi_axis_a_m);
-  // A kernel at rest on its pedicel over the longest horizon moves by less than the error scale
-  // until something reaches it: it sleeps, with a circle grown by that scale only.
-  double v = 0.0, horizon = as->max_horizon_s;
-  if (kc.motion == KernelMotion::kPedicel && lazyAtRest(m, d, i, horizon)) {
-    v = m.integrator.tolerance * 1e-2 / horizon;
-    ++as->counters.asleep;
-  } else {
-    horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
-  }
-  const double min_horizon = t_window_end_s - t_s;
-  const OrientedEllipse e = orientedKernel(m, d.z, *as, i);
+  bool fits = true;
   // Other lazy kernels: the grown ellipses must stay a margin apart.
-  const double reach = k.semi_axis_a_m + v * horizon + margin;
+  const double reach = k.semi_axis_a_m + v_mps * *horizon_s + margin;
   gridQuery(as, e.center_W - Vec2(reach, reach), e.center_W + Vec2(reach, reach));
-  bool joined = false;
   for (int j : as->found) {
     if (j == i) continue;
     const KernelClock& kj = as->kernels[j];
@@ -258,23 +249,67 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
     const double free_m = ellipseGapBound(e, orientedKernel(m, d.z, *as, j)) - margin;
     const double grown_j = kj.bound_r_m - m.kernels[j].semi_axis_a_m;
     const double room = std::min(free_m - grown_j, 0.5 * free_m);
-    if (room >= v * min_horizon) {
-      horizon = std::min(horizon, room / v);
+    if (room >= v_mps * min_horizon_s) {
+      *horizon_s = std::min(*horizon_s, room / v_mps);
     } else {
-      as->joins.emplace_back(T + i, T + j);
-      joined = true;
+      if (add_joins) as->joins.emplace_back(T + i, T + j);
+      fits = false;
     }
   }
   // Obstacles: the grown bounding circle must stay a margin away.
   for (const ObstacleModel& o : m.obstacles) {
     const double room = obstacleClearance(o, e.center_W) - k.semi_axis_a_m - margin;
-    if (room >= v * min_horizon) {
-      horizon = std::min(horizon, room / v);
+    if (room >= v_mps * min_horizon_s) {
+      *horizon_s = std::min(*horizon_s, room / v_mps);
     } else {
-      as->joins.emplace_back(T + i, T + i);
-      joined = true;
+      if (add_joins) as->joins.emplace_back(T + i, T + i);
+      fits = false;
     }
   }
+  return fits;
+}
+
+// A kernel on its pedicel whose closed form holds over the longest horizon stays inside its
+// ellipse grown by the oscillation's envelope (pedicelEnvelope), however long: if that growth
+// fits within the cap, its neighbours' shares and the obstacles' margins, it keeps the longest
+// horizon (its speed is then the growth over that horizon). Returns whether it does.
+bool envelopeFits(const Model& m, const Data& d, AsyncState* as, int i, const OrientedEllipse& e,
+                  double cap_m, double* v_mps) {
+  double growth_m = 0.0;
+  const double horizon = as->max_horizon_s;
+  if (!pedicelEnvelope(m, d, as, i, horizon, &growth_m) || !(growth_m <= cap_m)) return false;
+  const double v = std::max(growth_m / horizon, 1e-300);
+  double h = horizon;
+  if (!fitHorizon(m, d, as, i, e, v, horizon, false, &h)) return false;
+  *v_mps = v;
+  return true;
+}
+}  // namespace
+
+bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double t_s,
+                   double t_window_end_s, double grow_cap_m) {
+  KernelClock& kc = as->kernels[i];
+  const KernelModel& k = m.kernels[i];
+  const int T = static_cast<int>(m.teeth.size());
+  ++as->counters.predictions;
+  // Horizon: the circle may grow by at most the cap (and never past the grid's radius).
+  const double cap = std::min(grow_cap_m, as->r_cap_m - k.semi_axis_a_m);
+  const OrientedEllipse e = orientedKernel(m, d.z, *as, i);
+  // A kernel at rest on its pedicel over the longest horizon moves by less than the error scale
+  // until something reaches it: it sleeps, with a circle grown by that scale only. One swinging
+  // within its closed form's validity keeps the envelope of its oscillation.
+  double v = 0.0, horizon = as->max_horizon_s;
+  const bool pedicel = kc.motion == KernelMotion::kPedicel;
+  kc.rest_until_s = -std::numeric_limits<double>::infinity();
+  if (pedicel && lazyAtRest(m, d, i, horizon)) {
+    v = m.integrator.tolerance * 1e-2 / horizon;
+    ++as->counters.asleep;
+    kc.rest_until_s = kc.t_s + horizon;
+  } else if (!(pedicel && envelopeFits(m, d, as, i, e, cap, &v))) {
+    horizon = horizonFor(m, d, *as, i, cap, as->max_horizon_s, &v);
+  }
+  const double min_horizon = t_window_end_s - t_s;
+  bool joined = !fitHorizon(m, d, as, i, e, v, min_horizon, true, &horizon);
   kc.bound_c_W = e.center_W;
   kc.bound_r_m = k.semi_axis_a_m + v * horizon;
   kc.wake_s = t_s + horizon;
