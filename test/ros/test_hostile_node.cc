@@ -165,7 +165,7 @@ TEST(HostileNode, NumericalFailureIsAnErrorWithItsCauseAndTheNodeStillAnswers) {
     EXPECT_EQ(errorsOf("failing_node").count("integrator failed "), 1u);
     EXPECT_EQ(diag("failing_node", "paused"), "True");
     // The time of the state kept (inside the failed step), not the end of the failed step.
-    EXPECT_LT(std::stod(diag("failing_node", "simulation time [s]")), 1e-3);
+    EXPECT_LT(std::stod(diag("failing_node", "simulation time [s]")), 1e-4);
   }
   // ~reset is answered and runs the node again (issue 24: it answered "bodies reset" and
   // stayed paused): /diagnostics shows it running, and its simulation time passes the
@@ -190,7 +190,7 @@ TEST(HostileNode, NumericalFailureIsAnErrorWithItsCauseAndTheNodeStillAnswers) {
         return diag("failing_node", "paused") == "True" &&
                std::stod(diag("failing_node", "simulation time [s]")) > failed_at_s;
       },
-      30.0))
+      90.0))
       << "simulation time " << diag("failing_node", "simulation time [s]") << " s, failed at "
       << failed_at_s << " s";
   // Paused by the user, a reset after a failure stays paused.
