@@ -678,10 +678,10 @@ void ThreshingSimNode::publishClock(const ros::Time& t) {
 void ThreshingSimNode::printStatus(bool final_line) {
   char line[256];
   std::snprintf(line, sizeof(line),
-                "t = %.6f s | real-time factor %.3g (target %g) | impacts %ld | peak force "
-                "%.1f N%s",
-                step_ * dt_s_, measured_rtf_.load(), target_rtf_.load(), impacts_.load(),
-                peak_force_N_.load(),
+                "t = %.6f s | real-time factor %.3g (requested %g, pace %g) | impacts %ld | "
+                "peak force %.1f N%s",
+                step_ * dt_s_, measured_rtf_.load(), slow_rtf_.load(), target_rtf_.load(),
+                impacts_.load(), peak_force_N_.load(),
                 finished_ ? " | finished"
                 : paused_ ? " | paused"
                           : "");
@@ -733,6 +733,7 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("step rate [Hz]", step_rate_hz_.load());
   stat.add("measured real-time factor", rtf);
   stat.add("target real-time factor", target);
+  stat.add("requested real-time factor", slow_rtf_.load());
   stat.add("overruns", overruns_.load());
   stat.add("re-synchronisations", resyncs_.load());
   stat.add("longest physics step since the last drum command [CPU s]", longest_step_s_.load());
