@@ -102,13 +102,15 @@ void ThreshingSimNode::stop() {
   // Final summary on stdout.
   if (status_on_tty_ && params_.status_period_s > 0) std::printf("\n");
   const double wall_s = run_wall_s_;
-  const double sim_s = step_ * dt_s_;
+  // After a failure the state is the last good one, inside the failed physics step.
+  const double sim_s = failed_ ? failure_t_s_ : step_ * dt_s_;
   std::printf(
       "threshing_sim_node: simulated %.6f s in %.2f s of wall time (real-time factor %.3g "
       "overall), %ld impacts, peak normal force %.1f N, %ld overruns, %ld rejected commands, "
-      "%ld numerical recoveries\n",
+      "%ld numerical recoveries%s\n",
       sim_s, wall_s, wall_s > 0 ? sim_s / wall_s : 0.0, impacts_.load(), peak_force_N_.load(),
-      overruns_.load(), rejected_commands_.load(), recoveries_.load());
+      overruns_.load(), rejected_commands_.load(), recoveries_.load(),
+      failed_ ? "; the integrator failed" : "");
   std::fflush(stdout);
 }
 
