@@ -8,8 +8,10 @@
 namespace threshing_sim {
 
 double StrikeRecord::peakNormalForce() const {
-  return normal_force_N.empty() ? 0.0
-                                : *std::max_element(normal_force_N.begin(), normal_force_N.end());
+  const double sampled_N = normal_force_N.empty()
+                               ? 0.0
+                               : *std::max_element(normal_force_N.begin(), normal_force_N.end());
+  return std::max(sampled_N, core_peak_normal_force_N);
 }
 
 double StrikeRecord::peakTime() const {
@@ -67,7 +69,14 @@ void StrikeRecorder::sample(const Data& data) {
       ++it;
       continue;
     }
-    finished_.push_back(std::move(it->second.record));
+    StrikeRecord& r = it->second.record;
+    if (r.t_s.size() > 1) r.sample_interval_s = (r.t_s.back() - r.t_s.front()) / (r.t_s.size() - 1);
+    // The core's peak of the episode, from its impact event (compliant: the whole episode).
+    for (const ContactEvent& e : data.events)
+      if (e.is_impact && e.pair.kind == PairKind::kToothKernel && e.pair.a == r.tooth &&
+          e.pair.b == r.kernel && !r.t_s.empty() && e.t_s >= r.t_s.front())
+        r.core_peak_normal_force_N = std::max(r.core_peak_normal_force_N, e.peak_normal_force_N);
+    finished_.push_back(std::move(r));
     it = open_.erase(it);
   }
 }

@@ -36,14 +36,15 @@ constexpr double kMaxSkip_s = 2.0;
 
 void ThreshingSimNode::startLiveView(ros::NodeHandle& nh, ros::NodeHandle& pnh) {
   const bool stepping = model_->integrator.type == IntegratorType::kTimeStepping;
-  // Event-driven: sub-steps of ~strike_sample_dt near a strike; time stepping: the integrator
-  // step is the finest evaluation point there is.
-  if (!stepping && params_.strike_sample_dt_s > 0)
-    strike_substeps_ = std::max(1L, std::lround(dt_s_ / params_.strike_sample_dt_s));
-  strikes_ = StrikeRecorder(stepping ? model_->integrator.dt_s : dt_s_ / strike_substeps_);
+  // Event-driven (global scheme): every accepted step near a strike is a sample; time stepping:
+  // the integrator step is the finest evaluation point there is; the island scheme: the
+  // physics step. The integrator's steps are never cut for a sample.
+  step_sampler_ = std::make_unique<StepSampler>(*model_, params_.strike_sample_dt_s > 0,
+                                                kStrikeHorizonSteps * dt_s_);
+  strikes_ = StrikeRecorder(stepping ? model_->integrator.dt_s : dt_s_);
   slow_rtf_ = params_.real_time_factor;
   free_flight_rtf_ = params_.free_flight_factor;
-  target_rtf_ = slow_rtf_;
+  target_rtf_ = slow_rtf_.load();
   resetData(*model_, &overlap_scratch_);
   scene_text_ = sceneTextFromParams(pnh, params_, &damage_);
   marker_builder_.setView(sceneExtent(*model_), damage_);
@@ -135,25 +136,14 @@ bool ThreshingSimNode::pausedRepublishDue() {
 }
 
 StepStatus ThreshingSimNode::advanceSampled(long k) {
-  const double t_end_s = k * dt_s_;
-  StepStatus worst = StepStatus::kOk;
-  if (strike_substeps_ > 1 && StrikeRecorder::strikeNear(data_, kStrikeHorizonSteps * dt_s_)) {
-    const double h_s = dt_s_ / strike_substeps_;
-    for (int j = 1; j < strike_substeps_; ++j) {
-      const StepStatus s = advanceToLazy(*model_, &data_, (k - 1) * dt_s_ + j * h_s);
-      worst = std::max(worst, s);
-      if (s == StepStatus::kFailed) return s;
-      strikes_.sample(data_);
-      kernel_impulses_.update(*model_, data_);
-    }
-  }
-  // Lone kernels stay on their own clocks until a snapshot reads them (takeSnapshot).
-  worst = std::max(worst, advanceToLazy(*model_, &data_, t_end_s));
-  strikes_.sample(data_);
-  kernel_impulses_.update(*model_, data_);
+  const StepStatus status =
+      step_sampler_->advance(*model_, &data_, k * dt_s_, [this](const Data& d) {
+        strikes_.sample(d);
+        kernel_impulses_.update(*model_, d);
+      });
   for (StrikeRecord& r : strikes_.finished()) pending_strikes_.push_back(std::move(r));
   strikes_.finished().clear();
-  return worst;
+  return status;
 }
 
 bool ThreshingSimNode::loopDue() {
@@ -233,7 +223,7 @@ void ThreshingSimNode::adjustPace() {
   } else {
     skip_from_s_ = data_.t_s;
     skip_saw_free_ = false;
-    if (free_flight_rtf_ > 0 && !near) rtf = free_flight_rtf_;
+    if (!near) rtf = freeFlightPace(slow_rtf_, free_flight_rtf_);
   }
   if (rtf == pacer_.realTimeFactor()) return;
   pacer_.setRealTimeFactor(rtf);
@@ -253,6 +243,7 @@ void ThreshingSimNode::fillLiveView(Snapshot* s) {
   s->alpha_radps2 = data_.alpha_radps2;
   s->loops = loops_;
   s->target_rtf = target_rtf_;
+  s->requested_rtf = slow_rtf_;
   s->measured_rtf = measured_rtf_;
   s->kernel_forces = kernel_impulses_.forces(*model_, data_);
   if (s->streams & kStateStream) s->strike_focus_W = strikeFocus(*model_, data_);

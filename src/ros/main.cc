@@ -9,13 +9,15 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "threshing_sim_node");
   // The handles outlive the node: the last one to go shuts ROS (and its logging) down.
   ros::NodeHandle nh, pnh("~");
+  int status = 0;
   try {
     threshing_sim::ThreshingSimNode node(nh, pnh);
     ros::spin();
     node.stop();
+    status = node.exitStatus();  // 1 after an integrator failure
   } catch (const std::invalid_argument& e) {
     ROS_FATAL("threshing_sim_node refuses to start: %s", e.what());
-    return 1;
+    status = 1;
   }
-  return 0;
+  return status;
 }

@@ -487,9 +487,9 @@ void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArra
   char line[400];
   std::snprintf(line, sizeof(line),
                 "t = %.6f s   drum %.2f rad/s = %.0f rpm (target %.2f)\n"
-                "real-time factor %.3g (target %.3g)   last strike peak %s",
+                "real-time factor %.3g (requested %.3g, pace now %.3g)   last strike peak %s",
                 s.t_s, s.omega_radps, s.omega_radps * 30 / kPi, s.omega_target_radps,
-                s.measured_rtf, s.target_rtf, peak);
+                s.measured_rtf, s.requested_rtf, s.target_rtf, peak);
   const double h_m = extent_.size().y();
   out->markers.push_back(text(s, "overlay", 0,
                               Vec2(extent_.center().x(), extent_.max_m.y() + 0.02 * h_m),
@@ -524,7 +524,7 @@ void MarkerBuilder::addStrikeChart(const Snapshot& s, visualization_msgs::Marker
   std::snprintf(label, sizeof(label),
                 "last strike: tooth %d, kernel %d, t = %.6f s\n"
                 "normal (orange) peak %.1f N, tangential (cyan)\n"
-                "%.1f us, %zu samples of %.2g us",
+                "%.1f us, %zu samples %.2g us apart on average",
                 r.tooth, r.kernel, t0, r.peakNormalForce(), span_s * 1e6, r.t_s.size(),
                 r.sample_interval_s * 1e6);
   const double h_m = extent_.size().y();

@@ -10,6 +10,11 @@
 
 namespace threshing_sim {
 
+double freeFlightPace(double requested_rtf, double free_flight_rtf) {
+  if (requested_rtf == 0 || free_flight_rtf <= 0) return requested_rtf;
+  return std::max(requested_rtf, free_flight_rtf);
+}
+
 double MonotonicClock::nowSeconds() const {
   using Seconds = std::chrono::duration<double>;
   return std::chrono::duration_cast<Seconds>(std::chrono::steady_clock::now().time_since_epoch())

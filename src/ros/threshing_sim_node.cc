@@ -13,6 +13,7 @@
 #include "threshing_sim/core/overlap.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/ros/command_bag.h"
+#include "threshing_sim/ros/launch_end.h"
 #include "threshing_sim/ros/reconfigure_check.h"
 
 namespace threshing_sim {
@@ -27,6 +28,8 @@ constexpr double kStaticMarkerPeriod_s = 1.0;
 // After the last message of a bounded run the node waits this long before shutting down, so
 // that recorders receive everything [s].
 constexpr double kLinger_s = 1.0;
+// How long a finished node waits for the roslaunch it asked to shut down [s].
+constexpr double kLaunchShutdownWait_s = 10.0;
 // How long a service waits for the physics thread [s].
 constexpr double kServiceTimeout_s = 30.0;
 // A measured real-time factor below this fraction of the target is a warning [-].
@@ -67,6 +70,7 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   resetData(*model_, &data_);
   setRates(params_.contact_state_rate_hz, params_.state_rate_hz, params_.marker_rate_hz);
   paused_ = params_.start_paused;
+  user_paused_ = params_.start_paused;
   status_on_tty_ = isatty(STDOUT_FILENO) != 0;
 
   advertise(nh, pnh);
@@ -98,13 +102,15 @@ void ThreshingSimNode::stop() {
   // Final summary on stdout.
   if (status_on_tty_ && params_.status_period_s > 0) std::printf("\n");
   const double wall_s = run_wall_s_;
-  const double sim_s = step_ * dt_s_;
+  // After a failure the state is the last good one, inside the failed physics step.
+  const double sim_s = failed_ ? failure_t_s_ : step_ * dt_s_;
   std::printf(
       "threshing_sim_node: simulated %.6f s in %.2f s of wall time (real-time factor %.3g "
       "overall), %ld impacts, peak normal force %.1f N, %ld overruns, %ld rejected commands, "
-      "%ld numerical recoveries\n",
+      "%ld numerical recoveries%s\n",
       sim_s, wall_s, wall_s > 0 ? sim_s / wall_s : 0.0, impacts_.load(), peak_force_N_.load(),
-      overruns_.load(), rejected_commands_.load(), recoveries_.load());
+      overruns_.load(), rejected_commands_.load(), recoveries_.load(),
+      failed_ ? "; the integrator failed" : "");
   std::fflush(stdout);
 }
 
@@ -186,6 +192,7 @@ bool ThreshingSimNode::onPause(std_srvs::SetBool::Request& req, std_srvs::SetBoo
   {
     std::lock_guard<std::mutex> lock(staged_mutex_);
     paused_ = req.data;
+    user_paused_ = req.data;
   }
   staged_cv_.notify_all();
   res.success = true;
@@ -333,9 +340,18 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
       failure_t_s_ = data_.t_s;
     }
     failed_ = true;
-    paused_ = true;
-    ROS_ERROR("the integrator failed: %s; state kept at the last good step; paused: call ~reset",
-              text.c_str());
+    if (end_step_ > 0) {
+      // A bounded run (~end_time) ends here, with exit status 1, instead of waiting paused.
+      ROS_ERROR("the integrator failed: %s; state kept at the last good step; the run ends",
+                text.c_str());
+      finished_ = true;
+    } else {
+      paused_ = true;
+      ROS_ERROR(
+          "the integrator failed: %s; state kept at the last good step; paused: ~reset "
+          "continues from the scene's initial bodies",
+          text.c_str());
+    }
   }
   // Completed impacts go out with the next snapshot.
   for (const ContactEvent& e : data_.events)
@@ -343,8 +359,9 @@ void ThreshingSimNode::advanceOneStep(unsigned forced_streams) {
   data_.events.clear();
   trackPeaks();
 
-  // The last step of a bounded run and a periodic reset publish everything.
-  const bool last = end_step_ > 0 && k >= end_step_;
+  // The last step of a bounded run (or the failed one that ends it) and a periodic reset
+  // publish everything.
+  const bool last = (end_step_ > 0 && k >= end_step_) || finished_;
   unsigned streams = dueStreams() | forced_streams | (last ? kAllStreams : 0u);
   if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_wanted_) requestReset(0);
   if (loopDue() && resetIfClear(false, "demo loop re-seed")) streams = kAllStreams;
@@ -393,11 +410,14 @@ void ThreshingSimNode::tryPendingReset() {
   const Overlap overlap = findInitialOverlap(*model_, data_.theta_rad);
   const std::string at = " at t = " + std::to_string(step_ * dt_s_) + " s";
   if (!overlap.found) {
+    // A reset after a failure runs again, unless the user paused the run.
+    const bool resume = failed_ && paused_ && !user_paused_;
     resetBodies();
     strikes_.clear();
     kernel_impulses_.clear();
     takeSnapshot(kAllStreams);
-    finishReset(true, "bodies reset" + at);
+    if (resume) paused_ = false;
+    finishReset(true, "bodies reset" + at + (resume ? "; running again after the failure" : ""));
     return;
   }
   if (reset_wait_steps_++ == 0) ++resets_deferred_;
@@ -611,6 +631,13 @@ void ThreshingSimNode::outputLoop() {
       if (params_.status_period_s > 0) printStatus(true);
       diagnostics_.force_update();
       std::this_thread::sleep_for(seconds(kLinger_s));
+      // A normal end shuts the launch down as Ctrl-C would (no "REQUIRED process has died"):
+      // roslaunch then stops this node too. A failed run exits with status 1 at once.
+      if (!failed_ && requestLaunchShutdown()) {
+        const double until_s = clock_.nowSeconds() + kLaunchShutdownWait_s;
+        while (!ros::isShuttingDown() && clock_.nowSeconds() < until_s)
+          std::this_thread::sleep_for(seconds(0.05));
+      }
       ros::requestShutdown();
       break;
     }
@@ -653,10 +680,10 @@ void ThreshingSimNode::publishClock(const ros::Time& t) {
 void ThreshingSimNode::printStatus(bool final_line) {
   char line[256];
   std::snprintf(line, sizeof(line),
-                "t = %.6f s | real-time factor %.3g (target %g) | impacts %ld | peak force "
-                "%.1f N%s",
-                step_ * dt_s_, measured_rtf_.load(), target_rtf_.load(), impacts_.load(),
-                peak_force_N_.load(),
+                "t = %.6f s | real-time factor %.3g (requested %g, pace %g) | impacts %ld | "
+                "peak force %.1f N%s",
+                step_ * dt_s_, measured_rtf_.load(), slow_rtf_.load(), target_rtf_.load(),
+                impacts_.load(), peak_force_N_.load(),
                 finished_ ? " | finished"
                 : paused_ ? " | paused"
                           : "");
@@ -708,6 +735,7 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("step rate [Hz]", step_rate_hz_.load());
   stat.add("measured real-time factor", rtf);
   stat.add("target real-time factor", target);
+  stat.add("requested real-time factor", slow_rtf_.load());
   stat.add("overruns", overruns_.load());
   stat.add("re-synchronisations", resyncs_.load());
   stat.add("longest physics step since the last drum command [CPU s]", longest_step_s_.load());

@@ -165,14 +165,46 @@ TEST(HostileNode, NumericalFailureIsAnErrorWithItsCauseAndTheNodeStillAnswers) {
     EXPECT_EQ(errorsOf("failing_node").count("integrator failed "), 1u);
     EXPECT_EQ(diag("failing_node", "paused"), "True");
     // The time of the state kept (inside the failed step), not the end of the failed step.
-    EXPECT_LT(std::stod(diag("failing_node", "simulation time [s]")), 1e-3);
+    EXPECT_LT(std::stod(diag("failing_node", "simulation time [s]")), 1e-4);
   }
-  // ~reset is answered (the run restarts and fails again at its first step, reported again).
+  // ~reset is answered and runs the node again (issue 24: it answered "bodies reset" and
+  // stayed paused): /diagnostics shows it running, and its simulation time passes the
+  // failure's until the next physics step fails as well.
+  double failed_at_s = 0;
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    failed_at_s = std::stod(diag("failing_node", "simulation time [s]"));
+  }
   std_srvs::Trigger reset;
   ASSERT_TRUE(ros::service::waitForService("/failing_node/reset", 10.0));
   const ros::WallTime asked = ros::WallTime::now();
   ASSERT_TRUE(ros::service::call("/failing_node/reset", reset));
   EXPECT_LT((ros::WallTime::now() - asked).toSec(), 10.0);
+  EXPECT_TRUE(reset.response.success) << reset.response.message;
+  EXPECT_NE(reset.response.message.find("running again"), std::string::npos)
+      << reset.response.message;
+  EXPECT_TRUE(waitFor([] { return diag("failing_node", "paused") == "False"; }, 10.0))
+      << "still paused after ~reset";
+  EXPECT_TRUE(waitFor(
+      [&] {
+        return diag("failing_node", "paused") == "True" &&
+               std::stod(diag("failing_node", "simulation time [s]")) > failed_at_s;
+      },
+      90.0))
+      << "simulation time " << diag("failing_node", "simulation time [s]") << " s, failed at "
+      << failed_at_s << " s";
+  // Paused by the user, a reset after a failure stays paused.
+  std_srvs::SetBool pause;
+  pause.request.data = true;
+  ASSERT_TRUE(ros::service::call("/failing_node/pause", pause));
+  ASSERT_TRUE(ros::service::call("/failing_node/reset", reset));
+  EXPECT_EQ(reset.response.message.find("running again"), std::string::npos)
+      << reset.response.message;
+  ros::WallDuration(0.5).sleep();
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    EXPECT_EQ(diag("failing_node", "paused"), "True");
+  }
   // SIGINT ends it within seconds (before the work budget, it could only be killed).
   const int pid = pidOf("/failing_node");
   ASSERT_GT(pid, 0);

@@ -25,6 +25,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -98,6 +99,15 @@ class Launch {
   bool exited_ = false;
   int exit_status_ = -1;
 };
+
+// Issue 24: a normal end of a launch is quiet. roslaunch printed a red "REQUIRED process
+// [...] has died!" at every normal end of record, replay and resimulate.
+void expectQuietEnd(const std::string& what) {
+  std::ifstream in(g_dir + "/roslaunch.log");
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_EQ(text.str().find("has died"), std::string::npos) << what << ":\n" << text.str();
+}
 
 // A bad value: exit status 1 and a message naming the parameter. Each run has its own node
 // name, so that no private parameter of a previous run is left over.
@@ -183,6 +193,7 @@ TEST(Launch, RecordsABoundedRun) {
     ++sent;
   }
   ASSERT_EQ(launch.wait(60), 0) << "record.launch did not end by itself";
+  expectQuietEnd("record.launch");
 
   rosbag::Bag bag(g_dir + "/run.bag", rosbag::bagmode::Read);
   const auto contact = stamps<threshing_sim::ContactStateArray>(bag, "/contact_state");
@@ -248,6 +259,7 @@ TEST(Launch, ReplaysWithTheSameCounts) {
   Launch launch("threshing_sim replay.launch rviz:=false wait_for_subscribers:=true bag:=" + g_dir +
                 "/run.bag");
   ASSERT_EQ(launch.wait(60), 0) << "replay.launch did not end by itself";
+  expectQuietEnd("replay.launch");
   ros::WallDuration(1.0).sleep();  // the last messages in flight
   std::lock_guard<std::mutex> lock(mutex);
   for (const auto& [topic, n] : counts) EXPECT_EQ(received[topic], n) << topic;
@@ -260,6 +272,7 @@ TEST(Launch, ResimulatesBitForBit) {
   Launch launch("threshing_sim resimulate.launch bag:=" + g_dir + "/run.bag out:=" + g_dir +
                 "/resim.bag");
   ASSERT_EQ(launch.wait(60), 0) << "resimulate.launch did not end by itself";
+  expectQuietEnd("resimulate.launch");
   const auto run_counts = countsByTopic(g_dir + "/run.bag");
   const auto resim_counts = countsByTopic(g_dir + "/resim.bag");
   EXPECT_EQ(run_counts.at("/drum_speed_cmd_applied"),

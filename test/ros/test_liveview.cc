@@ -100,7 +100,7 @@ TEST(LiveView, FirstStrikeHistoryMatchesSimulate) {
               s.time.size(), duration_s * 1e6, s.peak_normal_force, peak_sim_N);
   EXPECT_EQ(s.tooth, 0);
   EXPECT_EQ(s.kernel, 0);
-  EXPECT_GT(s.time.size(), 100u);  // a 33 us contact at 0.2 us
+  EXPECT_GT(s.time.size(), 15u);  // a 33 us contact: the integrator accepted 20 steps
   EXPECT_GT(duration_s, 20e-6);
   EXPECT_LT(duration_s, 60e-6);
   EXPECT_EQ(s.time.size(), s.normal_force.size());

@@ -193,5 +193,33 @@ TEST(ThreadCpuClock, CountsWorkNotSleep) {
   EXPECT_GT(cpu.nowSeconds() - t1_s, 0.0);
 }
 
+// Issue 24 item 3: demo.launch real_time_factor:=1 ran free flight at free_flight_factor 0.02
+// (0.42 s of simulated time in 20.1 s of wall time). The free-flight factor only ever speeds
+// the run up.
+TEST(FreeFlightPace, NeverSlowerThanRequested) {
+  EXPECT_EQ(freeFlightPace(1.0, 0.02), 1.0);     // demo at real time
+  EXPECT_EQ(freeFlightPace(0.001, 0.02), 0.02);  // demo in slow motion
+  EXPECT_EQ(freeFlightPace(0.0, 0.02), 0.0);     // as fast as possible wins
+  EXPECT_EQ(freeFlightPace(0.5, 0.0), 0.5);      // no free-flight factor
+}
+
+// The pacer at the pace of the demo's free flight with real_time_factor 1 keeps real time
+// between strikes: simulated / wall time >= 0.98 (fake clock: every batch run at once).
+TEST(FreeFlightPace, DemoAtRealTimeKeepsRealTimeBetweenStrikes) {
+  FakeClock clock;
+  PacerOptions o;
+  o.step_s = 1e-5;
+  o.real_time_factor = freeFlightPace(1.0, 0.02);
+  Pacer pacer(clock, o);
+  long steps = 0;
+  for (int i = 0; i < 5000; ++i) {  // 5 s of wall time in 1 ms ticks
+    clock.now_s += 1e-3;
+    steps += pacer.nextBatch();
+  }
+  const double simulated_s = steps * o.step_s;
+  EXPECT_GE(simulated_s / 5.0, 0.98);
+  EXPECT_GE(pacer.measuredRealTimeFactor(), 0.98);
+}
+
 }  // namespace
 }  // namespace threshing_sim

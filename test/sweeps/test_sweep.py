@@ -280,6 +280,46 @@ class SweepTest(unittest.TestCase):
 # ------------------------------------------------------------------------------------------
 # JUnit XML for catkin's result count.
 
+class BinaryLookupTest(unittest.TestCase):
+    """scripts/sweep finds simulate in a sourced catkin workspace without --simulate (issue 24:
+    "simulate not found" unless the checkout's own .build/ws held it)."""
+
+    def setUp(self):
+        from tslib import binaries
+        self.binaries = binaries
+        self.saved = (binaries.BIN_DIR, dict(os.environ))
+        self.ws = pathlib.Path(ARGS.out) / "sourced_ws"
+        shutil.rmtree(self.ws, ignore_errors=True)
+        self.lib = self.ws / "devel/lib/threshing_sim"
+        self.lib.mkdir(parents=True)
+        (self.lib / "simulate").symlink_to(pathlib.Path(ARGS.simulate).resolve())
+        # As in a workspace built elsewhere: nothing in this checkout's .build, no override.
+        binaries.BIN_DIR = self.ws / "absent"
+        os.environ.pop("THRESHING_SIM_SIMULATE", None)
+
+    def tearDown(self):
+        self.binaries.BIN_DIR = self.saved[0]
+        os.environ.clear()
+        os.environ.update(self.saved[1])
+
+    def test_found_under_cmake_prefix_path(self):
+        os.environ["CMAKE_PREFIX_PATH"] = os.pathsep.join(
+            [str(self.ws / "other"), str(self.ws / "devel"), "/usr"])
+        from sweeplib.runner import resolve_simulate
+        self.assertEqual(resolve_simulate(None), (self.lib / "simulate").resolve())
+        # And the binary found runs.
+        proc = subprocess.run([str(resolve_simulate(None)), str(ROOT / "config/default_scene.yaml"),
+                               "--check"], capture_output=True, text=True, timeout=60)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+
+    def test_not_found_names_where_it_looked(self):
+        os.environ["CMAKE_PREFIX_PATH"] = str(self.ws / "other")
+        from sweeplib.runner import resolve_simulate
+        with self.assertRaises(SystemExit) as caught:
+            resolve_simulate(None)
+        self.assertIn("CMAKE_PREFIX_PATH", str(caught.exception))
+
+
 class JUnitResult(unittest.TextTestResult):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -331,10 +371,14 @@ def main():
         ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
     parser.add_argument("--out", default=str(ROOT / ".build/sweep_test"))
     parser.add_argument("--xml", help="JUnit XML result file")
+    parser.add_argument("--only-lookup", action="store_true",
+                        help="only the binary lookup tests (no cluster)")
     ARGS = parser.parse_args()
     # SIGTERM ends like Ctrl-C, so that the cluster started here is stopped.
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
-    suite = unittest.defaultTestLoader.loadTestsFromTestCase(SweepTest)
+    suite = unittest.defaultTestLoader.loadTestsFromTestCase(BinaryLookupTest)
+    if not ARGS.only_lookup:
+        suite.addTests(unittest.defaultTestLoader.loadTestsFromTestCase(SweepTest))
     result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
     if ARGS.xml:
         write_junit(ARGS.xml, result)

@@ -21,7 +21,10 @@ namespace threshing_sim {
 struct StrikeRecord {
   int tooth = 0;                           // tooth index [-]
   int kernel = 0;                          // kernel index [-]
-  double sample_interval_s = 0;            // spacing of the samples [s]
+  double sample_interval_s = 0;            // mean spacing of the samples (the integrator's
+                                           // accepted steps: uneven) [s]
+  double core_peak_normal_force_N = 0;     // the core's peak of the episode (its impact event:
+                                           // located between samples too), 0 if none [N]
   double normal_impulse_Ns = 0;            // normal impulse of the episode [N s]
   double tangential_impulse_Ns = 0;        // tangential impulse of the episode [N s]
   bool truncated = false;                  // the sample limit cut the history short
@@ -29,7 +32,7 @@ struct StrikeRecord {
   std::vector<double> normal_force_N;      // normal force on the kernel [N]
   std::vector<double> tangential_force_N;  // tangential force along t = J n [N]
   std::vector<double> gap_m;               // signed gap [m]
-  double peakNormalForce() const;          // largest sampled normal force [N] (0 if none)
+  double peakNormalForce() const;          // the core's peak, else the largest sample [N]
   double peakTime() const;                 // its sample time [s] (-1 if none)
 };
 
@@ -40,7 +43,8 @@ class StrikeRecorder {
 
   explicit StrikeRecorder(double sample_interval_s) : sample_interval_s_(sample_interval_s) {}
   // Records the tooth-kernel contacts of data at data.t_s; an episode whose pair is no longer
-  // closed is finished and moved to finished().
+  // closed is finished (with the core's peak from its impact event in data.events, if there)
+  // and moved to finished().
   void sample(const Data& data);
   // Forgets the open episodes (a reset moved the bodies).
   void clear() {

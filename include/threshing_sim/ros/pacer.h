@@ -51,6 +51,11 @@ class StepMeter {
   long steps_ = 0;        // steps ended since the mark [-]
 };
 
+// The pace away from strikes: ~free_flight_factor fast-forwards free flight, and never slows
+// the run below the factor the user asked for (0 = as fast as possible wins over any factor;
+// free_flight_factor 0 = the requested factor throughout) [-].
+double freeFlightPace(double requested_rtf, double free_flight_rtf);
+
 struct PacerOptions {
   double step_s = 1e-5;           // simulated time per physics step [s]
   double real_time_factor = 1.0;  // simulated seconds per wall second; 0 = as fast as possible [-]

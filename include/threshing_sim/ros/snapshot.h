@@ -53,6 +53,7 @@ struct Snapshot {
   double alpha_radps2 = 0;             // drum acceleration [rad/s^2]
   long loops = 0;                      // demo-loop kernel re-seeds so far [-]
   double target_rtf = 0;               // real-time factor the pacer aims at now [-]
+  double requested_rtf = 0;            // ~real_time_factor as asked for (reconfigurable) [-]
   double measured_rtf = 0;             // measured real-time factor [-]
   Vec2 strike_focus_W = Vec2::Zero();  // tf frame `strike`: the tooth-kernel contact point, else
                                        // the kernel a tooth reaches first, world [m]

@@ -46,6 +46,7 @@
 #include "threshing_sim/ros/node_params.h"
 #include "threshing_sim/ros/pacer.h"
 #include "threshing_sim/ros/snapshot.h"
+#include "threshing_sim/ros/step_sampler.h"
 
 namespace threshing_sim {
 
@@ -58,6 +59,8 @@ class ThreshingSimNode {
 
   // Stops and joins the threads and prints the final summary (idempotent).
   void stop();
+  // The process's exit status after stop(): 1 when the run ended in an integrator failure.
+  int exitStatus() const { return failed_ ? 1 : 0; }
 
  private:
   // A command scheduled by ~command_bag: applied at step boundary `step`.
@@ -116,7 +119,7 @@ class ThreshingSimNode {
   bool onSkipToContact(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   void waitForViewer();
   bool pausedRepublishDue();
-  StepStatus advanceSampled(long k);  // advanceTo boundary k, sub-sampling strikes
+  StepStatus advanceSampled(long k);  // advance to boundary k, sampling strikes' accepted steps
   bool loopDue();                     // the drum passed the loop phase (~loop_revolutions)
   bool resetIfClear(bool full, const char* why);  // reset / re-seed unless bodies would overlap
   void reseedKernels();
@@ -179,7 +182,8 @@ class ThreshingSimNode {
 
   // --- shared: flags and counters, written by the physics thread or callbacks ---
   std::atomic<bool> stop_{false}, paused_{false}, finished_{false}, failed_{false};
-  std::atomic<long> step_{0};  // last boundary reached
+  std::atomic<bool> user_paused_{false};  // paused by ~pause or ~start_paused, not by a failure
+  std::atomic<long> step_{0};             // last boundary reached
   std::atomic<long> rejected_commands_{0}, impacts_{0}, recoveries_{0};
   std::atomic<long> overruns_{0}, resyncs_{0};
   std::atomic<long> resets_deferred_{0}, resets_skipped_{0};  // resets that would overlap
@@ -197,12 +201,12 @@ class ThreshingSimNode {
   StrikeRecorder strikes_{0.0};
   KernelImpulses kernel_impulses_;
   std::vector<StrikeRecord> pending_strikes_;
-  int strike_substeps_ = 1;            // advanceTo calls per physics step near a strike [-]
-  double loop_anchor_rad_ = 0;         // drum angle the loop phase counts from [rad]
-  long loop_index_ = 0;                // revolutions-of-the-loop passed [-]
-  long loops_ = 0;                     // kernel re-seeds done [-]
-  Data overlap_scratch_;               // candidate state of a reset, for the overlap check
-  double slow_rtf_ = 1;                // ~real_time_factor as reconfigured [-]
+  std::unique_ptr<StepSampler> step_sampler_;  // advances to a boundary, sampling strikes
+  double loop_anchor_rad_ = 0;                 // drum angle the loop phase counts from [rad]
+  long loop_index_ = 0;                        // revolutions-of-the-loop passed [-]
+  long loops_ = 0;                             // kernel re-seeds done [-]
+  Data overlap_scratch_;                       // candidate state of a reset, for the overlap check
+  std::atomic<double> slow_rtf_{1};            // ~real_time_factor as reconfigured (requested) [-]
   double free_flight_rtf_ = 0;         // factor away from contacts, 0 = same as slow_rtf_ [-]
   std::atomic<bool> skipping_{false};  // ~skip_to_contact running
   double skip_from_s_ = 0;             // simulation time the skip started at [s]

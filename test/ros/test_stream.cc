@@ -1,0 +1,243 @@
+// rostest (stream.test), issue 24 item 1: the stream scene runs in the node as in `simulate`.
+//  - stream_short (3 ms): ends by itself with `simulate`'s impact count and peak normal force;
+//    its strike histories are the integrator's accepted steps (several samples per strike);
+//  - stream_long (12 ms): runs past t = 7.558 ms, where the forced strike sub-steps made the
+//    integrator fail on main, to its end time, and ends by itself;
+//  - a bounded run whose integrator fails ends by itself with exit status 1 (on main it waited
+//    paused for ever: killed after 200 s).
+// Both nodes start paused, so that this test hears their whole runs.
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <gtest/gtest.h>
+#include <ros/master.h>
+#include <ros/network.h>
+#include <ros/ros.h>
+#include <std_srvs/SetBool.h>
+#include <sys/wait.h>
+#include <xmlrpcpp/XmlRpcClient.h>
+#include <xmlrpcpp/XmlRpcValue.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "threshing_sim/StrikeHistory.h"
+
+namespace {
+
+std::mutex g_mutex;
+std::map<std::string, std::map<std::string, std::string>> g_diag;  // status name -> key -> value
+std::map<std::string, std::string> g_summary;                      // status name -> message
+std::map<std::string, std::vector<threshing_sim::StrikeHistory>> g_strikes;  // by node
+
+bool waitFor(const std::function<bool()>& pred, double timeout_s) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < end) {
+    {
+      std::lock_guard<std::mutex> lock(g_mutex);
+      if (pred()) return true;
+    }
+    ros::WallDuration(0.02).sleep();
+  }
+  return false;
+}
+
+// The diagnostic status of a node ("<node>: simulation", its name with or without namespace).
+std::string statusOf(const std::string& node) {
+  for (const auto& status : g_summary)
+    if (status.first.find(node + ":") != std::string::npos) return status.first;
+  return node + ": simulation";
+}
+
+std::string diag(const std::string& node, const std::string& key) {
+  const auto it = g_diag.find(statusOf(node));
+  if (it == g_diag.end() || !it->second.count(key)) return "";
+  return it->second.at(key);
+}
+
+// The process id of a ROS node, asked over its XML-RPC API (getPid); -1 if it does not answer.
+int pidOf(const std::string& node) {
+  XmlRpc::XmlRpcValue args, result, payload;
+  args[0] = ros::this_node::getName();
+  args[1] = node;
+  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
+  std::string host;
+  std::uint32_t port = 0;
+  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return -1;
+  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
+  XmlRpc::XmlRpcValue pid_args, pid_result;
+  pid_args[0] = ros::this_node::getName();
+  if (!client.execute("getPid", pid_args, pid_result) || pid_result.size() < 3) return -1;
+  return static_cast<int>(pid_result[2]);
+}
+
+// A process gone (or a zombie waiting for its parent to reap it).
+bool processEnded(int pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string pid_field, comm, state;
+  if (!(stat >> pid_field >> comm >> state)) return true;
+  return state == "Z" || state == "X";
+}
+
+bool endsWithin(int pid, double timeout_s) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (!processEnded(pid) && ros::WallTime::now() < end) ros::WallDuration(0.05).sleep();
+  return processEnded(pid);
+}
+
+// Runs a shell command; its exit status, and its merged output in *output.
+int run(const std::string& cmd, std::string* output) {
+  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
+  if (!pipe) return -1;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) output->append(buf.data(), n);
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+double jsonNumber(const std::string& json, const std::string& key) {
+  std::smatch m;
+  if (!std::regex_search(json, m, std::regex("\"" + key + "\"\\s*:\\s*([0-9.eE+-]+)"))) return -1;
+  return std::stod(m[1]);
+}
+
+void start(const std::string& node) {
+  std_srvs::SetBool run_srv;
+  run_srv.request.data = false;
+  ASSERT_TRUE(ros::service::waitForService(node + "/pause", 30.0));
+  ASSERT_TRUE(ros::service::call(node + "/pause", run_srv));
+}
+
+TEST(Stream, ShortRunEndsWithSimulatesImpactsAndPeak) {
+  const int pid = pidOf("/stream_short");
+  ASSERT_GT(pid, 0);
+  start("/stream_short");
+  ASSERT_TRUE(waitFor([] { return g_summary[statusOf("stream_short")] == "finished"; }, 120.0))
+      << "stream_short: " << g_summary[statusOf("stream_short")];
+  // `simulate` over the same 3 ms.
+  const std::string json = std::string(TEST_TMP_DIR) + "/stream_3ms_summary.json";
+  std::string out;
+  ASSERT_EQ(run(std::string(THRESHING_SIM_SIMULATE) + " " + THRESHING_SIM_SOURCE_DIR +
+                    "/config/scenes/stream.yaml --set duration=0.003 --quiet --summary " + json,
+                &out),
+            0)
+      << out;
+  const std::string summary = slurp(json);
+  const double impacts_sim = jsonNumber(summary, "impacts");
+  const double peak_sim_N = jsonNumber(summary, "peak_normal_force_N");
+  ASSERT_GT(impacts_sim, 0) << summary;
+  std::lock_guard<std::mutex> lock(g_mutex);
+  const double peak_N = std::stod(diag("stream_short", "peak normal force [N]"));
+  const long impacts = std::stol(diag("stream_short", "impacts"));
+  std::printf("stream 3 ms: node %ld impacts, peak %.6f N; simulate %.0f impacts, peak %.6f N\n",
+              impacts, peak_N, impacts_sim, peak_sim_N);
+  EXPECT_EQ(diag("stream_short", "failure"), "none");
+  EXPECT_EQ(impacts, static_cast<long>(impacts_sim));
+  EXPECT_NEAR(peak_N, peak_sim_N, 1e-4 * peak_sim_N);
+  // Strike histories: the integrator's accepted steps, several per strike, and the largest
+  // strike peak is the run's peak (the core's episode peak, not only the sampled one).
+  const auto& strikes = g_strikes["stream_short"];
+  ASSERT_FALSE(strikes.empty());
+  double strike_peak_N = 0;
+  size_t samples = 0;
+  for (const auto& s : strikes) {
+    strike_peak_N = std::max(strike_peak_N, s.peak_normal_force);
+    samples += s.time.size();
+  }
+  std::printf("stream 3 ms: %zu strike histories, %zu samples, largest peak %.6f N\n",
+              strikes.size(), samples, strike_peak_N);
+  EXPECT_GT(samples, 5 * strikes.size());
+  EXPECT_NEAR(strike_peak_N, peak_sim_N, 1e-4 * peak_sim_N);
+  EXPECT_TRUE(endsWithin(pid, 20.0)) << "stream_short did not end by itself";
+}
+
+TEST(Stream, RunsPastTheOldFailureToItsEndTime) {
+  const int pid = pidOf("/long/stream_long");
+  ASSERT_GT(pid, 0);
+  start("/long/stream_long");
+  ASSERT_TRUE(waitFor(
+      [] {
+        const std::string failure = diag("stream_long", "failure");
+        return g_summary[statusOf("stream_long")] == "finished" ||
+               (!failure.empty() && failure != "none");
+      },
+      200.0))
+      << "stream_long: " << g_summary[statusOf("stream_long")];
+  {
+    std::lock_guard<std::mutex> lock(g_mutex);
+    EXPECT_EQ(diag("stream_long", "failure"), "none");
+    EXPECT_NEAR(std::stod(diag("stream_long", "simulation time [s]")), 0.012, 1e-9);
+    std::printf("stream 12 ms: %s impacts, peak %s N\n", diag("stream_long", "impacts").c_str(),
+                diag("stream_long", "peak normal force [N]").c_str());
+  }
+  EXPECT_TRUE(endsWithin(pid, 20.0)) << "stream_long did not end by itself";
+}
+
+TEST(Stream, FailedBoundedRunEndsWithExitStatusOne) {
+  // The stream with max_step 1e-9 s: 1e6 steps per physics step of 1 ms, beyond the core's work
+  // budget; the first step fails.
+  std::string scene = slurp(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/stream.yaml");
+  const std::regex integrator("integrator: \\{[^}]*\\}");
+  ASSERT_TRUE(std::regex_search(scene, integrator));
+  scene = std::regex_replace(scene, integrator,
+                             "integrator: {type: event_driven, tolerance: 1.0e-6, max_step: 1e-9}");
+  const std::string path = std::string(TEST_TMP_DIR) + "/stream_failing.yaml";
+  std::ofstream(path) << scene;
+  std::string out;
+  const ros::WallTime started = ros::WallTime::now();
+  const int status = run("timeout -s INT 60 " + std::string(THRESHING_SIM_NODE) +
+                             " __name:=failing_bounded _scene:=" + path +
+                             " _clock_mode:=wall _real_time_factor:=0 _physics_dt:=1e-3"
+                             " _end_time:=0.01 _status_period:=0",
+                         &out);
+  const double wall_s = (ros::WallTime::now() - started).toSec();
+  std::printf("failing bounded run: exit status %d after %.1f s\n", status, wall_s);
+  EXPECT_EQ(status, 1) << out;
+  EXPECT_LT(wall_s, 30.0);
+  EXPECT_NE(out.find("the run ends"), std::string::npos) << out;
+}
+
+void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+  std::lock_guard<std::mutex> lock(g_mutex);
+  for (const auto& s : m->status) {
+    g_summary[s.name] = s.message;
+    for (const auto& kv : s.values) g_diag[s.name][kv.key] = kv.value;
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_stream");
+  ros::NodeHandle nh;
+  auto diag_sub = nh.subscribe("/diagnostics", 1000, onDiagnostics);
+  auto strike_sub = nh.subscribe<threshing_sim::StrikeHistory>(
+      "/strike_history", 10000,
+      boost::function<void(const threshing_sim::StrikeHistory::ConstPtr&)>(
+          [](const threshing_sim::StrikeHistory::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(g_mutex);
+            g_strikes["stream_short"].push_back(*m);
+          }));
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  ros::WallDuration(1.0).sleep();
+  const int result = RUN_ALL_TESTS();
+  ros::shutdown();
+  return result;
+}
