@@ -738,6 +738,7 @@ void ThreshingSimNode::diagnose(diagnostic_updater::DiagnosticStatusWrapper& sta
   stat.add("requested real-time factor", slow_rtf_.load());
   stat.add("overruns", overruns_.load());
   stat.add("re-synchronisations", resyncs_.load());
+  stat.add("physics loop period [s]", pacer_.tickSeconds());
   stat.add("longest physics step since the last drum command [CPU s]", longest_step_s_.load());
   stat.add("physics steps since the last drum command", steps_since_command_.load());
   stat.add("rejected commands", rejected_commands_.load());

@@ -75,6 +75,7 @@ class Pacer {
   void restart();
   void setRealTimeFactor(double real_time_factor);
   double realTimeFactor() const { return options_.real_time_factor; }
+  double tickSeconds() const { return options_.tick_s; }  // the physics loop's period [s]
 
   // Number of steps the caller must run now (0 when none is due). The measured rates assume
   // the previous batch has been run by the time of the next call.
