@@ -241,29 +241,46 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
   if (t.beam_model == ToothBeamModel::kLargeDeflection) compileLargeDeflection(&t);
 }
 
+namespace {
+
+// The terms of mode i at z = beta x whose combinations give phi and its derivatives in the
+// cancellation-free form: cosh z - sigma sinh z = a e^z + b e^-z with a = (1 - sigma) / 2
+// (tabulated to full relative precision) and b = (1 + sigma) / 2. One exponential, one sine and
+// one cosine per mode (z = beta x <= beta L ~ 200).
+struct ModeTerms {
+  double exp_z, exp_minus_z, cos_z, sin_z;  // e^z, e^-z, cos z, sin z [-]
+  double a, b, sigma;                       // (1 - sigma) / 2, (1 + sigma) / 2, sigma [-]
+};
+
+ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m) {
+  const double z = tooth.beta_per_m[i] * x_m;
+  ModeTerms m;
+  m.exp_z = std::exp(z);
+  m.exp_minus_z = 1.0 / m.exp_z;
+  m.cos_z = std::cos(z);
+  m.sin_z = std::sin(z);
+  m.sigma = tooth.sigma[i];
+  m.a = halfOneMinusSigmaTable()[i];
+  m.b = 0.5 * (1.0 + m.sigma);
+  return m;
+}
+
+}  // namespace
+
 void evaluateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
   const int n = tooth.n_modes;
   // resize() only allocates when the size changes, so repeated calls are allocation-free.
   phi->resize(n);
   dphi->resize(n);
   const double x = std::clamp(x_m, 0.0, tooth.length_m);
-  const auto& half_one_minus_sigma = halfOneMinusSigmaTable();
   for (int i = 0; i < n; ++i) {
-    // One exponential per mode: e^z and e^-z = 1 / e^z, with z = beta x <= beta L ~ 36.
-    const double beta = tooth.beta_per_m[i];
-    const double z = beta * x;
-    const double exp_z = std::exp(z);
-    const double exp_minus_z = 1.0 / exp_z;
-    const double cos_z = std::cos(z);
-    const double sin_z = std::sin(z);
-    const double sigma = tooth.sigma[i];
-    const double a = half_one_minus_sigma[i];  // (1 - sigma) / 2
-    const double b = 0.5 * (1.0 + sigma);      // (1 + sigma) / 2
-
-    // phi / C      = cosh z - sigma sinh z - cos z + sigma sin z
+    const ModeTerms t = modeTerms(tooth, i, x);
+    // phi / C         = cosh z - sigma sinh z - cos z + sigma sin z
     // phi' / (C beta) = sinh z - sigma cosh z + sin z + sigma cos z
-    (*phi)[i] = tooth.norm_C[i] * (a * exp_z + b * exp_minus_z - cos_z + sigma * sin_z);
-    (*dphi)[i] = tooth.norm_C[i] * beta * (a * exp_z - b * exp_minus_z + sin_z + sigma * cos_z);
+    (*phi)[i] =
+        tooth.norm_C[i] * (t.a * t.exp_z + t.b * t.exp_minus_z - t.cos_z + t.sigma * t.sin_z);
+    (*dphi)[i] = tooth.norm_C[i] * tooth.beta_per_m[i] *
+                 (t.a * t.exp_z - t.b * t.exp_minus_z + t.sin_z + t.sigma * t.cos_z);
   }
 }
 
@@ -271,42 +288,30 @@ void evaluateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi) {
   const int n = tooth.n_modes;
   ddphi->resize(n);
   const double x = std::clamp(x_m, 0.0, tooth.length_m);
-  const auto& half_one_minus_sigma = halfOneMinusSigmaTable();
   for (int i = 0; i < n; ++i) {
-    // phi'' / (C beta^2) = cosh z - sigma sinh z + cos z - sigma sin z, cancellation-free.
+    // phi'' / (C beta^2) = cosh z - sigma sinh z + cos z - sigma sin z.
+    const ModeTerms t = modeTerms(tooth, i, x);
     const double beta = tooth.beta_per_m[i];
-    const double z = beta * x;
-    const double exp_z = std::exp(z);
-    const double sigma = tooth.sigma[i];
-    const double a = half_one_minus_sigma[i];
-    const double b = 0.5 * (1.0 + sigma);
-    (*ddphi)[i] =
-        tooth.norm_C[i] * beta * beta * (a * exp_z + b / exp_z + std::cos(z) - sigma * std::sin(z));
+    (*ddphi)[i] = tooth.norm_C[i] * beta * beta *
+                  (t.a * t.exp_z + t.b * t.exp_minus_z + t.cos_z - t.sigma * t.sin_z);
   }
 }
 
 namespace {
 
-// phi, phi', phi'', phi''' of every mode at x (one exponential and one sine and cosine per
-// mode, the cancellation-free form of evaluateModes), into d[k * n + i] [1/(sqrt(kg) m^k)].
+// phi, phi', phi'', phi''' of every mode at x, into d[k * n + i] [1/(sqrt(kg) m^k)].
 void evaluateModeDerivatives(const ToothModel& tooth, double x_m, double* d) {
   const int n = tooth.n_modes;
-  const auto& half_one_minus_sigma = halfOneMinusSigmaTable();
   for (int i = 0; i < n; ++i) {
+    const ModeTerms t = modeTerms(tooth, i, x_m);
     const double beta = tooth.beta_per_m[i];
-    const double z = beta * x_m;
-    const double exp_z = std::exp(z);
-    const double exp_minus_z = 1.0 / exp_z;
-    const double cos_z = std::cos(z);
-    const double sin_z = std::sin(z);
-    const double sigma = tooth.sigma[i];
-    const double a = half_one_minus_sigma[i];  // (1 - sigma) / 2
-    const double b = 0.5 * (1.0 + sigma);      // (1 + sigma) / 2
     const double c0 = tooth.norm_C[i], c1 = c0 * beta, c2 = c1 * beta, c3 = c2 * beta;
-    d[i] = c0 * (a * exp_z + b * exp_minus_z - cos_z + sigma * sin_z);
-    d[n + i] = c1 * (a * exp_z - b * exp_minus_z + sin_z + sigma * cos_z);
-    d[2 * n + i] = c2 * (a * exp_z + b * exp_minus_z + cos_z - sigma * sin_z);
-    d[3 * n + i] = c3 * (a * exp_z - b * exp_minus_z - sin_z - sigma * cos_z);
+    const double cosh_part = t.a * t.exp_z + t.b * t.exp_minus_z;  // cosh z - sigma sinh z
+    const double sinh_part = t.a * t.exp_z - t.b * t.exp_minus_z;  // sinh z - sigma cosh z
+    d[i] = c0 * (cosh_part - t.cos_z + t.sigma * t.sin_z);
+    d[n + i] = c1 * (sinh_part + t.sin_z + t.sigma * t.cos_z);
+    d[2 * n + i] = c2 * (cosh_part + t.cos_z - t.sigma * t.sin_z);
+    d[3 * n + i] = c3 * (sinh_part - t.sin_z - t.sigma * t.cos_z);
   }
 }
 
