@@ -487,7 +487,8 @@ void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArra
   char line[400];
   std::snprintf(line, sizeof(line),
                 "t = %.6f s   drum %.2f rad/s = %.0f rpm (target %.2f)\n"
-                "real-time factor %.3g (requested %.3g, pace now %.3g)   last strike peak %s",
+                "real-time factor %.3g (requested %.3g, pace now %.3g)\n"
+                "last strike peak %s",
                 s.t_s, s.omega_radps, s.omega_radps * 30 / kPi, s.omega_target_radps,
                 s.measured_rtf, s.requested_rtf, s.target_rtf, peak);
   const double h_m = extent_.size().y();
