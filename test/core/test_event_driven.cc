@@ -80,6 +80,61 @@ TEST(EventDriven, RestingContactAtStartIsHeld) {
   EXPECT_NEAR(d.u[1], 0.0, 1e-9);
 }
 
+// A slip that starts at the friction limit with its slip velocity at round-off on the wrong
+// side of its slip sign must still stop where the slip velocity next reaches zero. Hard case 9
+// at tolerance 1e-10 (dg_T/dt = +2.5e-14 for a slip sign of -1) had that slip's velocity event
+// unarmed: its reversal inside the next step went unseen, and the contact slid on with its
+// friction force pushing. Here a disc (radius r, mass m, I = m r^2 / 2) held by a horizontal
+// spring at its centre, stretched by x0 so that rolling would need the friction force
+// k x0 / 3 = mu m g (1 + excess), starts 1e-12 m into the plate; its contact opens at the
+// start of the second advanceTo call, t_l = 1 ns, the spring having given it
+// dx/dt = -3 mu g t_l (1 + excess), and the impact stops its contact point, leaving it rolling
+// at v_l = -2 mu g t_l (2/3 of that). It slips (sign +1: the contact point moves to -x,
+// dg_T/dt = -dx/dt - r w), and 1 ps later its slip velocity is set to -1e-18 m/s, the wrong
+// side. With t from the landing, d2(dg_T/dt)/dt2 = -k dx/dt / m and dx/dt = v_l - 2 mu g t, so
+// the slip velocity returns to zero where t^2 / 3 + t_l t = 3 excess m / k (t = 0.11 us, inside
+// the first step after the change), and there rolling needs less than mu m g: the contact
+// sticks. The change also removes the landing's residual slip velocity (9e-17 m/s), which
+// moves the stop by 0.5 %: 1 % bounds it. Without the arming the contact never sticks.
+// Global scheme: the island scheme keeps its own copy of the state between calls.
+TEST(EventDriven, SlipStartedAtTheLimitWithRoundOffOnTheWrongSideSticksWhereItStops) {
+  const double r = 1.5e-3, mu = 0.3, k_Npm = 200.0, excess = 1e-8, anchor_m = 0.01;
+  Model m = testutil::dropModel(kED, ContactLaw::kRigid, 0.5, mu, r, r, -1e-12, Vec2::Zero());
+  m.integrator.islands = false;
+  KernelModel& kernel = m.kernels[0];
+  const double x0_m = 3.0 * mu * kernel.mass_kg * kG * (1.0 + excess) / k_Npm;
+  kernel.pedicel.present = true;
+  kernel.pedicel.p_WA_W = kernel.initial_position_m - Vec2(anchor_m, 0.0);
+  kernel.pedicel.rest_length_m = anchor_m - x0_m;
+  kernel.pedicel.stiffness_Npm = k_Npm;
+  kernel.pedicel.damping_Nspm = 0.0;
+  kernel.pedicel.detachment_force_N = 1e3;
+  compileModel(&m);
+  const double t_land_s = 1e-9, tau_s = excess * kernel.mass_kg / k_Npm;
+  const double t_stop_s = 1.5 * (std::sqrt(t_land_s * t_land_s + 4.0 * tau_s) - t_land_s);
+  Data d;
+  resetData(m, &d);
+  std::vector<ContactEvent> events;
+  for (double t_s : {t_land_s, 1.001 * t_land_s, 30.0 * t_stop_s}) {
+    ASSERT_EQ(advanceTo(m, &d, t_s), StepStatus::kOk);
+    events.insert(events.end(), d.events.begin(), d.events.end());
+    d.events.clear();
+    ASSERT_FALSE(d.contacts.empty());
+    if (t_s == 1.001 * t_land_s) {
+      ASSERT_EQ(d.contacts[0].state, ContactState::kSlip);
+      d.u[0] += d.contacts[0].slip_velocity_mps + 1e-18;
+    }
+  }
+  // Landed at t_l, slipped, stuck at t_l + t_stop and stayed stuck.
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].from, ContactState::kSeparated);
+  EXPECT_EQ(events[0].t_s, t_land_s);
+  EXPECT_EQ(events[1].from, ContactState::kSlip);
+  EXPECT_EQ(events[1].to, ContactState::kStick);
+  EXPECT_NEAR(events[1].t_s - t_land_s, t_stop_s, 1e-2 * t_stop_s);
+  EXPECT_EQ(d.contacts[0].state, ContactState::kStick);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Zeno: a kernel dropped from 10 mm with e = 0.5 bounces ever lower; the impact times
 // accumulate at t_inf = t0 (1 + 2 e / (1 - e)) (t0 = sqrt(2 h / g)). The Zeno rule makes

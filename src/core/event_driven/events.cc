@@ -206,13 +206,27 @@ bool locateEvent(const Ctx& c, double hi_s, const std::vector<double>& ev_hi, do
   return at_hi;
 }
 
+// Whether event function k is the slip-velocity function s vt of a sliding contact (slip sign
+// s != 0, friction on): at or below zero at a step start only when its slip began at the
+// friction limit with vt at round-off.
+bool startsSliding(const Workspace& ws, size_t k) {
+  const size_t i = k / 4;
+  if (k % 4 != 2 || i >= ws.geoms.size()) return false;
+  const ContactGeom& g = ws.geoms[i];
+  const PairMemory* mem = ws.memory.find(pairKey(g.pair));
+  return mem && isActive(*mem) && g.params->friction > 0 && mem->slip_sign != 0;
+}
+
 }  // namespace
 
 // Stage 4: event values at the start of the step, and which of them are armed over it. A
 // function positive at the start fires when it reaches zero. A gap function at or below zero
 // whose rate points to positive (a pair that just bounced apart, a compliant contact that just
 // closed) is armed as well: it fires when it falls below its start value again, so that a
-// flight shorter than the step is not seen one step late, inside the plate.
+// flight shorter than the step is not seen one step late, inside the plate. So is the
+// slip-velocity function s vt of a sliding contact at or below zero: a slip that began at the
+// friction limit (from stick, or from a slip velocity that reached zero) starts with vt at
+// round-off, possibly on the wrong side of its slip sign s; its next reversal must still fire.
 void armEvents(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   const Data& d = c.d;
@@ -225,7 +239,7 @@ void armEvents(const Ctx& c, StepPlan* plan) {
   for (size_t i = 0; i < ev0.size(); ++i) {
     if (ev0[i] > 0) {
       ws.ed.arm[i] = static_cast<std::uint8_t>(Arm::kAtZero);
-    } else if (ws.ed.rate0[i] > 0) {  // NaN (rate unknown) stays off
+    } else if (ws.ed.rate0[i] > 0 || startsSliding(ws, i)) {  // NaN (rate unknown) stays off
       ws.ed.arm[i] = static_cast<std::uint8_t>(Arm::kBelowStart);
     }
   }
