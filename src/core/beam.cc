@@ -252,7 +252,8 @@ struct ModeTerms {
   double a, b, sigma;                       // (1 - sigma) / 2, (1 + sigma) / 2, sigma [-]
 };
 
-ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m) {
+ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m,
+                    const std::array<double, kMaxModes>& half_one_minus_sigma) {
   const double z = tooth.beta_per_m[i] * x_m;
   ModeTerms m;
   m.exp_z = std::exp(z);
@@ -260,7 +261,7 @@ ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m) {
   m.cos_z = std::cos(z);
   m.sin_z = std::sin(z);
   m.sigma = tooth.sigma[i];
-  m.a = halfOneMinusSigmaTable()[i];
+  m.a = half_one_minus_sigma[i];
   m.b = 0.5 * (1.0 + m.sigma);
   return m;
 }
@@ -269,12 +270,13 @@ ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m) {
 
 void evaluateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
   const int n = tooth.n_modes;
+  const auto& table = halfOneMinusSigmaTable();
   // resize() only allocates when the size changes, so repeated calls are allocation-free.
   phi->resize(n);
   dphi->resize(n);
   const double x = std::clamp(x_m, 0.0, tooth.length_m);
   for (int i = 0; i < n; ++i) {
-    const ModeTerms t = modeTerms(tooth, i, x);
+    const ModeTerms t = modeTerms(tooth, i, x, table);
     // phi / C         = cosh z - sigma sinh z - cos z + sigma sin z
     // phi' / (C beta) = sinh z - sigma cosh z + sin z + sigma cos z
     (*phi)[i] =
@@ -286,11 +288,12 @@ void evaluateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
 
 void evaluateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi) {
   const int n = tooth.n_modes;
+  const auto& table = halfOneMinusSigmaTable();
   ddphi->resize(n);
   const double x = std::clamp(x_m, 0.0, tooth.length_m);
   for (int i = 0; i < n; ++i) {
     // phi'' / (C beta^2) = cosh z - sigma sinh z + cos z - sigma sin z.
-    const ModeTerms t = modeTerms(tooth, i, x);
+    const ModeTerms t = modeTerms(tooth, i, x, table);
     const double beta = tooth.beta_per_m[i];
     (*ddphi)[i] = tooth.norm_C[i] * beta * beta *
                   (t.a * t.exp_z + t.b * t.exp_minus_z + t.cos_z - t.sigma * t.sin_z);
@@ -302,8 +305,9 @@ namespace {
 // phi, phi', phi'', phi''' of every mode at x, into d[k * n + i] [1/(sqrt(kg) m^k)].
 void evaluateModeDerivatives(const ToothModel& tooth, double x_m, double* d) {
   const int n = tooth.n_modes;
+  const auto& table = halfOneMinusSigmaTable();
   for (int i = 0; i < n; ++i) {
-    const ModeTerms t = modeTerms(tooth, i, x_m);
+    const ModeTerms t = modeTerms(tooth, i, x_m, table);
     const double beta = tooth.beta_per_m[i];
     const double c0 = tooth.norm_C[i], c1 = c0 * beta, c2 = c1 * beta, c3 = c2 * beta;
     const double cosh_part = t.a * t.exp_z + t.b * t.exp_minus_z;  // cosh z - sigma sinh z
