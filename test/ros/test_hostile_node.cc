@@ -29,7 +29,11 @@
 #include <set>
 #include <string>
 
+#include "ros_test_util.h"
 #include "threshing_sim/ContactStateArray.h"
+
+using threshing_sim::test::pidOf;
+using threshing_sim::test::processEnded;
 
 namespace {
 
@@ -127,30 +131,6 @@ std::set<std::string> errorsOf(const std::string& node) {
     if (status.first.find(node) != std::string::npos)
       out.insert(status.second.begin(), status.second.end());
   return out;
-}
-
-// The process id of a ROS node, asked over its XML-RPC API (getPid); -1 if it does not answer.
-int pidOf(const std::string& node) {
-  XmlRpc::XmlRpcValue args, result, payload;
-  args[0] = ros::this_node::getName();
-  args[1] = node;
-  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
-  std::string host;
-  std::uint32_t port = 0;
-  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return -1;
-  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-  XmlRpc::XmlRpcValue pid_args, pid_result;
-  pid_args[0] = ros::this_node::getName();
-  if (!client.execute("getPid", pid_args, pid_result) || pid_result.size() < 3) return -1;
-  return static_cast<int>(pid_result[2]);
-}
-
-// A process gone (or a zombie waiting for roslaunch to reap it).
-bool processEnded(int pid) {
-  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
-  std::string pid_field, comm, state;
-  if (!(stat >> pid_field >> comm >> state)) return true;
-  return state == "Z" || state == "X";
 }
 
 TEST(HostileNode, NumericalFailureIsAnErrorWithItsCauseAndTheNodeStillAnswers) {

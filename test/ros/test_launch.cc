@@ -29,26 +29,18 @@
 #include <string>
 #include <vector>
 
+#include "ros_test_util.h"
 #include "threshing_sim/BeamShapeArray.h"
 #include "threshing_sim/ContactStateArray.h"
 #include "threshing_sim/DrumSpeedCommand.h"
 #include "threshing_sim/ImpactEvent.h"
 #include "threshing_sim/KernelStateArray.h"
 
+using threshing_sim::test::run;
+
 namespace {
 
 std::string g_dir;  // scratch directory of this test run
-
-// Runs a shell command, returns its exit status and its merged stdout/stderr.
-int run(const std::string& cmd, std::string* output) {
-  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-  if (!pipe) return -1;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) output->append(buf.data(), n);
-  const int status = pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 // A roslaunch in the background, in its own process group (SIGINT on timeout).
 class Launch {

@@ -28,7 +28,12 @@
 #include <string>
 #include <vector>
 
+#include "ros_test_util.h"
 #include "threshing_sim/StrikeHistory.h"
+
+using threshing_sim::test::pidOf;
+using threshing_sim::test::processEnded;
+using threshing_sim::test::run;
 
 namespace {
 
@@ -62,45 +67,10 @@ std::string diag(const std::string& node, const std::string& key) {
   return it->second.at(key);
 }
 
-// The process id of a ROS node, asked over its XML-RPC API (getPid); -1 if it does not answer.
-int pidOf(const std::string& node) {
-  XmlRpc::XmlRpcValue args, result, payload;
-  args[0] = ros::this_node::getName();
-  args[1] = node;
-  if (!ros::master::execute("lookupNode", args, result, payload, false)) return -1;
-  std::string host;
-  std::uint32_t port = 0;
-  if (!ros::network::splitURI(static_cast<std::string>(payload), host, port)) return -1;
-  XmlRpc::XmlRpcClient client(host.c_str(), static_cast<int>(port), "/");
-  XmlRpc::XmlRpcValue pid_args, pid_result;
-  pid_args[0] = ros::this_node::getName();
-  if (!client.execute("getPid", pid_args, pid_result) || pid_result.size() < 3) return -1;
-  return static_cast<int>(pid_result[2]);
-}
-
-// A process gone (or a zombie waiting for its parent to reap it).
-bool processEnded(int pid) {
-  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
-  std::string pid_field, comm, state;
-  if (!(stat >> pid_field >> comm >> state)) return true;
-  return state == "Z" || state == "X";
-}
-
 bool endsWithin(int pid, double timeout_s) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (!processEnded(pid) && ros::WallTime::now() < end) ros::WallDuration(0.05).sleep();
   return processEnded(pid);
-}
-
-// Runs a shell command; its exit status, and its merged output in *output.
-int run(const std::string& cmd, std::string* output) {
-  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-  if (!pipe) return -1;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) output->append(buf.data(), n);
-  const int status = pclose(pipe);
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 std::string slurp(const std::string& path) {
