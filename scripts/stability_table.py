@@ -34,11 +34,10 @@ import time
 
 import yaml
 
-from tslib import markdown as md
+from tslib import CONFIG, ROOT, markdown as md
 from tslib.binaries import find_binary
 
-PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SCENE_DIR = os.path.join(PACKAGE_DIR, "config", "hard")
+HARD_DIR = CONFIG / "hard"
 INTEGRATORS = ("event_driven", "time_stepping")
 
 
@@ -117,7 +116,7 @@ def check_deflection_warning(scene, doc, summary, integrator):
             "%d warning(s), max |w(L)|/L = %.3f" % (len(warnings), ratio))
 
 
-SCENES = [
+HARD_SCENES = [
     Scene("01", "01_zeno.yaml", 10.0, "Zeno drop, e = 0.5",
           energy_tol_j=1e-12, ed_steps_per_s=1e5, checks=[("rest on plate", check_zeno_rest)]),
     Scene("02", "02_grazing.yaml", 1.0, "grazing the tooth tip", energy_tol_j=1e-11,
@@ -214,7 +213,7 @@ def run_simulate(simulate, scene, integrator, duration_s):
         summary_path = os.path.join(tmp, "summary.json")
         # Contacts are sampled every millisecond only: simulate's default (every microsecond
         # near a contact) would make every sample a step and hide the integrator's own rate.
-        cmd = [simulate, os.path.join(SCENE_DIR, scene.file), "--quiet",
+        cmd = [simulate, os.path.join(HARD_DIR, scene.file), "--quiet",
                "--summary", summary_path, "--sample-interval", "1e-3"]
         for o in scene.overrides:
             cmd += ["--set", o]
@@ -537,7 +536,7 @@ def shown_command(simulate):
             continue
         if a == simulate and os.path.isabs(a):
             # The repository's own build as a relative path; another workspace's as WORKSPACE/.
-            rel = os.path.relpath(a, PACKAGE_DIR)
+            rel = os.path.relpath(a, ROOT)
             if not rel.startswith(".."):
                 a = rel
             elif "/devel/lib/" in a:
@@ -551,7 +550,7 @@ def main():
     if args.render:
         return render_saved(args)
     simulate = str(find_binary("simulate", args.simulate, search=True))
-    scenes = [s for s in SCENES if not args.scenes or s.key in args.scenes]
+    scenes = [s for s in HARD_SCENES if not args.scenes or s.key in args.scenes]
     if not scenes:
         parser.error("no scene matches %s" % args.scenes)
     for s in scenes:
@@ -560,7 +559,7 @@ def main():
     rows, notes, all_ok = [], [], True
     started = time.monotonic()
     for scene in scenes:
-        with open(os.path.join(SCENE_DIR, scene.file)) as f:
+        with open(os.path.join(HARD_DIR, scene.file)) as f:
             doc = yaml.safe_load(f)
         if scene.note and not (scene.quick_duration_s and args.full):
             notes.append("Scene %s: %s." % (scene.key, scene.note))

@@ -7,7 +7,8 @@ Runs `valgrind --tool=callgrind` on `simulate` for three cases:
 - the 100-kernel bench stream (config/bench/stream.yaml, island scheme, event-driven,
   tolerance 1e-6, its 2 ms);
 - the 1000-kernel stream with 10 kernels in reach (the same settings; kernel files of
-  `scripts/bench.py --stream-kernels N [--sparse 10]`, as scripts/bench_islands.py runs them),
+  `scripts/bench.py --stream-kernels N [--sparse 10]`, as scripts/bench.py --part islands runs
+  them),
 
 reads the call graph of each profile and prints a markdown table: the inclusive instructions of
 every stage of STAGES (the one table that maps function names to stages), per run, per contact

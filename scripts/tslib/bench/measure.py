@@ -66,7 +66,7 @@ def fit_slope(xs, ys):
 # ------------------------------------------------------------------------------------------
 # Stages.
 
-def scene_args(name, gen_dir):
+def bench_scene_args(name, gen_dir):
     file, count, _ = SCENES[name]
     args = []
     if count is not None:
@@ -89,7 +89,7 @@ def references(runner, names, cfg, gen_dir):
     """ED and TS references, and the ED reference with more modes, per scene."""
     futures = {}
     for name in names:
-        scene, args = scene_args(name, gen_dir)
+        scene, args = bench_scene_args(name, gen_dir)
         ref_dt = cfg["stream_ref_dt"] if name == "stream" else cfg["ref_dt"]
         samples = samples_for(name, cfg)
         futures[(name, "ed")] = runner.submit(
@@ -110,7 +110,7 @@ def references(runner, names, cfg, gen_dir):
         refs.setdefault(name, {})[kind] = fut.result()
     for name in names:
         r = refs[name]
-        r["modes"] = modes_of(scene_args(name, gen_dir)[0])
+        r["modes"] = modes_of(bench_scene_args(name, gen_dir)[0])
         r["agreement"] = errors(r["ts"], r["ed"])
         r["mode_change"] = {k: errors(r["ed"], v) for k, v in r.items()
                             if isinstance(k, str) and k.startswith("modes+")}
@@ -127,7 +127,7 @@ def references(runner, names, cfg, gen_dir):
 def sweeps(runner, names, cfg, refs, gen_dir):
     futures = []
     for name in names:
-        scene, args = scene_args(name, gen_dir)
+        scene, args = bench_scene_args(name, gen_dir)
         steps = cfg["stream_steps"] if name == "stream" else cfg["steps"]
         for integrator, knobs in (("event_driven", cfg["tolerances"]), ("time_stepping", steps)):
             for knob in knobs:
