@@ -34,7 +34,7 @@ import time
 
 import yaml
 
-from tslib import CONFIG, ROOT, markdown as md
+from tslib import CONFIG, ROOT, markdown as md, schema
 from tslib.binaries import find_binary
 
 HARD_DIR = CONFIG / "hard"
@@ -109,7 +109,7 @@ def check_deflection_warning(scene, doc, summary, integrator):
     warning (once) and report the largest |w(L)| / L above the validity fraction."""
     warnings = [w for w in summary.get("warnings", []) if "tip deflection" in w]
     ratio = summary.get("max_tip_deflection_ratio", 0.0)
-    limit = float(doc.get("deflection_validity", 0.1))
+    limit = float(doc.get("deflection_validity", schema.default("deflection_validity")))
     # A large-deflection tooth (--set teeth.0.model=large_deflection) is valid there: no warning.
     expected = 0 if "teeth.0.model=large_deflection" in scene.overrides else 1
     return (len(warnings) == expected and ratio > limit,
@@ -144,10 +144,11 @@ HARD_SCENES = [
 # ---------------------------------------------------------------------------------------------
 # Bounds derived from the scene file.
 
-def num(section, key, default):
-    """A number from a scene section. PyYAML reads YAML 1.1, where 2.8e8 (no sign in the
-    exponent) is a string, so every number is converted here."""
-    return float(section.get(key, default))
+def num(section, key, schema_key):
+    """A number from a scene section, else the default of schema_key (the core's, simulate
+    --print-schema). PyYAML reads YAML 1.1, where 2.8e8 (no sign in the exponent) is a string,
+    so every number is converted here."""
+    return float(section[key]) if key in section else schema.default(schema_key)
 
 def penetration_bound(scene, doc, integrator):
     """Largest penetration allowed [m]: rigid contacts at 10 x the event tolerance
@@ -156,39 +157,44 @@ def penetration_bound(scene, doc, integrator):
     with the kernel's mass, plus the wedge's geometric interference (scene 8)."""
     integ = doc.get("integrator", {})
     if integrator == "event_driven":
-        rigid = 10 * num(integ, "tolerance", 1e-9) * 1e-2
+        rigid = 10 * num(integ, "tolerance", "integrator.tolerance") * 1e-2
     else:
-        rigid = num(integ, "dt", 1e-6) * 40.0
+        rigid = num(integ, "dt", "integrator.dt") * 40.0
     if not doc.get("teeth"):
         return rigid
-    law = doc.get("contact", {}).get("tooth_kernel", {}).get("law", "compliant")
+    law = doc.get("contact", {}).get("tooth_kernel", {}).get(
+        "law", schema.value("contact.tooth_kernel.law"))
     if law != "compliant":
         return rigid
     tooth, kernel = doc["teeth"][0], doc["kernels"][0]
     drum = doc.get("drum", {})
     omega = abs(float(next((o.split("=")[1] for o in scene.overrides
-                            if o.startswith("drum.speed=")), drum.get("speed", 83.78))))
-    v_kernel = max(math.hypot(*(float(x) for x in k.get("velocity", [0.0, 0.0])))
-                   for k in doc["kernels"])
-    v = omega * (num(drum, "radius", 0.2) + num(tooth, "length", 0.06)) + v_kernel
+                            if o.startswith("drum.speed=")),
+                           drum.get("speed", schema.default("drum.speed")))))
+    rest = schema.value("kernels.*.velocity")
+    v_kernel = max(math.hypot(*(float(x) for x in k.get("velocity", rest))) for k in doc["kernels"])
+    v = (omega * (num(drum, "radius", "drum.radius") + num(tooth, "length", "teeth.*.length")) +
+         v_kernel)
     hertz = hertz_indentation(tooth, kernel, v)
     interference = 0.6e-3 if scene.key == "08" else 0.0
-    extra = 0.0 if integrator == "event_driven" else num(integ, "dt", 1e-6) * v
+    extra = 0.0 if integrator == "event_driven" else num(integ, "dt", "integrator.dt") * v
     return max(rigid, 1.05 * hertz + interference + extra)
 
 
 def hertz_indentation(tooth, kernel, v):
     """(5 m v^2 / (4 K))^(2/5) with the smallest Hertz constant of the pair (the kernel's
     sharpest curvature b^2/a against the tooth's round tip), as in test/core/hard_cases/."""
-    e_t, nu_t = num(tooth, "youngs_modulus", 3e9), num(tooth, "poisson_ratio", 0.35)
-    e_k, nu_k = num(kernel, "youngs_modulus", 2.8e8), num(kernel, "poisson_ratio", 0.3)
-    a, b = (float(x) for x in kernel.get("semi_axes", [5e-3, 1.3e-3]))
-    r_t = 0.5 * num(tooth, "diameter", 0.01)
+    e_t, nu_t = (num(tooth, "youngs_modulus", "teeth.*.youngs_modulus"),
+                 num(tooth, "poisson_ratio", "teeth.*.poisson_ratio"))
+    e_k, nu_k = (num(kernel, "youngs_modulus", "kernels.*.youngs_modulus"),
+                 num(kernel, "poisson_ratio", "kernels.*.poisson_ratio"))
+    a, b = (float(x) for x in kernel.get("semi_axes", schema.value("kernels.*.semi_axes")))
+    r_t = 0.5 * num(tooth, "diameter", "teeth.*.diameter")
     e_star = 1.0 / ((1 - nu_t ** 2) / e_t + (1 - nu_k ** 2) / e_k)
     r_in = 1.0 / (1.0 / r_t + a / (b * b))
     r_out = 1.0 / (1.0 / r_t + 1.0 / b)
     k_hertz = 4.0 / 3.0 * e_star * math.sqrt(math.sqrt(r_in * r_out))
-    mass = num(kernel, "mass", 2.8e-5)
+    mass = num(kernel, "mass", "kernels.*.mass")
     return (5.0 * mass * v * v / (4.0 * k_hertz)) ** 0.4
 
 
@@ -268,7 +274,7 @@ def evaluate(scene, doc, integrator, duration_s, code, summary, memory, rerun_sa
     status = summary["status"]
     props.append(("finite", code == 0 and status == "ok", status))
     # Progress: the run reached its end; bounded steps per simulated second.
-    dt = num(doc.get("integrator", {}), "dt", 1e-6)
+    dt = num(doc.get("integrator", {}), "dt", "integrator.dt")
     sim = summary["sim_time_s"]
     rate = summary["steps"] / sim if sim > 0 else float("inf")
     bound = scene.ed_steps_per_s if integrator == "event_driven" else 1.0 / dt + 1
@@ -550,6 +556,7 @@ def main():
     if args.render:
         return render_saved(args)
     simulate = str(find_binary("simulate", args.simulate, search=True))
+    schema.use(simulate)
     scenes = [s for s in HARD_SCENES if not args.scenes or s.key in args.scenes]
     if not scenes:
         parser.error("no scene matches %s" % args.scenes)

@@ -7,6 +7,7 @@ one's) or, with none built, from its generated copy in docs/scene_reference.md (
 scene-reference section; scripts/scene_reference.sh writes it, test_hostile_inputs checks that
 it is current)."""
 import functools
+import json
 import re
 import subprocess
 
@@ -54,6 +55,15 @@ def row(key, simulate=None):
     if key not in rows:
         raise SystemExit(f"schema: no key {key} in the scene schema")
     return rows[key]
+
+
+def value(key, simulate=None):
+    """The default of a key: a number, a list of numbers, or a word ("compliant", "auto")."""
+    cell = row(key, simulate)["default"]
+    try:
+        return json.loads(cell)
+    except ValueError:
+        return cell
 
 
 def default(key, simulate=None):

@@ -154,7 +154,7 @@ of the others; that of the slope, which friction acts on through the tooth's sur
   the explicit event-driven integrator to steps of nanoseconds: a rerun of a scene with
   several stiff teeth can exceed the core's work budget, and is then listed with that status
   (the nylon stream, whose six teeth the chaotic kernel stream bends to 0.11-0.12 L at some
-  levels at the scene's 83.78 rad/s; in the findings' sweep they stay below 0.1 L at every
+  levels at the scene's 83.78 rad/s; in the findings' sweep they stay below <V> L at every
   speed). The remedy would be a rod whose bending is integrated implicitly, or a basis without
   the spurious frequencies; neither is built.
 """

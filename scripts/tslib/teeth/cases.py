@@ -30,6 +30,12 @@ def validity_fraction():
     return schema.default("deflection_validity")
 
 
+def damage_thresholds():
+    """The core's (plastic, fracture) force thresholds of kernel damage [N] (the damage
+    section's defaults, simulate --print-schema)."""
+    return schema.default("damage.plastic_force"), schema.default("damage.fracture_force")
+
+
 
 COLORS = {"rigid": "black", "spring_steel": "tab:blue", "nylon": "tab:green",
           "polyurethane": "tab:red"}

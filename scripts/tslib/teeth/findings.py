@@ -2,13 +2,14 @@
 agreement with measurements, the rotation and large-deflection controls."""
 
 
+
 import numpy as np
 
 from tslib.numbers import fmt3, fmt3_range
 from tslib.teeth.analysis import nan_mean
-from tslib.teeth.cases import (CASES, CONVERGENCE_MODES, FLEXIBLE, FROZEN_CASES, HERTZ_SPEED_MPS,
-                               HERTZ_TIME_US, LARGE_DEFLECTION, MEASURED_FORCE_N, VARIANTS,
-                               partial_paragraph, validity_fraction)
+from tslib.teeth.cases import (CASES, CONVERGENCE_MODES, FLEXIBLE, FROZEN_CASES,
+                               HERTZ_SPEED_MPS, HERTZ_TIME_US, LARGE_DEFLECTION, MEASURED_FORCE_N,
+                               VARIANTS, damage_thresholds, partial_paragraph, validity_fraction)
 from tslib.teeth.report import markdown_table, strike_table
 
 
@@ -298,7 +299,8 @@ def write_findings(path, a, plots, rpms, history_rpm):
         strike_table(a), "",
         "## Damage and detachment", "",
         "A kernel is damaged when the largest normal force of any of its contacts reaches the "
-        "plastic threshold (139 N; fracture 146 N). The knead kernel has no pedicel.", "",
+        "plastic threshold ({:g} N; fracture {:g} N). The knead kernel has no pedicel.".format(
+            *damage_thresholds()), "",
         damage_table(a), "",
         "## Large deflection: where the tooth is a rod", "",
         rod_paragraph(a, history_rpm), "",

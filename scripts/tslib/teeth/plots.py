@@ -1,12 +1,14 @@
 """The tooth comparison's plots: force histories, quantities against drum speed, the Campbell
 diagram."""
+
 import csv
 
 import numpy as np
 
 from tslib import plots
 from tslib.teeth.analysis import tooth_episodes, touched
-from tslib.teeth.cases import CASES, COLORS, HERTZ_TIME_US, MEASURED_FORCE_N, STYLES, VARIANTS
+from tslib.teeth.cases import (CASES, COLORS, HERTZ_TIME_US, MEASURED_FORCE_N, STYLES, VARIANTS,
+                               damage_thresholds)
 
 
 plt = plots.pyplot()
@@ -110,7 +112,10 @@ def make_plots(out, runs, a, freqs, rpms, history_rpm):
             name = f"force_history_{case}.png"
             plot_histories(history, case, out / name)
             plots.append((name, f"Tooth contact forces, {case} at {history_rpm} rpm"))
-    limits = [(139.0, "--", "plastic damage 139 N"), (146.0, ":", "fracture 146 N")]
+    # The core's damage thresholds (damage.plastic_force and fracture_force defaults).
+    plastic, fracture = damage_thresholds()
+    limits = [(plastic, "--", f"plastic damage {plastic:g} N"),
+              (fracture, ":", f"fracture {fracture:g} N")]
     cases = [c for c in CASES if any(k[0] == c for k in a["table"])]
     for key, ylabel, name, caption, extra, shown in [
             ("peak_normal_N", "peak normal tooth force [N]", "peak_forces.png",
@@ -119,7 +124,8 @@ def make_plots(out, runs, a, freqs, rpms, history_rpm):
             ("knead_N", "peak tangential tooth force [N]", "knead_force.png",
              "Knead force (peak tangential tooth force) against drum speed", {}, cases),
             ("damaged", "fraction of kernels damaged", "damage_fraction.png",
-             "Damage fraction (largest contact force >= 139 N) against drum speed", {}, cases),
+             f"Damage fraction (largest contact force >= {plastic:g} N) against drum speed", {},
+             cases),
             ("detached", "fraction of kernels detached", "detachment_fraction.png",
              "Detachment fraction against drum speed", {},
              [c for c in cases if c != "knead"]),  # the knead kernel has no pedicel
