@@ -35,6 +35,9 @@ junit() {  # name command...
 # reports each kind of dangling reference).
 junit doc-refs /usr/bin/python3 "$ROOT/scripts/check_doc_refs.py"
 junit doc-refs-self-test /usr/bin/python3 "$ROOT/scripts/check_doc_refs.py" --self-test
+# Issue 25: scripts/ is one package (tslib) with thin entry points: no import cycle, no name
+# defined in two modules, every entry point answers --help.
+junit scripts-package /usr/bin/python3 "$ROOT/test/scripts/test_scripts_package.py"
 junit fuzz bash "$ROOT/scripts/fuzz.sh" 30
 junit sanitize bash "$ROOT/scripts/sanitize.sh"
 /usr/bin/python3 "$ROOT/scripts/count_results.py" "$WS/build/test_results"
