@@ -3,4 +3,4 @@
 (tables), the island-local scheme's part (islands, stages) and the command line (cli).
 
 The modules import downwards only: config <- scenes, runner <- measure <- plots, tables <-
-islands <- cli."""
+islands (with stages) <- cli."""

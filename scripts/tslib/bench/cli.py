@@ -5,8 +5,8 @@ import sys
 import tempfile
 import time
 
-from tslib.bench import islands
 from tslib import DOCS, markdown
+from tslib.bench import islands
 from tslib.bench.config import (CACHE_DIR, INTEGRATOR_STYLE, KERNEL_COUNTS, MODE_COUNTS,
                                 NODE_COUNTS, NODE_DURATION_S, REF_DT_S, REF_TOLERANCE, SCENES,
                                 STEPS_S, STREAM_REF_DT_S, STREAM_STEPS_S, TOLERANCES, say)

@@ -25,6 +25,7 @@ import subprocess
 import tempfile
 
 from tslib import BENCH_DIR, DOCS, ROOT, markdown, plots
+from tslib.bench import stages
 from tslib.bench.config import NODE_DURATION_S, say
 from tslib.bench.measure import node_try
 from tslib.bench.scenes import stream_override_file
@@ -32,7 +33,6 @@ from tslib.bench.stages import STREAM
 from tslib.bench.tables import write_csv
 from tslib.binaries import BIN_DIR
 from tslib.numbers import fmt
-from tslib.bench import stages
 
 STRIKE = BENCH_DIR / "single_strike.yaml"
 COUNTS = [0, 1, 10, 100, 1000, 10000]
