@@ -25,7 +25,7 @@ import subprocess
 import tempfile
 
 from tslib import BENCH_DIR, DOCS, ROOT, markdown, plots
-from tslib.bench import stages
+from tslib.bench import stages as stage_profile
 from tslib.bench.config import NODE_DURATION_S, say
 from tslib.bench.measure import node_try
 from tslib.bench.scenes import stream_override_file
@@ -168,10 +168,10 @@ def stage_table(gen_dir, quick):
     benchmark's kernel files (None under --quick or without valgrind)."""
     if quick or shutil.which("valgrind") is None:
         return None
-    case_list = stages.cases(lambda n, sparse: kernel_file(
+    case_list = stage_profile.cases(lambda n, sparse: kernel_file(
         n, ("sparse", sparse) if sparse is not None else False, gen_dir))
-    results = stages.profile(BIN_DIR / "simulate", case_list, say=say)
-    return stages.table(results)
+    results = stage_profile.profile(BIN_DIR / "simulate", case_list, say=say)
+    return stage_profile.table(results)
 
 
 def node_table(gen_dir, quick):
@@ -354,7 +354,7 @@ def stages_section(out_dir, stages):
                 break
     before = markdown.section_body(old, "stage-profile-before")
     current = stages or markdown.section_body(old, "stage-profile") or "(not measured in this run)"
-    return stages.section(current, before)
+    return stage_profile.section(current, before)
 
 
 def run_islands(args, runner, gen_dir, out, fig_dir):
