@@ -155,6 +155,10 @@ def _argument(where, text):
     if not _BAD_ARGUMENT.isdisjoint(text):
         _fail(where, f"control characters (tab, line break, NUL, ...) cannot be passed to "
               f"simulate (got {_show(text)})")
+    try:
+        text.encode("utf-8")  # as simulate --check-batch gets it
+    except UnicodeEncodeError:
+        _fail(where, f"not valid Unicode (a lone surrogate such as \\udc80) (got {_show(text)})")
     return text
 
 
@@ -665,8 +669,8 @@ class Sweep:
     """A parsed sweep file, within the limits (LIMITS); `run_count` runs."""
 
     def __init__(self, path):
-        self.path = pathlib.Path(path).resolve()
         spec = _read(path)
+        self.path = pathlib.Path(path).resolve()
         where = str(path)
         if not isinstance(spec, dict):
             _fail(where, f"expected a mapping (got {_show(spec)})")
@@ -765,9 +769,8 @@ class Sweep:
     @staticmethod
     def _name(where, name):
         """The output folder's name, out/sweeps/NAME: one path component."""
-        name = _text(where, name)
-        if not name or name in (".", "..") or "/" in name or "\\" in name or \
-                not _BAD_ARGUMENT.isdisjoint(name) or len(name) > 255:
+        name = _argument(where, _text(where, name))
+        if not name or name in (".", "..") or "/" in name or "\\" in name or len(name) > 255:
             _fail(where, f"expected a folder name (no '/', no control characters, not '.' or "
                   f"'..', at most 255 characters) (got {_show(name)})")
         return name
@@ -876,8 +879,11 @@ class Sweep:
                       f"(got {_show(plot)})")
             columns = plot.get("pareto") if "pareto" in plot else plot
             if not isinstance(columns, dict) or \
-                    not all(isinstance(columns.get(k), str) for k in ("x", "y")):
-                _fail(here, f"expected column names x and y (got {_show(plot)})")
+                    not all(isinstance(columns.get(k), str) for k in ("x", "y")) or \
+                    not all(isinstance(plot.get(k), (str, type(None))) for k in ("lines",
+                                                                                  "color")):
+                _fail(here, f"expected column names x and y (and lines or color) "
+                      f"(got {_show(plot)})")
         return spec
 
     def all_axes(self):

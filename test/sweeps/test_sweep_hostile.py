@@ -318,6 +318,9 @@ class HostileTest(unittest.TestCase):
         self.refused('set: {"a\\tb": 1}\n', "control characters")
         self.refused('axes: [{name: a, key: "drum.speed\\n", values: [1]}]\n',
                      "axes[0] (a).key: control characters")
+        # A lone surrogate (simulate --check-batch's input could not be encoded): refused by
+        # the YAML parser (libyaml), else by the arguments' check.
+        self.refused('set: {duration: "\\udc80"}\n', "Unicode")
 
     def test_corpus_accepted(self):
         """The real sweep files are within the limits, well under 1 s each."""
