@@ -205,6 +205,31 @@ def _range_values(where, spec, check=lambda n: None):
     return [v if isinstance(v, int) else float(f"{v:.12g}") for v in values]
 
 
+class _Length(Exception):
+    """The number of values of a range, found before they are built."""
+
+
+def _stop(n):
+    raise _Length(n)
+
+
+def _length(spec):
+    """The number of values of an axis' spec, without building them; None for a malformed
+    spec (Axis says what is wrong with it)."""
+    if not isinstance(spec, dict):
+        return None
+    for kind in ("values", "files", "cases"):
+        if kind in spec:
+            return len(spec[kind]) if isinstance(spec[kind], (list, dict)) else None
+    try:
+        _range_values("", spec.get("range"), _stop)
+    except _Length as length:
+        return length.args[0]
+    except SweepError:
+        return None
+    return None
+
+
 def _mapping(where, value, limit, what):
     """A mapping (None: empty) of at most `limit` entries."""
     value = {} if value is None else value
@@ -785,19 +810,21 @@ class Sweep:
         if not isinstance(specs, list):
             _fail(where, f"expected a list of axes (got {_show(specs)})")
         _count(where, specs, MAX_AXES, "axes")
+        def check(lengths):
+            total = runs * math.prod(n for _, n in lengths)
+            if done + total > MAX_RUNS:
+                factors = " x ".join(f"{n} ({_label(name)})" for name, n in lengths)
+                before = f" (and {done} runs before)" if done else ""
+                _fail(where, f"{factors} values give {total} runs{before}, which exceeds the "
+                      f"limit of {MAX_RUNS} runs (seeds and shared axes included)")
+
+        # First from the lengths alone, nothing built (a malformed axis is left to Axis)...
+        check([(s.get("name"), n) for s, n in ((s, _length(s)) for s in specs) if n])
         axes = []
         for i, spec in enumerate(specs):
-            def check(n):
-                if done + runs * n > MAX_RUNS:
-                    name = _label(spec.get("name")) if isinstance(spec, dict) else "?"
-                    factors = [f"{len(a.labels)} ({_label(a.name)})" for a in axes] + \
-                        [f"{n} ({name})"]
-                    before = f" (and {done} runs before)" if done else ""
-                    _fail(where, f"{' x '.join(factors)} values give {runs * n} runs{before}, "
-                          f"which exceeds the limit of {MAX_RUNS} runs (seeds and shared axes "
-                          f"included)")
-            axes.append(Axis(f"{where}[{i}]", spec, base, check))
-            runs *= len(axes[-1].labels)
+            # ... then axis by axis, each before its values are built.
+            axes.append(Axis(f"{where}[{i}]", spec, base, lambda n: check(
+                [(a.name, len(a.labels)) for a in axes] + [(spec.get("name"), n)])))
         return axes
 
     @staticmethod
