@@ -12,11 +12,13 @@ any other exception is a defect, and so is an input that takes more than --per-i
 of CPU time (SIGPROF in the worker: CPU rather than wall time, so that a loaded machine does
 not make slow inputs of fast ones). A hang that no signal interrupts (in C code, or blocked
 reading) is caught by the parent, which kills the worker after --hard-limit seconds (wall)
-without progress and starts a new one after that input. The worker's address space is capped (--memory-mb), so a memory bomb is a
-MemoryError (a defect), not a machine out of memory. Every loop is bounded: --inputs inputs or
---max-seconds in all, whichever comes first; fewer than --min-inputs inputs also fails.
+without progress and starts a new one after that input. The workers' address space is capped
+(--memory-mb), so a memory bomb is a MemoryError (a defect), not a machine out of memory.
+--jobs workers share the inputs (worker j: inputs j, j + jobs, ...). Every loop is bounded:
+--inputs inputs or --max-seconds in all, whichever comes first; fewer than --min-inputs inputs
+also fails.
 
-  test/fuzz/fuzz_sweep_file.py [--inputs 100000] [--seed 1] [--max-seconds 85]
+  test/fuzz/fuzz_sweep_file.py [--inputs 100000] [--seed 1] [--max-seconds 85] [--jobs 2]
   test/fuzz/fuzz_sweep_file.py --replay 1234 [--seed 1]   (prints input 1234 and its verdict)
 
 Defective inputs are saved as DIR/defect-<i>.yaml (--artifacts, default .build/fuzz_sweep).
