@@ -1,5 +1,6 @@
 #include "threshing_sim/ros/node_shared.h"
 
+#include <cstdio>
 #include <utility>
 
 namespace threshing_sim {
@@ -29,25 +30,35 @@ bool SnapshotQueue::empty() {
 
 RunStatus runStatus(const RunFlags& flags, const RunCounters& counters, const std::string& failure,
                     double busy_s, double watchdog_timeout_s) {
-  RunStatus s;
-  const double rtf = counters.measured_rtf, target = counters.target_rtf;
+  char buf[160];
   if (busy_s > watchdog_timeout_s) {
-    s = {RunStatus::kError, "STALLED",
-         "watchdog: physics step running for " + std::to_string(busy_s) + " s"};
-  } else if (flags.failed) {
-    s = {RunStatus::kError, "FAILED", "integrator failed (" + failure + "): call ~reset"};
-  } else if (counters.recoveries > 0) {
-    s = {RunStatus::kWarn, "running", "numerical recoveries"};
-  } else if (!flags.paused && !flags.finished && target > 0 && rtf < kSlowFraction * target) {
-    s = {RunStatus::kWarn, "SLOW", "slower than the target real time"};
+    std::snprintf(buf, sizeof(buf), "watchdog: physics step running for %.1f s", busy_s);
+    return {RunStatus::kError, "STALLED", buf};
+  }
+  if (flags.failed)
+    return {RunStatus::kError, "FAILED", "integrator failed (" + failure + "): call ~reset"};
+  const bool paused = flags.paused, finished = flags.finished;
+  const double rtf = counters.measured_rtf, target = counters.target_rtf;
+  const bool slow = !paused && !finished && target > 0 && rtf < kSlowFraction * target;
+  RunStatus s;
+  s.state = finished ? "FINISHED" : paused ? "PAUSED" : slow ? "SLOW" : "RUNNING";
+  s.level = RunStatus::kWarn;
+  if (counters.recoveries > 0) {
+    s.message = "numerical recoveries";
+  } else if (slow) {
+    std::snprintf(buf, sizeof(buf),
+                  "slower than the target real time: real-time factor %.3g, pace %.3g", rtf,
+                  target);
+    s.message = buf;
   } else if (counters.deflection_warning_s >= 0) {
-    s = {RunStatus::kWarn, "running",
-         "tooth deflection outside the small-deflection range of the beam model"};
+    s.message = "tooth deflection outside the small-deflection range of the beam model";
   } else if (counters.resets_skipped > 0) {
-    s = {RunStatus::kWarn, "running", "resets skipped: the start poses overlapped a body"};
+    s.message = "resets skipped: the start poses overlapped a body";
   } else {
-    const char* state = flags.finished ? "finished" : flags.paused ? "paused" : "running";
-    s = {RunStatus::kOk, state, state};
+    s.level = RunStatus::kOk;
+    s.message = finished ? "finished"
+                : paused ? "paused (~pause or ~start_paused): call ~pause false to run"
+                         : "running";
   }
   return s;
 }

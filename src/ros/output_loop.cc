@@ -51,6 +51,8 @@ void OutputLoop::run() {
       publishClock(timing_.stampOf(flags_.step));
       next_clock_s = now_s + kClockPeriod_s;
     }
+    // The overlay and the status markers show the state /diagnostics reports now.
+    if (!batch.empty()) marker_builder_.setStatus(status_());
     for (const Snapshot& s : batch) {
       const bool with_static = (s.streams & kMarkerStream) && now_s >= next_static_s;
       if (with_static) next_static_s = now_s + kStaticMarkerPeriod_s;

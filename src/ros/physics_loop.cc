@@ -402,7 +402,9 @@ void PhysicsLoop::takeSnapshot(unsigned streams) {
   Snapshot s;
   s.model = model_;
   s.step = flags_.step;
-  s.t_s = s.step * timing_.dt_s;
+  // After a failure the state is the last good one, inside the failed physics step (the time
+  // /diagnostics reports too).
+  s.t_s = flags_.failed ? data_.t_s : s.step * timing_.dt_s;
   s.stamp = timing_.stampOf(s.step);
   s.theta_rad = data_.theta_rad;
   s.omega_radps = data_.omega_radps;

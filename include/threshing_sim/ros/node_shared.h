@@ -102,19 +102,23 @@ class SnapshotQueue {
   std::deque<Snapshot> queue_;
 };
 
-// The run's state as /diagnostics, the status line and the overlay show it.
+// The run's state as /diagnostics, the status line and the overlay show it: one computation,
+// so that the overlay and /diagnostics agree.
 struct RunStatus {
-  enum Level : std::uint8_t { kOk = 0, kWarn = 1, kError = 2 };
+  enum Level : std::uint8_t { kOk = 0, kWarn = 1, kError = 2 };  // diagnostic_msgs' levels
   Level level = kOk;
-  std::string state;    // "running", "paused", "finished", "FAILED", "PAUSED", "SLOW"...
-  std::string message;  // the /diagnostics summary: the state with its cause
+  // "RUNNING", "PAUSED", "FINISHED", "SLOW" (the pace is not held), "FAILED" (integrator
+  // failure) or "STALLED" (the watchdog: a physics step runs too long).
+  std::string state = "RUNNING";
+  std::string message = "running";  // the /diagnostics summary: the state's cause
 };
 
 // A measured real-time factor below this fraction of the target is a warning [-].
 constexpr double kSlowFraction = 0.9;
 
 // busy_s: how long the running physics step has run [wall s]; failure: describe() of the
-// last integrator failure.
+// last integrator failure. Errors first (watchdog, failure), then warnings (numerical
+// recoveries, the pace not held, deflection beyond the beam model, skipped resets), else OK.
 RunStatus runStatus(const RunFlags& flags, const RunCounters& counters, const std::string& failure,
                     double busy_s, double watchdog_timeout_s);
 
