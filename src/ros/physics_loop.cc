@@ -25,8 +25,6 @@ constexpr double kViewerTimeout_s = 120.0;
 // this long after [s].
 constexpr double kSlowBefore_s = 1e-3;
 constexpr double kSlowAfter_s = 1e-3;
-// ~skip_to_contact gives up after this much simulated time without a strike [s].
-constexpr double kMaxSkip_s = 2.0;
 
 PacerOptions pacerOptions(const NodeParams& params, double dt_s) {
   PacerOptions o;

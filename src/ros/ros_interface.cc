@@ -17,8 +17,6 @@ namespace {
 
 // How long a service waits for the physics thread [s].
 constexpr double kServiceTimeout_s = 30.0;
-// ~skip_to_contact gives up after this much simulated time without a strike (physics_loop.cc) [s].
-constexpr double kMaxSkip_s = 2.0;
 
 }  // namespace
 

@@ -115,6 +115,8 @@ struct RunStatus {
 
 // A measured real-time factor below this fraction of the target is a warning [-].
 constexpr double kSlowFraction = 0.9;
+// ~skip_to_contact gives up after this much simulated time without a strike [s].
+constexpr double kMaxSkip_s = 2.0;
 
 // busy_s: how long the running physics step has run [wall s]; failure: describe() of the
 // last integrator failure. Errors first (watchdog, failure), then warnings (numerical
