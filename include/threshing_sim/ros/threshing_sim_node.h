@@ -1,7 +1,8 @@
 // threshing_sim ROS layer: the node, a thin layer over the core (core/simulator.h), made of
 // parts split by thread and by job:
-//  - RosInterface (ros_interface.h): parameters' services, topics, dynamic_reconfigure and
-//    /diagnostics; its callbacks run on the ROS spinner (main) and only stage values;
+//  - RosInterface (ros_interface.h): topics, services, dynamic_reconfigure (the live
+//    parameters) and /diagnostics; its callbacks run on the ROS spinner (main) and only stage
+//    values (the start-up parameters: node_params.h);
 //  - PhysicsLoop (physics_loop.h), the physics thread: pacing, sampling, commands at step
 //    boundaries, with its DemoLoop (demo_loop.h: re-seeding) and StrikeLog / CommandSchedule
 //    (recording.h: strike histories and what a snapshot records; the commands replayed);
