@@ -1,6 +1,7 @@
 #include "threshing_sim/ros/messages.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 
@@ -332,6 +333,13 @@ std::vector<geometry_msgs::TransformStamped> staticTransforms(const Model& model
   return out;
 }
 
+std_msgs::ColorRGBA statusColor(const RunStatus& status) {
+  if (status.level == RunStatus::kError) return rgba(1.f, 0.15f, 0.15f);
+  if (status.level == RunStatus::kWarn) return rgba(1.f, 0.6f, 0.f);
+  if (status.state != "RUNNING") return rgba(0.6f, 0.8f, 1.f);
+  return rgba(0.95f, 0.95f, 0.95f);
+}
+
 visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Data& scratch,
                                                      bool with_static) {
   const Model& model = *s.model;
@@ -347,6 +355,7 @@ visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Da
     out.markers.insert(out.markers.end(), geometry.markers.begin(), geometry.markers.end());
   }
   addOverlay(s, &out);
+  addStatus(s, &out);
   addStrikeChart(s, &out);
 
   // Teeth: line strips along the deformed centreline, as thick as the tooth.
@@ -481,6 +490,45 @@ visualization_msgs::MarkerArray MarkerBuilder::staticGeometry(const Snapshot& s)
   return out;
 }
 
+namespace {
+
+// Whether the run is simply running (no status line, word, cause or frame).
+bool plainRunning(const RunStatus& status) {
+  return status.level == RunStatus::kOk && status.state == "RUNNING";
+}
+
+// The overlay's status line: the state, and the summary's head (up to its first ':' or '(')
+// unless that only repeats the state ("PAUSED", "FAILED: integrator failed", "SLOW: slower
+// than the target real time"); the whole summary is the status cause marker.
+std::string statusLine(const RunStatus& status) {
+  std::string head = status.message.substr(0, status.message.find_first_of(":("));
+  while (!head.empty() && head.back() == ' ') head.pop_back();
+  std::string lower = status.state;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return head.empty() || head == lower ? status.state : status.state + ": " + head;
+}
+
+// text broken into lines of at most `width` characters at spaces (a longer word stays whole):
+// joining the lines with spaces gives text back.
+std::string wrap(const std::string& text, size_t width) {
+  std::string out;
+  size_t line_start = 0;
+  for (size_t i = 0; i < text.size();) {
+    size_t end = text.find(' ', i);
+    if (end == std::string::npos) end = text.size();
+    if (i > line_start && end - line_start > width) {
+      out.back() = '\n';
+      line_start = i;
+    }
+    out.append(text, i, end - i);
+    if (end < text.size()) out += ' ';
+    i = end + 1;
+  }
+  return out;
+}
+
+}  // namespace
+
 void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
   char peak[64] = "(none yet)";
   if (have_strike_) std::snprintf(peak, sizeof(peak), "%.1f N", last_strike_.peakNormalForce());
@@ -491,10 +539,50 @@ void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArra
                 "last strike peak %s",
                 s.t_s, s.omega_radps, s.omega_radps * 30 / kPi, s.omega_target_radps,
                 s.measured_rtf, s.requested_rtf, s.target_rtf, peak);
+  // Unless simply running, the status line comes first, in letters small enough for four
+  // lines to take the room of three.
+  const bool plain = plainRunning(status_);
   const double h_m = extent_.size().y();
-  out->markers.push_back(text(s, "overlay", 0,
-                              Vec2(extent_.center().x(), extent_.max_m.y() + 0.02 * h_m),
-                              0.03 * h_m, line));
+  visualization_msgs::Marker m =
+      text(s, "overlay", 0, Vec2(extent_.center().x(), extent_.max_m.y() + 0.02 * h_m),
+           (plain ? 0.03 : 0.0225) * h_m, plain ? line : statusLine(status_) + "\n" + line);
+  m.color = statusColor(status_);
+  out->markers.push_back(m);
+}
+
+// Unless the run is simply running: its state in large letters at the scene's top left corner
+// (the drum's circle leaves the corners of its box empty) and the whole /diagnostics summary
+// below the strike chart; on a warning or an error also a frame around the scene; all in the
+// status colour, deleted again once it runs (the frame once the alarm is over).
+void MarkerBuilder::addStatus(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
+  const bool show = !plainRunning(status_);
+  const double h_m = extent_.size().y(), w_m = extent_.size().x();
+  const SceneExtent c = chartBox(extent_);
+  visualization_msgs::Marker word =
+      text(s, "status", 0, Vec2(extent_.min_m.x() + 0.16 * w_m, extent_.max_m.y() - 0.09 * h_m),
+           0.07 * h_m, status_.state);
+  visualization_msgs::Marker cause =
+      text(s, "status", 1, Vec2(c.center().x(), 0.5 * (c.min_m.y() + extent_.min_m.y())),
+           0.025 * h_m, wrap(status_.message, 48));
+  visualization_msgs::Marker frame =
+      marker(s, "status_frame", 0, visualization_msgs::Marker::LINE_STRIP);
+  const double pad = 0.01 * h_m;
+  const Vec2 lo = extent_.min_m - Vec2(pad, pad), hi = extent_.max_m + Vec2(pad, pad);
+  for (const Vec2& p : {lo, Vec2(hi.x(), lo.y()), hi, Vec2(lo.x(), hi.y()), lo})
+    frame.points.push_back(point(p, 0.02));
+  frame.scale.x = 0.008 * h_m;
+  word.color = cause.color = frame.color = statusColor(status_);
+  // The frame is an alarm: for warnings and errors only (a paused or finished run is fine).
+  const bool alarm = status_.level != RunStatus::kOk;
+  for (visualization_msgs::Marker* m : {&word, &cause, &frame}) {
+    if (m == &frame ? alarm : show) continue;
+    m->action = visualization_msgs::Marker::DELETE;
+    m->text.clear();
+    m->points.clear();
+  }
+  out->markers.push_back(word);
+  out->markers.push_back(cause);
+  out->markers.push_back(frame);
 }
 
 void MarkerBuilder::addStrikeChart(const Snapshot& s, visualization_msgs::MarkerArray* out) const {

@@ -8,7 +8,13 @@
 //  run_to_strike the
 //    demo runs until the first strike_history and is paused, else it stays paused at t = 0; the
 //    screenshot must show the whole drum rim inside the render area and at least 90 % of the
-//    kernels (connected blobs in a kernel colour), and after a strike the strike chart's curve.
+//    kernels (connected blobs in a kernel colour), and after a strike the strike chart's curve;
+//  - ScreenshotShowsPausedThenFailed (rviz_status.test, a scene beyond the work budget, started
+//    paused): the overlay and the status markers say PAUSED (sky blue), then, run, FAILED with
+//    the integrator's cause (red), each agreeing with /diagnostics; screenshots of both;
+//  - ScreenshotShowsTheSlowPace (rviz_slow.test, a pace the machine cannot hold): the overlay
+//    and the status markers say SLOW in the warning colour (amber) while /diagnostics warns.
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
 #include <ros/master.h>
 #include <ros/ros.h>
@@ -382,6 +388,190 @@ TEST(Rviz, ScreenshotShowsTheContact) {
   EXPECT_GT(kernel, 50);
   EXPECT_GT(tooth, 1000);
   EXPECT_GT(arrow, 20);
+}
+
+// What the node shows of its state: the overlay and status markers on /markers and the
+// /diagnostics summary.
+struct StatusSeen {
+  std::mutex mutex;
+  std::string overlay, word;  // overlay text, the status word
+  std::string cause;          // the status cause marker's text, its lines joined by spaces
+  std_msgs::ColorRGBA overlay_color, word_color;  // their colours
+  int frame_action = -1;                          // the status_frame marker's last action
+  int level = -1;                                 // /diagnostics level of the simulation status
+  std::string summary;                            // and its summary
+  double sim_time_s = -1;                         // and its "simulation time [s]"
+};
+
+void watchStatus(ros::NodeHandle& nh, StatusSeen* seen, std::vector<ros::Subscriber>* subs) {
+  subs->push_back(nh.subscribe<visualization_msgs::MarkerArray>(
+      "/markers", 10,
+      boost::function<void(const visualization_msgs::MarkerArray::ConstPtr&)>(
+          [seen](const visualization_msgs::MarkerArray::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(seen->mutex);
+            for (const auto& marker : m->markers) {
+              if (marker.ns == "overlay") {
+                seen->overlay = marker.text;
+                seen->overlay_color = marker.color;
+              } else if (marker.ns == "status" && marker.id == 0) {
+                seen->word = marker.action == visualization_msgs::Marker::ADD ? marker.text : "";
+                seen->word_color = marker.color;
+              } else if (marker.ns == "status" && marker.id == 1) {
+                seen->cause = marker.action == visualization_msgs::Marker::ADD ? marker.text : "";
+                std::replace(seen->cause.begin(), seen->cause.end(), '\n', ' ');
+              } else if (marker.ns == "status_frame") {
+                seen->frame_action = marker.action;
+              }
+            }
+          })));
+  subs->push_back(nh.subscribe<diagnostic_msgs::DiagnosticArray>(
+      "/diagnostics", 100,
+      boost::function<void(const diagnostic_msgs::DiagnosticArray::ConstPtr&)>(
+          [seen](const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+            std::lock_guard<std::mutex> lock(seen->mutex);
+            for (const auto& s : m->status) {
+              if (s.name.find("simulation") == std::string::npos) continue;
+              seen->level = s.level;
+              seen->summary = s.message;
+              for (const auto& kv : s.values)
+                if (kv.key == "simulation time [s]") seen->sim_time_s = std::stod(kv.value);
+            }
+          })));
+}
+
+bool colourIs(const std_msgs::ColorRGBA& c, float r, float g, float b) {
+  return std::abs(c.r - r) < 0.02 && std::abs(c.g - g) < 0.02 && std::abs(c.b - b) < 0.02;
+}
+
+std::string describe(const StatusSeen& s) {
+  char c[120];
+  std::snprintf(c, sizeof(c), "overlay colour (%.2f, %.2f, %.2f), status word '%s'",
+                s.overlay_color.r, s.overlay_color.g, s.overlay_color.b, s.word.c_str());
+  return "overlay:\n" + s.overlay + "\n" + c + "\nstatus cause: " + s.cause +
+         "\n/diagnostics level " + std::to_string(s.level) + ": " + s.summary;
+}
+
+// Waits until pred(seen) holds (under its mutex), up to timeout_s of wall time.
+template <typename Pred>
+bool waitForStatus(StatusSeen* seen, double timeout_s, Pred pred) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < end) {
+    {
+      std::lock_guard<std::mutex> lock(seen->mutex);
+      if (pred(*seen)) return true;
+    }
+    ros::WallDuration(0.05).sleep();
+  }
+  return false;
+}
+
+// The overlay's first line: the state, and the head of its cause (the whole cause is the
+// status cause marker, the /diagnostics summary word for word).
+std::string firstLine(const std::string& text) { return text.substr(0, text.find('\n')); }
+
+// Status colours (messages.cc statusColor): paused sky blue (153, 204, 255), warning amber
+// (255, 153, 0), error red (255, 38, 38); text and lines are drawn unlit.
+bool skyBlue(int r, int g, int b) { return near(r, 153, 12) && near(g, 204, 12) && b > 240; }
+bool amber(int r, int g, int b) { return r > 240 && near(g, 153, 12) && b < 30; }
+bool red(int r, int g, int b) { return r > 235 && near(g, 38, 12) && near(b, 38, 12); }
+
+TEST(Rviz, ScreenshotShowsPausedThenFailed) {
+  ros::NodeHandle nh, pnh("~");
+  const std::string display = pnh.param<std::string>("display", ":73");
+  StatusSeen seen;
+  std::vector<ros::Subscriber> subs;
+  watchStatus(nh, &seen, &subs);
+  waitForRviz();
+
+  // Paused at start: PAUSED in sky blue on the overlay and the status markers, /diagnostics OK
+  // with the cause the markers show.
+  const bool paused = waitForStatus(&seen, 30.0, [](const StatusSeen& s) {
+    return s.level == diagnostic_msgs::DiagnosticStatus::OK && !s.summary.empty() &&
+           firstLine(s.overlay) == "PAUSED" && s.word == "PAUSED" && s.cause == s.summary;
+  });
+  {
+    std::lock_guard<std::mutex> lock(seen.mutex);
+    ASSERT_TRUE(paused) << describe(seen);
+    EXPECT_NE(seen.summary.find("~pause"), std::string::npos) << seen.summary;
+    EXPECT_TRUE(colourIs(seen.overlay_color, 0.6f, 0.8f, 1.f)) << describe(seen);
+    EXPECT_TRUE(colourIs(seen.word_color, 0.6f, 0.8f, 1.f)) << describe(seen);
+    EXPECT_EQ(seen.frame_action, visualization_msgs::Marker::DELETE) << "an alarm frame";
+  }
+  ros::WallDuration(1.5).sleep();  // rviz draws the last markers
+  const std::string paused_png = std::string(SCREENSHOT_DIR) + "/rviz_paused.png";
+  const Image paused_img = screenshot(display, paused_png);
+  ASSERT_GT(paused_img.width * paused_img.height, 0);
+  const long paused_blue = count(paused_img, skyBlue), paused_red = count(paused_img, red);
+  std::printf("screenshot %s: sky blue (paused) %ld px, red %ld px\n", paused_png.c_str(),
+              paused_blue, paused_red);
+  EXPECT_GT(paused_blue, 500) << "no PAUSED status drawn";
+
+  // Run: the first physics step exceeds the core's work budget. FAILED with the cause in red,
+  // /diagnostics ERROR with the same summary.
+  pause(false);
+  const bool failed = waitForStatus(&seen, 90.0, [](const StatusSeen& s) {
+    return s.level == diagnostic_msgs::DiagnosticStatus::ERROR && !s.summary.empty() &&
+           firstLine(s.overlay) == "FAILED: integrator failed" && s.word == "FAILED" &&
+           s.cause == s.summary;
+  });
+  {
+    std::lock_guard<std::mutex> lock(seen.mutex);
+    ASSERT_TRUE(failed) << describe(seen);
+    EXPECT_NE(seen.cause.find("integrator failed (work budget exceeded"), std::string::npos)
+        << describe(seen);
+    EXPECT_NE(seen.cause.find("[work_budget]"), std::string::npos) << describe(seen);
+    EXPECT_NE(seen.cause.find("call ~reset"), std::string::npos) << describe(seen);
+    // The time the overlay shows is that of the state kept, as /diagnostics reports it.
+    double overlay_t_s = -1;
+    const size_t t_at = seen.overlay.find("\nt = ");
+    ASSERT_NE(t_at, std::string::npos) << describe(seen);
+    overlay_t_s = std::stod(seen.overlay.substr(t_at + 5));
+    EXPECT_NEAR(overlay_t_s, seen.sim_time_s, 1e-6) << describe(seen);
+    EXPECT_LT(overlay_t_s, 1e-4) << "the failed step's end, not the state kept";
+    EXPECT_TRUE(colourIs(seen.overlay_color, 1.f, 0.15f, 0.15f)) << describe(seen);
+    EXPECT_TRUE(colourIs(seen.word_color, 1.f, 0.15f, 0.15f)) << describe(seen);
+    EXPECT_EQ(seen.frame_action, visualization_msgs::Marker::ADD) << "no alarm frame";
+  }
+  ros::WallDuration(2.5).sleep();  // the paused node republishes its markers once a second
+  const std::string failed_png = std::string(SCREENSHOT_DIR) + "/rviz_failed.png";
+  const Image failed_img = screenshot(display, failed_png);
+  ASSERT_GT(failed_img.width * failed_img.height, 0);
+  const long failed_red = count(failed_img, red), failed_blue = count(failed_img, skyBlue);
+  std::printf("screenshot %s: red (failed) %ld px, sky blue %ld px\n", failed_png.c_str(),
+              failed_red, failed_blue);
+  EXPECT_GT(failed_red, paused_red + 1000) << "no FAILED status drawn";
+  EXPECT_LT(failed_blue, paused_blue / 4) << "the PAUSED status is still drawn";
+}
+
+TEST(Rviz, ScreenshotShowsTheSlowPace) {
+  ros::NodeHandle nh, pnh("~");
+  const std::string display = pnh.param<std::string>("display", ":74");
+  StatusSeen seen;
+  std::vector<ros::Subscriber> subs;
+  watchStatus(nh, &seen, &subs);
+  waitForRviz();
+  // Real time asked of 1 us physics steps: the pace is not held. SLOW in amber on the overlay
+  // and the status marker while /diagnostics warns of it.
+  const std::string kSlow = "slower than the target real time";
+  const bool slow = waitForStatus(&seen, 60.0, [&](const StatusSeen& s) {
+    return s.level == diagnostic_msgs::DiagnosticStatus::WARN && s.summary.rfind(kSlow, 0) == 0 &&
+           firstLine(s.overlay) == "SLOW: " + kSlow && s.cause.rfind(kSlow, 0) == 0 &&
+           s.word == "SLOW";
+  });
+  {
+    std::lock_guard<std::mutex> lock(seen.mutex);
+    ASSERT_TRUE(slow) << describe(seen);
+    EXPECT_TRUE(colourIs(seen.overlay_color, 1.f, 0.6f, 0.f)) << describe(seen);
+    EXPECT_TRUE(colourIs(seen.word_color, 1.f, 0.6f, 0.f)) << describe(seen);
+    EXPECT_EQ(seen.frame_action, visualization_msgs::Marker::ADD);
+  }
+  ros::WallDuration(1.0).sleep();
+  const std::string png = std::string(SCREENSHOT_DIR) + "/rviz_slow.png";
+  const Image img = screenshot(display, png);
+  ASSERT_GT(img.width * img.height, 0);
+  const long warn = count(img, amber);
+  std::printf("screenshot %s: amber (slow) %ld px\n", png.c_str(), warn);
+  EXPECT_GT(warn, 1000) << "no SLOW status drawn";
 }
 
 }  // namespace

@@ -21,6 +21,7 @@
 #include "threshing_sim/KernelStateArray.h"
 #include "threshing_sim/StrikeHistory.h"
 #include "threshing_sim/ros/live_view.h"
+#include "threshing_sim/ros/node_shared.h"
 #include "threshing_sim/ros/snapshot.h"
 #include "threshing_sim/scene/outcomes.h"
 
@@ -64,6 +65,10 @@ std::vector<geometry_msgs::TransformStamped> movingTransforms(const Snapshot& s,
 std::vector<geometry_msgs::TransformStamped> staticTransforms(const Model& model,
                                                               const ros::Time& stamp);
 
+// The colour the overlay and the status markers take for a run status: OK running light grey,
+// OK paused or finished sky blue, a warning (the pace not held...) amber, an error red.
+std_msgs::ColorRGBA statusColor(const RunStatus& status);
+
 // markers: one namespace per entity, stable ids. Static geometry (drum, obstacles) only when
 // asked; DELETEALL first after a reset; arrows of pairs no longer in contact are deleted.
 class MarkerBuilder {
@@ -82,12 +87,16 @@ class MarkerBuilder {
     last_strike_ = strikes.back();
     have_strike_ = true;
   }
+  // The run's state the overlay and the status markers show (the output thread sets it before
+  // each build, from the same RunStatus as /diagnostics).
+  void setStatus(const RunStatus& status) { status_ = status; }
   // The drum, the obstacles (and the chart's frame): the static geometry alone.
   visualization_msgs::MarkerArray staticGeometry(const Snapshot& s) const;
 
  private:
   void addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
   void addStrikeChart(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
+  void addStatus(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
 
   SceneExtent extent_;               // the scene's box in world [m]
   DamageThresholds damage_;          // kernel colours: damaged at or above plastic_force [N]
@@ -96,6 +105,7 @@ class MarkerBuilder {
   double scale_mpN_;                 // force arrow length per newton [m/N]
   int beam_points_;                  // centreline samples per tooth [-]
   std::set<int> live_force_arrows_;  // ids of the contact_forces arrows now shown
+  RunStatus status_;                 // shown on the overlay and by the status markers
 };
 
 }  // namespace threshing_sim

@@ -45,7 +45,7 @@ struct AppliedCommand {
 struct Snapshot {
   std::shared_ptr<const Model> model;  // the model in effect (contact values may change live)
   long step = 0;                       // boundary index k: t = k * physics_dt
-  double t_s = 0;                      // simulation time [s]
+  double t_s = 0;                      // simulation time [s] (after a failure: of the state kept)
   ros::Time stamp;                     // stamp of every message built from this snapshot
   double theta_rad = 0;                // drum angle [rad]
   double omega_radps = 0;              // drum speed [rad/s]
