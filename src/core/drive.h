@@ -1,7 +1,7 @@
 // threshing_sim core, private: the drum drive. The drum is rheonomic: its speed follows the
 // commanded target at the drive's acceleration limit (a ramp, then cruise), so its state at any
 // time within a step is known in closed form. The path of a drum speed command:
-//   node: drum_speed_cmd -> ThreshingSimNode::onDrumSpeedCommand (validate, stage)
+//   node: drum_speed_cmd -> RosInterface::onDrumSpeedCommand (validate, stage)
 //   node: applyStaged at the next step boundary -> setDrumTarget (drive.cc: the target)
 //   integrators: driveAt / timeToTarget (drive.cc: the ramp law over a step), used by
 //   event_driven/ (planStep in step_size.cc, acceptStep in accept.cc), time_stepping/
