@@ -21,7 +21,7 @@ echo "|---|---|---|---|"
 for scene in "${scenes[@]}"; do
   valgrind --tool=callgrind --callgrind-out-file="$out" "$SIM" "$scene" --duration 1e-9 \
     >/dev/null 2>&1
-  ann=$(callgrind_annotate --inclusive=yes "$out" 2>/dev/null)
+  ann=$(callgrind_annotate --inclusive=yes --threshold=100 "$out" 2>/dev/null)
   count() { echo "$ann" | grep -E "$1" | head -1 | awk '{gsub(",", "", $1); print $1}'; }
   echo "| $scene | $(count 'threshing_sim::compileModel\(') |" \
     "$(count 'threshing_sim::loadScene\(') | $(count 'YAML::Load\(std::istream') |"

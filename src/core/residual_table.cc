@@ -38,13 +38,8 @@ class ResidualSampler {
   ResidualSampler(const ToothModel& tooth, double drum_radius_m)
       : t_(tooth), statics_(tooth, drum_radius_m, kResidualPoints) {
     const int n = tooth.n_modes;
-    MatX phi_s(kResidualPoints, n), dphi_s(kResidualPoints, n);
-    VecX phi, dphi;
-    for (int s = 0; s < kResidualPoints; ++s) {
-      evaluateModes(t_, t_.length_m * s / (kResidualPoints - 1), &phi, &dphi);
-      phi_s.row(s) = phi.transpose();
-      dphi_s.row(s) = dphi.transpose();
-    }
+    MatX phi_s, dphi_s;
+    evaluateModesOnGrid(t_, kResidualPoints, &phi_s, &dphi_s);
     const VecX scale = tooth.omega0_sq.cwiseSqrt().cwiseInverse();  // Lambda^-1/2
     const MatX S = scale.asDiagonal() * (tooth.K_G - MatX::Identity(n, n)) * scale.asDiagonal();
     const Eigen::SelfAdjointEigenSolver<MatX> eig(S);
@@ -133,9 +128,11 @@ void buildPanel(const ResidualSampler& sample, double u_lo, double u_hi, int dep
     v[idx] = sample(std::max(0.0, mid + half * std::cos(kPi * idx / (kFineNodes - 1))));
   };
   if (u_lo == 0.0 && depth == 0) {
-    // The rest node first: it measures the rounding the tolerance must stay above.
+    // The rest node first: its static flexibility is the scale of the errors, and it measures
+    // the rounding the tolerance must stay above.
     Sample at_rest;
     v[16] = sample(0.0, &at_rest);
+    out->scale = at_rest.cwiseAbs().colwise().maxCoeff();
     out->tolerance =
         std::max(kTableTolerance, 10 * roundingAtRest(sample.tooth(), at_rest, out->scale));
   } else {
@@ -164,6 +161,20 @@ void buildPanel(const ResidualSampler& sample, double u_lo, double u_hi, int dep
   out->error = std::max(out->error, error);
   out->panels.push_back({u_lo, u_hi, m, static_cast<int>(out->nodes.size())});
   for (int j = 0; j < m; ++j) out->nodes.push_back(v[j * (kFineNodes - 1) / (m - 1)]);
+}
+
+// The unclamped residual at u = Omega^2 (within the table's range) from the table's nodes.
+Sample tableAt(const TableBuild& table, double u_radps2) {
+  size_t k = 0;
+  while (k + 1 < table.panels.size() && u_radps2 > table.panels[k].u_hi_radps2) ++k;
+  const ResidualPanel& p = table.panels[k];
+  std::array<double, kFineNodes> ell{};
+  lobattoBasis(p.n_nodes,
+               (2.0 * u_radps2 - p.u_lo_radps2 - p.u_hi_radps2) / (p.u_hi_radps2 - p.u_lo_radps2),
+               ell.data());
+  Sample r = Sample::Zero();
+  for (int j = 0; j < p.n_nodes; ++j) r += ell[j] * table.nodes[p.first_node + j];
+  return r;
 }
 
 }  // namespace
@@ -215,15 +226,10 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
     t.residual_nodes_ww = t.residual_nodes_wt = t.residual_nodes_tt = MatX::Zero(P, 0);
     return;
   }
-  // The tables at the scene's speed, then over [0, max(speed_bound, |omega|)^2] in Omega^2.
+  // The table over [0, max(speed_bound, |omega|)^2] in Omega^2, then the residual at the
+  // scene's speed from it (within the table's tolerance of the static solve, which it saves).
   const ResidualSampler sample(t, drum_radius_m);
-  Sample exact;
-  const StationFlexibility r = clamped(sample.at(omega_radps, &exact));
-  t.residual_ww = r.ww;
-  t.residual_wt = r.wt;
-  t.residual_tt = r.tt;
   TableBuild build;
-  build.scale = exact.cwiseAbs().colwise().maxCoeff();
   const double bound = std::max(speed_bound_radps, std::abs(omega_radps));
   buildPanel(sample, 0.0, bound * bound, 0, &build);
   const int n = static_cast<int>(build.nodes.size());
@@ -235,6 +241,10 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
     t.residual_nodes_wt.col(j) = build.nodes[j].col(1);
     t.residual_nodes_tt.col(j) = build.nodes[j].col(2);
   }
+  const StationFlexibility r = clamped(tableAt(build, omega_radps * omega_radps));
+  t.residual_ww = r.ww;
+  t.residual_wt = r.wt;
+  t.residual_tt = r.tt;
   t.residual_panels = build.panels;
   t.residual_table_error = build.error;
 }

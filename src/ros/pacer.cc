@@ -52,6 +52,9 @@ Pacer::Pacer(const SteadyClock& clock, const PacerOptions& options)
   require(std::isfinite(options.catch_up_factor) && options.catch_up_factor >= 1,
           "catch_up_factor must be >= 1");
   require(std::isfinite(options.max_lag_s) && options.max_lag_s > 0, "max_lag_s must be > 0");
+  require(std::isfinite(options.overrun_lag_s) && options.overrun_lag_s > 0 &&
+              options.overrun_lag_s <= options.max_lag_s,
+          "overrun_lag_s must be in (0, max_lag_s]");
   require(options.fast_batch_steps >= 1, "fast_batch_steps must be >= 1");
   require(std::isfinite(options.rate_window_s) && options.rate_window_s > 0,
           "rate_window_s must be > 0");
@@ -80,6 +83,7 @@ void Pacer::restart() {
   window_start_s_ = last_s_;
   window_steps_ = 0;
   previous_batch_ = 0;
+  lagging_ = false;
 }
 
 int Pacer::nextBatch() {
@@ -89,16 +93,25 @@ int Pacer::nextBatch() {
   if (rtf > 0) {
     // Accumulate the simulated time owed since the previous call.
     owed_s_ += (now_s - last_s_) * rtf;
+    const double lag_s = owed_s_ / rtf;  // the backlog in wall time [s]
+    // The pace is lost: an overrun, counted once until the backlog is caught up.
+    if (lag_s > options_.overrun_lag_s && !lagging_) {
+      lagging_ = true;
+      ++overruns_;
+    }
     // Far behind: drop the backlog, keep one full batch.
-    if (owed_s_ / rtf > options_.max_lag_s) {
+    if (lag_s > options_.max_lag_s) {
       owed_s_ = max_batch_steps_ * options_.step_s;
       ++resyncs_;
     }
-    // Whole steps due (the epsilon absorbs rounding in owed_s_), bounded by the catch-up limit.
+    // Whole steps due (the epsilon absorbs rounding in owed_s_), at most one batch; the rest is
+    // owed to the next call, which is due at once.
     steps = static_cast<int>(std::floor(owed_s_ / options_.step_s + 1e-9));
     if (steps > max_batch_steps_) {
       steps = max_batch_steps_;
-      ++overruns_;
+      ++capped_batches_;
+    } else {
+      lagging_ = false;  // caught up: all that is owed fits in this batch
     }
     owed_s_ -= steps * options_.step_s;
   }

@@ -365,6 +365,59 @@ TEST(BodyMotion, PedicelClockAgreesWithTheGlobalIntegrator) {
   EXPECT_EQ(a.stats.scheduler.island_steps, 0);  // it never needed an island
 }
 
+// A field of kernels hanging at rest (each at its static equilibrium, 12 mm apart) and one
+// swinging 5 cm beyond them: the resting ones are listed asleep at
+// set-up without a prediction (the bulk set-up), stay where they are bit for bit, and the
+// swinging one is predicted and moves as under the global scheme.
+Model hangingField(bool islands) {
+  Model m = testutil::bareModel(IntegratorType::kEventDriven);
+  m.integrator.islands = islands;
+  m.integrator.tolerance = 1e-8;
+  const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
+  for (int i = 0; i < 41; ++i) {
+    const bool swinging = i == 40;  // the last one, 5 cm away, pushed sideways
+    const Vec2 anchor(swinging ? 0.53 : 0.012 * i, 0.0);
+    const double hang_m = rest + mass * testutil::kG / k_Npm + a;
+    const Vec2 centre = anchor - Vec2(swinging ? 2e-3 : 0.0, hang_m);
+    KernelModel k = testutil::makeKernel(a, 1.3e-3, centre, Vec2::Zero(), kPi / 2, mass);
+    k.pedicel.present = true;
+    k.pedicel.p_WA_W = anchor;
+    k.pedicel.p_KP_K = Vec2(a, 0.0);
+    k.pedicel.stiffness_Npm = k_Npm;
+    k.pedicel.damping_Nspm = 0.002;
+    k.pedicel.rest_length_m = rest;
+    k.pedicel.detachment_force_N = 1.6;
+    m.kernels.push_back(k);
+  }
+  compileModel(&m);
+  return m;
+}
+
+TEST(BodyMotion, KernelsAtRestAreListedAsleepWithoutPrediction) {
+  const Model ma = hangingField(true), mg = hangingField(false);
+  Data a, g;
+  resetData(ma, &a);
+  resetData(mg, &g);
+  const VecX z0 = a.z;
+  ASSERT_EQ(advanceTo(ma, &a, 0.002), StepStatus::kOk);
+  ASSERT_EQ(advanceTo(mg, &g, 0.002), StepStatus::kOk);
+  const SchedulerStats& s = a.stats.scheduler;
+  EXPECT_GE(s.asleep, 40);       // the resting ones, at set-up
+  EXPECT_GE(s.predictions, 1);   // the swinging one
+  EXPECT_LT(s.predictions, 40);  // and no resting one
+  const int last = ma.kernels.back().dof_offset;
+  for (int d = 0; d < last; ++d) {
+    EXPECT_EQ(a.z[d], z0[d]) << d;
+    EXPECT_EQ(a.u[d], 0.0) << d;
+  }
+  // The swinging one moved (by ~0.1 mm), and as under the global scheme to within its lone
+  // clock's error (its closed form about the hanging equilibrium); the global scheme's resting
+  // kernels stay put too.
+  EXPECT_GT((a.z.segment<3>(last) - z0.segment<3>(last)).norm(), 1e-5);
+  EXPECT_LT((a.z.head(last) - g.z.head(last)).norm(), 1e-12);
+  EXPECT_LT((a.z - g.z).norm(), 1e-6);
+}
+
 TEST(BodyMotion, LazySpeedBoundHoldsAlongThePedicelTrajectory) {
   const Model m = pedicelModel(IntegratorType::kEventDriven, false);
   Data d;

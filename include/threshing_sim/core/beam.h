@@ -43,6 +43,12 @@ void compileTooth(double drum_radius_m, ToothModel* tooth);
 // n_modes. Evaluated in a form that stays accurate for high modes (no cosh - cos cancellation).
 void evaluateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi);
 
+// evaluateModes at the n_points points x_s = L s / (n_points - 1) into the rows of *phi and
+// *dphi (n_points x n_modes): every 8th point evaluated exactly, those between by the addition
+// theorems from it (relative rounding ~1e-16 per point; one exponential, sine and cosine per
+// mode every 8 points).
+void evaluateModesOnGrid(const ToothModel& tooth, int n_points, MatX* phi, MatX* dphi);
+
 // Second derivative phi''(x) [1/(sqrt(kg) m^2)] (bending moment EI phi'' q).
 void evaluateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi);
 
@@ -118,12 +124,12 @@ inline void clampResidualBlock(double* ww, double* wt, double* tt) {
   *wt = std::clamp(*wt, -limit, limit);
 }
 
-// Fills the residual_* fields of a compiled tooth: the tables at drum speed omega_radps
-// (residualFlexibility) and the (unclamped) residual over Omega^2 in [0, max(speed_bound,
-// |omega|)^2], at the Chebyshev-Lobatto nodes in Omega^2 of panels (residual_panels,
-// residual_nodes_*) refined until the interpolant is within 1e-8 of the static flexibility's
-// largest entry (or 10 x the static solve's rounding, if larger; residual_table_error: the
-// estimate). Zeros and no panels without static correction or modes (src/core/residual_table.cc).
+// Fills the residual_* fields of a compiled tooth: the (unclamped) residual over Omega^2 in
+// [0, max(speed_bound, |omega|)^2], at the Chebyshev-Lobatto nodes in Omega^2 of panels
+// (residual_panels, residual_nodes_*) refined until the interpolant is within 1e-8 of the
+// largest entry of the static flexibility at rest (or 10 x the static solve's rounding, if
+// larger; residual_table_error: the estimate), and the tables at drum speed omega_radps
+// interpolated from it (residualFlexibility to that tolerance, clamped point by point). Zeros and no panels without static correction or modes (src/core/residual_table.cc).
 void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
                      ToothModel* tooth);
 

@@ -84,6 +84,7 @@ struct ToothModel {
   Vec2 e2_D = Vec2::UnitY();        // transverse axis J e1 in the drum frame [-]
   VecX beta_per_m;                  // beta_i [1/m], size n
   VecX sigma;                       // sigma_i [-], size n
+  VecX half_one_minus_sigma;        // (1 - sigma_i) / 2, cancellation-free [-], size n
   VecX norm_C;                      // C_i so that int rho A phi_i^2 = 1 [1/sqrt(kg)], size n
   VecX omega0_sq;                   // Lambda = diag(omega_i^2) at rest [1/s^2], size n
   VecX rotation_factor;             // psi_i / phi_i': mode i's section rotation per slope,

@@ -2,9 +2,14 @@
 //
 // A fixed-step accumulator: every call to nextBatch() adds the wall time elapsed since the
 // previous call, times the real-time factor, to the simulated time owed, and hands out the
-// whole steps that fit. Catch-up is bounded (a batch holds at most catch_up_factor ticks' worth
-// of steps; a capped batch counts as an overrun), and when the backlog exceeds max_lag_s of wall
-// time the pacer re-synchronises: it drops the backlog instead of fast-forwarding through it.
+// whole steps that fit. A batch holds at most catch_up_factor ticks' worth of steps, so that the
+// caller comes back between batches (to apply commands and publish); the rest of the backlog is
+// carried over, and secondsUntilDue() is 0 while a step is owed, so a loop that woke late
+// catches up by batches back to back. Waking late is therefore not a failure: a capped batch is
+// only counted (cappedBatches()). The pace is lost when the backlog passes overrun_lag_s of wall
+// time (the steps cost more than real time, or the thread got no CPU for that long): that
+// starts an overrun, counted once until the backlog is back within one batch. Past max_lag_s
+// the pacer re-synchronises: it drops the backlog instead of fast-forwarding through it.
 // At real_time_factor 0 it hands out fixed batches as fast as the caller runs them.
 //
 // The clock is injected so that tests drive the pacer with a fake one.
@@ -61,6 +66,7 @@ struct PacerOptions {
   double real_time_factor = 1.0;  // simulated seconds per wall second; 0 = as fast as possible [-]
   double tick_s = 1e-3;           // shortest wall time the caller sleeps between batches [s]
   double catch_up_factor = 2.0;   // a batch holds at most this many ticks' worth of steps [-]
+  double overrun_lag_s = 0.02;    // wall backlog beyond which the pace is lost (an overrun) [s]
   double max_lag_s = 0.1;         // wall backlog beyond which the pacer re-synchronises [s]
   int fast_batch_steps = 1000;    // batch size at real_time_factor 0 [-]
   double rate_window_s = 1.0;     // averaging window of the measured rates [s]
@@ -87,8 +93,12 @@ class Pacer {
   double measuredRealTimeFactor() const { return measured_rtf_; }
   // Steps per wall second over the same window [Hz].
   double stepRateHz() const { return step_rate_hz_; }
-  long overruns() const { return overruns_; }  // batches capped by the catch-up bound
-  long resyncs() const { return resyncs_; }    // backlogs dropped
+  // Times the backlog passed overrun_lag_s of wall time (each counted once, until the pacer
+  // has caught up to within one batch): the pace was lost [-].
+  long overruns() const { return overruns_; }
+  long resyncs() const { return resyncs_; }  // backlogs dropped (past max_lag_s) [-]
+  // Batches cut to maxBatchSteps() with steps still owed: catching up, not an overrun [-].
+  long cappedBatches() const { return capped_batches_; }
   int maxBatchSteps() const { return max_batch_steps_; }
 
  private:
@@ -105,8 +115,10 @@ class Pacer {
   bool have_window_ = false;   // a rate window has completed
   double measured_rtf_ = 0;
   double step_rate_hz_ = 0;
+  bool lagging_ = false;       // in an overrun (backlog passed overrun_lag_s, not caught up)
   long overruns_ = 0;
   long resyncs_ = 0;
+  long capped_batches_ = 0;
 };
 
 }  // namespace threshing_sim

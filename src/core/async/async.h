@@ -27,6 +27,9 @@
 namespace threshing_sim {
 namespace internal {
 
+// Key of an empty slot of the grid's table.
+constexpr std::int64_t kEmptyCellKey = std::numeric_limits<std::int64_t>::min();
+
 // How a kernel moves while it touches nothing.
 enum class KernelMotion : std::uint8_t {
   kFree = 0,     // no pedicel (or broken): parabola under gravity, constant spin, closed form
@@ -134,7 +137,7 @@ struct AsyncState {
   long pedicel_closed_forms = 0;
 };
 
-constexpr std::int64_t kEmptyCell = std::numeric_limits<std::int64_t>::min();
+constexpr std::int64_t kEmptyCell = kEmptyCellKey;
 
 // --- body_motion.cc: closed-form and own-clock motion of lone bodies -----------------------
 // Brings lazy kernel i to time t_s (free: closed form; pedicel: the closed form about its
@@ -144,6 +147,10 @@ bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_
 // Whether lazy kernel i, on its pedicel, is at rest over horizon_s (it moves by less than the
 // error scale; see atRest in body_motion.cc).
 bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s);
+// The same with the cosine and sine of the kernel's angle given (the caller's: kernels of a
+// field hanging at the same angle share one evaluation).
+bool lazyAtRestAt(const Model& m, const Data& d, int i, double horizon_s, double cos_psi,
+                  double sin_psi);
 // Bound on the speed of any point of lazy kernel i over the next horizon_s [m/s].
 double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i, double horizon_s);
 // Where lazy kernel i (on its pedicel, closed form valid from its state over horizon_s)
@@ -162,6 +169,15 @@ void heapPush(AsyncState* as, int i);
 void heapRemove(AsyncState* as, int i);
 int heapTop(const AsyncState& as);  // -1 if empty
 void gridInsert(AsyncState* as, int i);
+// Set-up's bulk listing: kernel i asleep (bound circle set) at the end of the calendar and in
+// the grid, remembering the last cell (*memo) so that neighbours in one cell share its lookup.
+// Only while every kernel in the calendar wakes at the same time as i (set-up, before any
+// prediction): the heap needs no sifting then.
+struct CellMemo {
+  std::int64_t key = kEmptyCellKey;
+  size_t slot = 0;
+};
+void listAsleepAtSetUp(AsyncState* as, int i, CellMemo* memo);
 void gridRemove(AsyncState* as, int i);
 // Listed kernels whose circles may meet the box [lo, hi], into as->found (callers test exactly).
 void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi);

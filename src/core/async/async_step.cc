@@ -294,18 +294,48 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   as->tooth_bound.assign(T, ToothBound());
   for (ToothPropagator& p : as->prop) p.n_modes = -1;
   as->counters = SchedulerStats();
-  // Every kernel listed first with an ungrown circle, so that each prediction sees all its
-  // neighbours (and leaves them their half of each gap).
+  // Every kernel listed first, so that each prediction sees all its neighbours (and leaves
+  // them their half of each gap). A kernel at rest on its pedicel over the longest horizon is
+  // listed asleep at once, as predictKernel would list it (its circle grown by the error scale,
+  // awake again after the longest horizon), without a prediction: two sleeping kernels do not
+  // move, so they cannot approach each other or an obstacle (the start poses overlap nothing:
+  // checked where the scene is read), and every kernel that moves or wakes checks its own
+  // circle against theirs in the grid (predictKernel, lazyNeighbours, sweepTeeth). The others
+  // are listed with their ungrown circle, then predicted.
+  const double horizon = as->max_horizon_s;
+  const double rest_speed = m.integrator.tolerance * 1e-2 / horizon;
+  double psi_rad = 0.0, cos_psi = 1.0, sin_psi = 0.0;  // the last angle's cosine and sine
+  CellMemo cell;
   for (int i = 0; i < K; ++i) {
     KernelClock& kc = as->kernels[i];
+    const KernelModel& k = m.kernels[i];
     kc.t_s = d->t_s;
-    kc.motion = m.kernels[i].pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
-                                                                      : KernelMotion::kFree;
-    kc.bound_c_W = d->z.segment<2>(m.kernels[i].dof_offset);
-    kc.bound_r_m = m.kernels[i].semi_axis_a_m;
+    kc.motion = k.pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
+                                                           : KernelMotion::kFree;
+    kc.bound_c_W = d->z.segment<2>(k.dof_offset);
+    kc.bound_r_m = k.semi_axis_a_m;
+    if (kc.motion == KernelMotion::kPedicel) {
+      const double psi = d->z[k.dof_offset + 2];
+      if (!(psi == psi_rad)) {
+        psi_rad = psi;
+        cos_psi = std::cos(psi);
+        sin_psi = std::sin(psi);
+      }
+      if (lazyAtRestAt(m, *d, i, horizon, cos_psi, sin_psi)) {
+        ++as->counters.asleep;
+        kc.rest_until_s = kc.t_s + horizon;
+        kc.speed_bound_mps = rest_speed;
+        kc.bound_r_m = k.semi_axis_a_m + rest_speed * horizon;
+        kc.wake_s = kc.t_s + horizon;
+        listAsleepAtSetUp(as, i, &cell);
+        continue;
+      }
+    }
     gridInsert(as, i);
+    cell = CellMemo();  // (the insertion may have rebuilt the table)
   }
   for (int i = 0; i < K; ++i) {
+    if (as->kernels[i].heap_pos >= 0) continue;  // asleep
     gridRemove(as, i);
     predictKernel(m, *d, as, i, d->t_s, d->t_s);
   }
@@ -314,8 +344,20 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
 
 // Brings every lazy kernel to the data's time (the caller reads the whole state).
 bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
-  for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i)
-    if (!advanceLazyKernel(m, d, as, i, d->t_s)) return false;
+  const double t_s = d->t_s;
+  for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i) {
+    // A kernel asleep on its pedicel until past t_s: its clock jumps (advanceLazyKernel's first
+    // case, without its call).
+    KernelClock& kc = as->kernels[i];
+    if (kc.motion == KernelMotion::kPedicel && t_s <= kc.rest_until_s) {
+      if (t_s > kc.t_s) {
+        ++as->counters.sleeps;
+        kc.t_s = t_s;
+      }
+      continue;
+    }
+    if (!advanceLazyKernel(m, d, as, i, t_s)) return false;
+  }
   return true;
 }
 

@@ -75,12 +75,16 @@ void freeFlight(const Model& m, Data* d, const KernelModel& k, double dt_s) {
 // acceleration a of any point, the state moves by at most |v| dt + |a| dt^2 / 2 and its
 // velocity by |a| dt, which must stay below the error scales of the global norm (positions
 // tolerance x 1e-2 m, velocities tolerance x 1 m/s). Such a kernel sleeps: its clock jumps.
-bool atRest(const KernelModel& k, const Vec2& g, double tol, const Vec6& y, double dt_s) {
-  const Vec6 f = pedicelRhs(k, g, y);
+// ratesAtRest takes the rates f(y), atRest computes them.
+bool ratesAtRest(const KernelModel& k, double tol, const Vec6& f, double dt_s) {
   const double a = k.semi_axis_a_m;
   const double v = f.head<2>().norm() + a * std::abs(f[2]);
   const double acc = f.segment<2>(3).norm() + a * std::abs(f[5]);
   return v * dt_s + 0.5 * acc * dt_s * dt_s <= tol * 1e-2 && acc * dt_s <= tol;
+}
+
+bool atRest(const KernelModel& k, const Vec2& g, double tol, const Vec6& y, double dt_s) {
+  return ratesAtRest(k, tol, pedicelRhs(k, g, y), dt_s);
 }
 
 // A state farther from the hanging equilibrium than this (centre offset over the stem's reach,
@@ -230,6 +234,14 @@ bool pedicelEnvelope(const Model& m, const Data& d, AsyncState* as, int i, doubl
 bool lazyAtRest(const Model& m, const Data& d, int i, double horizon_s) {
   const KernelModel& k = m.kernels[i];
   return atRest(k, m.gravity_mps2, m.integrator.tolerance, kernelState(d, k), horizon_s);
+}
+
+bool lazyAtRestAt(const Model& m, const Data& d, int i, double horizon_s, double cos_psi,
+                  double sin_psi) {
+  const KernelModel& k = m.kernels[i];
+  return ratesAtRest(k, m.integrator.tolerance,
+                     pedicelRates(k, m.gravity_mps2, kernelState(d, k), cos_psi, sin_psi),
+                     horizon_s);
 }
 
 double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i,

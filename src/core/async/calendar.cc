@@ -173,6 +173,32 @@ void gridInsert(AsyncState* as, int i) {
   listInCell(as, i);
 }
 
+void listAsleepAtSetUp(AsyncState* as, int i, CellMemo* memo) {
+  KernelClock& kc = as->kernels[i];
+  kc.heap_pos = static_cast<int>(as->heap.size());
+  as->heap.push_back(i);
+  if (2 * (as->cells_used + 1) > as->cell_key.size()) {
+    compactGrid(as);
+    memo->key = kEmptyCell;
+  }
+  kc.cell = cellOf(*as, kc.bound_c_W);
+  if (kc.cell != memo->key) {
+    memo->key = kc.cell;
+    memo->slot = findSlot(*as, kc.cell);
+    if (as->cell_key[memo->slot] == kEmptyCell) {
+      as->cell_key[memo->slot] = kc.cell;
+      as->cell_head[memo->slot] = -1;
+      ++as->cells_used;
+    }
+  }
+  const size_t s = memo->slot;
+  kc.cell_prev = -1;
+  kc.cell_next = as->cell_head[s];
+  if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
+  as->cell_head[s] = i;
+  kc.in_grid = true;
+}
+
 void gridRemove(AsyncState* as, int i) {
   KernelClock& kc = as->kernels[i];
   if (!kc.in_grid) return;

@@ -87,8 +87,9 @@ PedicelMat pedicelJacobian(const KernelModel& k, const PedicelVec& y);
 
 // The stem force on the kernel [N] and its moment about the centre [N m] (the law of
 // pedicelForce in contact/smooth_forces.cc). Inline: the numerical pedicel clock's right-hand side.
-inline Vec2 pedicelStemForce(const KernelModel& k, const PedicelVec& y, double* moment_Nm) {
-  const double cos_psi = std::cos(y[2]), sin_psi = std::sin(y[2]);
+// cos_psi, sin_psi: the cosine and sine of the kernel's angle y[2].
+inline Vec2 pedicelStemForce(const KernelModel& k, const PedicelVec& y, double cos_psi,
+                             double sin_psi, double* moment_Nm) {
   const Vec2& p_KP_K = k.pedicel.p_KP_K;
   const Vec2 r(cos_psi * p_KP_K.x() - sin_psi * p_KP_K.y(),
                sin_psi * p_KP_K.x() + cos_psi * p_KP_K.y());
@@ -107,16 +108,27 @@ inline Vec2 pedicelStemForce(const KernelModel& k, const PedicelVec& y, double* 
   return F;
 }
 
-// f(y): the kernel's rates on its pedicel under gravity g.
+inline Vec2 pedicelStemForce(const KernelModel& k, const PedicelVec& y, double* moment_Nm) {
+  return pedicelStemForce(k, y, std::cos(y[2]), std::sin(y[2]), moment_Nm);
+}
+
+// f(y): the kernel's rates on its pedicel under gravity g, with the cosine and sine of its
+// angle y[2] given.
 inline PedicelVec pedicelRates(const KernelModel& k, const Vec2& gravity_mps2,
-                               const PedicelVec& y) {
+                               const PedicelVec& y, double cos_psi, double sin_psi) {
   double moment = 0.0;
-  const Vec2 F = pedicelStemForce(k, y, &moment);
+  const Vec2 F = pedicelStemForce(k, y, cos_psi, sin_psi, &moment);
   PedicelVec f;
   f.head<3>() = y.tail<3>();
   f.segment<2>(3) = gravity_mps2 + F / k.mass_kg;
   f[5] = moment / k.inertia_kgm2;
   return f;
+}
+
+// f(y): the kernel's rates on its pedicel under gravity g.
+inline PedicelVec pedicelRates(const KernelModel& k, const Vec2& gravity_mps2,
+                               const PedicelVec& y) {
+  return pedicelRates(k, gravity_mps2, y, std::cos(y[2]), std::sin(y[2]));
 }
 
 }  // namespace internal

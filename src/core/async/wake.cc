@@ -190,6 +190,10 @@ void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
     for (int j : as->found_copy) {
       const KernelClock& kj = as->kernels[j];
       if (!kj.in_grid) continue;  // re-listed or joined meanwhile
+      // A bound circle beyond the padded annulus [r_in, r_out]: clear of the sector (the test
+      // below would say so too, since the ellipse bound is at least the circle's distance).
+      const double rho = kj.bound_c_W.norm();
+      if (rho - kj.bound_r_m > r_out + pad || rho + kj.bound_r_m < r_in - pad) continue;
       // Its ellipse, grown by its bound circle's growth, against the padded sector.
       const double gap = sectorEllipseGapBound(sec, orientedKernel(m, d->z, *as, j));
       if (gap - (kj.bound_r_m - m.kernels[j].semi_axis_a_m) > pad) continue;

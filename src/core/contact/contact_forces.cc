@@ -129,7 +129,10 @@ struct SeriesHertz {
 };
 
 // Hertz indentation x in [0, delta] with x + r Phi(x) = delta, by Newton's method kept inside a
-// shrinking bracket (bisection where a step leaves it); at most 60 iterations.
+// shrinking bracket (bisection where a step leaves it); at most 60 iterations. A Newton step
+// below 1e-15 delta ends it: it is tested before the bracket, since a converged step lands on
+// the bracket's end that x just became, which is not inside it (that used to bisect the
+// bracket down to 1e-15 delta: some 20 iterations more).
 double seriesIndentation(const SeriesHertz& h, double delta) {
   double lo = 0.0, hi = delta, x = delta;
   for (int it = 0; it < 60; ++it) {
@@ -140,6 +143,7 @@ double seriesIndentation(const SeriesHertz& h, double delta) {
     else
       lo = x;
     double next = x - res / (1.0 + h.r * d_x);
+    if (std::abs(next - x) <= 1e-15 * delta && next >= 0.0 && next <= delta) return next;
     if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
     if (std::abs(next - x) <= 1e-15 * delta || hi - lo <= 1e-15 * delta) return next;
     x = next;
