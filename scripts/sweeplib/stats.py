@@ -311,13 +311,27 @@ def plan(data, settings, seeds_of, spent_core_h):
     cost = {stream: data.cpu_per_seed(stream) / 3600.0 for stream in want}
     total = sum(want[s] * cost[s] for s in want)
     if total > left:
-        scale = max(left, 0.0) / total
-        want = {s: math.floor(n * scale) for s, n in want.items()}
-        want = {s: n for s, n in want.items() if n > 0}
+        # Round robin, the stream furthest from the target first: one seed each while the
+        # budget pays for it at the stream's measured cost per seed.
+        order = sorted(want, key=lambda s: -_sortable(data.worst_relative_se(s)))
+        given = {s: 0 for s in want}
+        added = True
+        while added:
+            added = False
+            for s in order:
+                if given[s] < want[s] and cost[s] <= left:
+                    given[s] += 1
+                    left -= cost[s]
+                    added = True
+        want = {s: n for s, n in given.items() if n > 0}
         if not want:
             return {}, 0.0, "budget"
         total = sum(want[s] * cost[s] for s in want)
     return want, total, None
+
+
+def _sortable(x):
+    return math.inf if math.isnan(x) else x
 
 
 def run_rounds(sweep, simulate, sha, out, scheduler=None, workers=None, processes=False,
@@ -434,9 +448,10 @@ def analyse(out, sweep):
                 entry["means"][(level, q)] = m
                 if not math.isnan(m["relative_se"]) and m["relative_se"] > settings.relative_se:
                     se_misses.append((m["relative_se"], q, level))
-                elif math.isnan(m["relative_se"]):
-                    entry["misses"].append(f"{settings.quantities[q]} at "
-                                           f"{settings.level_axis} {level}: fewer than 2 seeds")
+                elif math.isnan(m["relative_se"]) and \
+                        f"{level}: fewer" not in " ".join(entry["misses"]):
+                    entry["misses"].append(f"no standard error at {settings.level_axis} "
+                                           f"{level}: fewer than 2 seeds ended ok")
                 if not math.isnan(m["relative_se"]) and m["relative_se"] >= worst:
                     worst_q, worst = q, m["relative_se"]
             seeds = max(len(cell["seeds"]), 1)
@@ -444,16 +459,23 @@ def analyse(out, sweep):
                                    for v in cell["seeds"].values()) / seeds)
             need_seeds = (math.ceil(seeds * (worst / settings.relative_se) ** 2)
                           if worst_q is not None and not math.isinf(worst) else math.nan)
-            naive = entry["means"].get((level, worst_q)) if worst_q else None
-            spread = (naive["se_naive"] * math.sqrt(naive["kernels"]) / abs(naive["mean"])
-                      if naive and naive["mean"] else math.nan)
+            # Per-kernel spread (standard deviation / mean), the largest over the quantities.
+            spread, spread_q = math.nan, None
+            for q in settings.quantities:
+                m = entry["means"][(level, q)]
+                if m["mean"] and not math.isnan(m["se_naive"]):
+                    cv = m["se_naive"] * math.sqrt(m["kernels"]) / abs(m["mean"])
+                    if math.isnan(spread) or cv > spread:
+                        spread, spread_q = cv, q
+            need_iid = (spread / settings.relative_se) ** 2
             entry["cost"][level] = {
                 "runs": cell["runs"], "cpu_s": cpu, "cpu_min": min(cell["cpu"], default=math.nan),
                 "cpu_max": max(cell["cpu"], default=math.nan), "kernels_per_run": kernels_per_run,
-                "worst": worst_q, "kernel_cv": spread, "seeds_needed": need_seeds,
-                "kernels_needed": need_seeds * kernels_per_run,
-                "kernels_needed_iid": (spread / settings.relative_se) ** 2,
-                "core_hours": need_seeds * cpu / 3600.0,
+                "worst": worst_q, "kernel_cv": spread, "spread_q": spread_q,
+                "seeds_needed": need_seeds, "kernels_needed": need_seeds * kernels_per_run,
+                "kernels_needed_iid": need_iid, "core_hours": need_seeds * cpu / 3600.0,
+                "core_hours_iid": (need_iid / kernels_per_run * cpu / 3600.0
+                                   if kernels_per_run else math.nan),
                 "tip": max(cell["tip"], default=math.nan)}
         if se_misses:
             rse, q, level = max(se_misses, key=lambda item: item[0])
@@ -494,7 +516,7 @@ def section(out, sweep, heading="##", link_report=None):
     stop = None
     if (out / "stop.json").is_file():
         stop = json.loads((out / "stop.json").read_text())
-    lines = [f"{heading} Stream statistics", ""]
+    lines = [f"{heading} Stream statistics", ""] if heading else []
     source = link_report or f"`{out}`"
     met = [s for s, e in a["streams"].items() if not e["misses"]]
     missed = [s for s, e in a["streams"].items() if e["misses"]]
@@ -550,29 +572,36 @@ def section(out, sweep, heading="##", link_report=None):
               f"{_pct(settings.relative_se, 1)} standard error costs: the seeds needed scale "
               f"with (SE / mean / target)^2 of the quantity with the largest relative SE, "
               f"estimated from the seeds so far (with S seeds the SE itself is uncertain by "
-              f"about 1 / sqrt(2 (S - 1))). Per-kernel spread: standard deviation / mean of "
-              f"that quantity over all kernels; kernels needed if they were independent: "
-              f"(spread / target)^2.", "",
+              f"about 1 / sqrt(2 (S - 1)), so with few seeds this is a rough figure). A second "
+              f"estimate takes the kernels as independent: the per-kernel spread (standard "
+              f"deviation / mean over all kernels, the largest over the quantities) gives "
+              f"(spread / target)^2 kernels; it rests on every kernel, not only on the seeds, "
+              f"and is off by the design effect.", "",
               "| stream | " + settings.level_axis + " | runs | core-s per run (min-max) | "
-              "largest SE / mean | per-kernel spread | seeds needed | kernels needed "
-              "(independent) | core-hours needed | max tip deflection / L |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
-    total = 0.0
+              "largest SE / mean | seeds needed | kernels needed | core-hours needed | "
+              "per-kernel spread | kernels needed (independent) | core-hours needed "
+              "(independent) | max tip deflection / L |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    total, total_iid = 0.0, 0.0
     for stream, e in a["streams"].items():
         for level in e["levels"]:
             c = e["cost"][level]
             rse = e["means"][(level, c["worst"])]["relative_se"] if c["worst"] else math.nan
             label = settings.quantities.get(c["worst"], "-")
-            if not math.isnan(c["core_hours"]):
-                total += c["core_hours"]
+            spread_label = settings.quantities.get(c["spread_q"], "-")
+            total += c["core_hours"] if not math.isnan(c["core_hours"]) else 0.0
+            total_iid += c["core_hours_iid"] if not math.isnan(c["core_hours_iid"]) else 0.0
             lines.append(
                 f"| {stream} | {level} | {c['runs']} | {_g(c['cpu_s'], 3)} "
                 f"({_g(c['cpu_min'], 3)}-{_g(c['cpu_max'], 3)}) | {_pct(rse)} ({label}) | "
-                f"{_g(c['kernel_cv'], 3)} | {_g(c['seeds_needed'], 3)} | "
-                f"{_g(c['kernels_needed'], 3)} ({_g(c['kernels_needed_iid'], 3)}) | "
-                f"{_g(c['core_hours'], 3)} | {_g(c['tip'], 3)} |")
+                f"{_g(c['seeds_needed'], 3)} | {_g(c['kernels_needed'], 3)} | "
+                f"{_g(c['core_hours'], 3)} | {_g(c['kernel_cv'], 3)} ({spread_label}) | "
+                f"{_g(c['kernels_needed_iid'], 3)} | {_g(c['core_hours_iid'], 3)} | "
+                f"{_g(c['tip'], 3)} |")
     lines += ["", f"All levels of all streams to {_pct(settings.relative_se, 1)}: about "
-              f"{_g(total, 3)} core-hours at the measured cost and spread.", ""]
+              f"{_g(total, 3)} core-hours from the standard errors over the seeds (levels "
+              f"without one left out), {_g(total_iid, 3)} core-hours with independent kernels, "
+              f"at the measured cost per run.", ""]
     if stop is not None:
         lines += ["Rounds of the stop rule:", "",
                   "| round | runs | ran | core-hours so far | seeds per stream | largest SE / "
@@ -590,7 +619,10 @@ def splice_docs(out, sweep, page):
     """Writes the section into page between <!-- stream-statistics --> markers."""
     from tslib import markdown
 
-    body = section(out, sweep, heading="###", link_report=f"`scripts/sweep report {out}` "
-                   f"(sweep file `{pathlib.Path(sweep.path).relative_to(markdown.ROOT)}`)"
-                   if str(sweep.path).startswith(str(markdown.ROOT)) else None)
+    def short(path):
+        path = pathlib.Path(path).resolve()
+        return path.relative_to(markdown.ROOT) if path.is_relative_to(markdown.ROOT) else path
+
+    body = section(out, sweep, heading=None, link_report=f"`scripts/sweep report {short(out)}` "
+                   f"(sweep file `{short(sweep.path)}`)")
     return markdown.splice("stream-statistics", "\n".join(body), page)
