@@ -232,6 +232,9 @@ def write_report(out, sweep_path=None, simulate=None, **findings_options):
             lines += [f"| {g if g is not None else 'all'} | {_fmt(lo)} | {_fmt(hi)} | {n} |"
                       for g, lo, hi, n in summary]
         lines.append("")
+    if sweep.report.get("stream_statistics") is not None:
+        from . import stats
+        lines += stats.section(out, sweep)
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path

@@ -25,7 +25,7 @@ import yaml
 RADPS_PER_RPM = math.pi / 30.0
 UNITS = {None: 1.0, "rad/s": 1.0, "rpm": RADPS_PER_RPM}
 TOP_KEYS = {"name", "scene", "set_files", "set", "axes", "seeds", "outcomes", "derived",
-            "timeout", "keep", "report", "groups"}
+            "timeout", "keep", "report", "groups", "stop"}
 GROUP_KEYS = {"name", "axes", "set", "keep"}
 AXIS_KEYS = {"name", "key", "unit", "values", "range", "files", "cases"}
 CASE_KEYS = {"scene", "set_files", "set"}
@@ -758,6 +758,7 @@ class Sweep:
             _fail(f"{where}: timeout", f"must be > 0 s and at most the limit of "
                   f"{MAX_TIMEOUT_S:g} s (got {_show(self.timeout_s)})")
         self.report = self._report(f"{where}: report", spec.get("report"))
+        self.stop = spec.get("stop")  # seeds in rounds (sweeplib/stats.py), or None
 
     def _check_size(self, where):
         """The number of runs, refused past MAX_RUNS, and the size of their simulate arguments,

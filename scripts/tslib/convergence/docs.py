@@ -178,6 +178,29 @@ def summary_text(results):
     return text
 
 
+STREAM_STATISTICS_TEXT = (
+    "The streams' statistics over many seeds, with both targets (standard error <= 0.5 % of each "
+    "kernel mean, levels within 1 %), come from the sweep `config/sweeps/stream_statistics.yaml`"
+    " (docs/sweeps.md, \"Stream statistics and the stop rule\"): the section [Stream statistics "
+    "over seeds](#stream-statistics-over-seeds) below, which that sweep's report writes; the "
+    "stream rows of the table are one seed each.")
+
+
+def stream_statistics_section(out_md):
+    """The section that `scripts/sweep report OUT --stream-docs` splices into the page, kept as
+    it is when the page is regenerated (a placeholder on a new page)."""
+    kept = None
+    if out_md.is_file():
+        kept = markdown.section_body(out_md.read_text(), "stream-statistics")
+    begin, end = markdown.markers("stream-statistics")
+    return "\n".join([
+        "## Stream statistics over seeds", "",
+        "Written by `scripts/sweep report out/sweeps/stream_statistics --stream-docs "
+        "docs/convergence.md` after `scripts/sweep run config/sweeps/stream_statistics.yaml` "
+        "(not by this script, which keeps the section).", "",
+        begin, kept if kept is not None else "(not run yet)", end])
+
+
 def write_docs(results, before, after, rotation, out_md, readme):
     summary = summary_text(results)
     limit = (f" A level whose run took longer than {runs.TIME_LIMIT_S:.0f} s is reported as timed out "
@@ -207,7 +230,7 @@ def write_docs(results, before, after, rotation, out_md, readme):
         "error, and a stream counts as converged in modes when the means of two levels differ "
         "by at most two standard errors. That is a statistical statement at the run's sample "
         "size (10 kernels), much weaker than the 1 % of the single strikes; the run maxima and "
-        "their changes are listed too, and are not converged.",
+        "their changes are listed too, and are not converged. " + STREAM_STATISTICS_TEXT,
         "",
         "**Stick forces and the sections' rotation.** The normal forces and exit speeds "
         "converge through the static correction, which puts the truncated modes' normal "
@@ -223,6 +246,8 @@ def write_docs(results, before, after, rotation, out_md, readme):
         knead_text(before, after),
         "",
         full_table(results),
+        "",
+        stream_statistics_section(out_md),
         "",
         METHOD.replace("<N>", str(max_modes())).replace("<S>", str(max_shapes())).replace(
             "<V>", f"{validity_fraction():g}"),
