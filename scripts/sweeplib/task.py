@@ -1,12 +1,15 @@
-"""The work of one run on a Dask worker: one `simulate` process on the resolved scene.
+"""The work of the runs on a worker: one `simulate --batch` process runs many runs, each
+result handed on as its run ends (run_tasks); run_simulate runs one run as a process of its own.
 
 This module is shipped to the workers by value (cloudpickle), so a worker needs only Python,
 python3-distributed and the simulate binary at the given path; it imports nothing from the
-repository. The run's CPU time is the child's own (user + system from wait4), so that the
-runner's overhead can be measured against it.
+repository. A run's CPU time is the one simulate measures for it in its thread (thread CPU
+clock, from reading its line to its result); the batch processes' own CPU (user + system from
+wait4) is counted apart, so that the runner's overhead can be measured against both.
 """
 import atexit
 import hashlib
+import json
 import os
 import select
 import shutil
@@ -166,12 +169,187 @@ def _execute(task, folder, result):
         result["message"] = f"exit status {code}" + (f": {stderr[-500:]}" if stderr else "")
 
 
+# ------------------------------------------------------------------------------------------
+# Many runs per process: simulate --batch.
+
+# A batch process that closed its output: the wait for its exit status [s].
+EXIT_WAIT_S = 10.0
+
+
+def _batch_line(task):
+    return json.dumps({"id": task["key"], "scene_yaml": task["scene"], "args": [],
+                       "return": ["summary", "outcomes", *task["keep"]]}) + "\n"
+
+
+def _feed(proc, tasks):
+    """Writes the tasks' lines to the batch process (in a thread: the process answers while it
+    reads, and both pipes are bounded)."""
+    try:
+        for task in tasks:
+            proc.stdin.write(_batch_line(task).encode())
+        proc.stdin.close()
+    except (BrokenPipeError, OSError, ValueError):
+        pass  # the process died or was killed: its reader records why
+
+
+def _line_result(task, line, worker):
+    """A run's result from its line of simulate --batch output."""
+    result = {"key": task["key"], "status": "error", "message": "", "summary": None,
+              "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": worker}
+    try:
+        answer = json.loads(line)
+    except ValueError:
+        result["message"] = f"unreadable simulate --batch line: {line[:300]!r}"
+        return result
+    if answer.get("id") != task["key"]:
+        result["message"] = f"simulate --batch answered {answer.get('id')!r} for {task['key']}"
+        return result
+    result.update(wall_s=answer.get("wall_s", 0.0), cpu_s=answer.get("cpu_s", 0.0),
+                  summary=answer.get("summary"), outcomes=answer.get("outcomes"))
+    result["files"] = {name: answer.get(name) for name in task["keep"]}
+    status, message = answer.get("status"), answer.get("message", "")
+    if status == "ok" and result["summary"] is not None:
+        result["status"] = "ok"
+    elif status == "failed" and result["summary"] is not None:
+        result["status"], result["message"] = "failed", message or "status failed"
+    else:
+        result["message"] = f"exit status {answer.get('exit')}: simulate: error: {message}"
+    return result
+
+
+class _BatchProcess:
+    """One simulate --batch process over a list of tasks, read as it answers."""
+
+    def __init__(self, tasks, folder):
+        self.tasks = tasks
+        self.err = open(os.path.join(folder, "stderr.txt"), "w+")
+        self.proc = subprocess.Popen([tasks[0]["simulate"], "--batch", "-"],
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=self.err)
+        self.feeder = threading.Thread(target=_feed, args=(self.proc, tasks), daemon=True)
+        self.feeder.start()
+        self.buffer = b""
+        self.eof = False
+        self.poller = select.poll()
+        self.poller.register(self.proc.stdout.fileno(), select.POLLIN | select.POLLHUP)
+
+    def next_line(self, timeout_s):
+        """The next output line (text), None at the end of the output, or False when none
+        came within timeout_s."""
+        deadline = time.monotonic() + timeout_s
+        while b"\n" not in self.buffer and not self.eof:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self.poller.poll(left * 1000.0):
+                return False
+            data = os.read(self.proc.stdout.fileno(), 1 << 20)
+            self.eof = not data
+            self.buffer += data
+        if b"\n" not in self.buffer:
+            return None
+        line, self.buffer = self.buffer.split(b"\n", 1)
+        return line.decode("utf-8", "replace")
+
+    def finish(self, kill):
+        """Kills the process (when asked, or when it does not exit after its output ended)
+        and reaps it: (exit code, its CPU time [s], the end of its stderr)."""
+        if kill or not _wait_exit(self.proc, EXIT_WAIT_S):
+            self.proc.kill()
+        _, status, usage = os.wait4(self.proc.pid, 0)
+        self.proc.returncode = os.waitstatus_to_exitcode(status)
+        self.feeder.join(timeout=EXIT_WAIT_S)
+        self.proc.stdout.close()
+        self.err.seek(0)
+        stderr = self.err.read().strip()[-500:]
+        self.err.close()
+        return self.proc.returncode, usage.ru_utime + usage.ru_stime, stderr
+
+
+def _end_result(task, worker, code, stderr, timed_out):
+    """The result of the run a batch process was on when it was killed or ended."""
+    result = _error_result_for(task, worker)
+    if timed_out:
+        result["status"] = "timeout"
+        result["message"] = f"no result after {task['timeout_s']:g} s; killed"
+    elif code < 0:
+        result["status"] = "crash"
+        result["message"] = f"simulate killed by {_signal_name(-code)}" + \
+            (f": {stderr}" if stderr else "")
+    else:
+        result["message"] = f"exit status {code}" + (f": {stderr}" if stderr else "") + \
+            " (simulate --batch ended before this run's result)"
+    return result
+
+
+def _error_result_for(task, worker, message=""):
+    return {"key": task["key"], "status": "error", "message": message, "summary": None,
+            "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": worker}
+
+
+def _run_process(tasks, worker, publish, stats):
+    """Runs tasks in one batch process until it ends; a run past its timeout or the end of the
+    process before a result stops it, with that run recorded. Returns how many tasks it
+    consumed (at least one)."""
+    batch = _BatchProcess(tasks, _thread_folder())
+    done, timed_out = 0, False
+    started = time.perf_counter()
+    while done < len(tasks):
+        line = batch.next_line(tasks[done]["timeout_s"])
+        if line is False:
+            timed_out = True
+            break
+        if line is None:
+            break
+        result = _line_result(tasks[done], line, worker)
+        publish(result)
+        done += 1
+    code, cpu_s, stderr = batch.finish(kill=timed_out)
+    stats["process_cpu_s"] += cpu_s
+    stats["process_wall_s"] += time.perf_counter() - started
+    stats["processes"] += 1
+    if done < len(tasks):
+        publish(_end_result(tasks[done], worker, code, stderr, timed_out))
+        done += 1
+    return done
+
+
+def run_tasks(tasks, publish, worker=None):
+    """Runs the tasks (dicts: key, scene, simulate, sha, timeout_s, keep) in simulate --batch
+    processes, calling publish(result) for each run as it ends (result: key, status, message,
+    summary, outcomes, files, wall_s, cpu_s, worker). A run that crashes the process or passes
+    its timeout is recorded so, and a new process takes the runs after it. worker: the name in
+    the results (default host:pid:Dask worker name). Returns the batch processes' statistics:
+    processes, process_cpu_s (user + system, wait4), process_wall_s."""
+    stats = {"processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
+    if not tasks:
+        return stats
+    worker = worker or _worker_name()
+    try:
+        sha = _binary_sha(tasks[0]["simulate"])
+    except OSError as e:
+        sha, message = None, f"cannot read simulate at {tasks[0]['simulate']}: {e.strerror}"
+    if sha is not None and sha != tasks[0]["sha"]:
+        message = (f"simulate at {tasks[0]['simulate']} on this worker is not the client's "
+                   f"binary (sha256 {sha[:12]} != {tasks[0]['sha'][:12]})")
+    if sha is None or sha != tasks[0]["sha"]:
+        for task in tasks:
+            publish(_error_result_for(task, worker, message))
+        return stats
+    position = 0
+    while position < len(tasks):  # each process consumes at least one task
+        try:
+            position += _run_process(tasks[position:], worker, publish, stats)
+        except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
+            publish(_error_result_for(tasks[position], worker, f"{type(e).__name__}: {e}"))
+            position += 1
+    return stats
+
+
 def run_batch(tasks, topic):
-    """Runs a batch of runs on one worker, publishing each result at once (Dask Pub/Sub topic
-    `topic`, to the client), so that a worker that dies loses only its current run. Runs
-    whose keys are in the client's Variable `topic`-done (set when a worker left) are skipped:
-    a batch rerun after a worker died does not redo the runs that worker finished. Returns the
-    keys it ran."""
+    """Runs a batch of runs on one Dask worker (run_tasks), publishing each result at once
+    (Dask Pub/Sub topic `topic`, to the client), so that a worker that dies loses only its
+    current run. Runs whose keys are in the client's Variable `topic`-done (set when a worker
+    left) are skipped: a batch rerun after a worker died does not redo the runs that worker
+    finished. Returns run_tasks' statistics and the keys it ran."""
     from distributed import Pub, Variable
 
     try:
@@ -179,10 +357,15 @@ def run_batch(tasks, topic):
     except Exception:  # no answer: run everything (duplicates are ignored by the client)
         done = set()
     pub = Pub(topic)
-    ran = []
-    for task in tasks:
-        if task["key"] in done:
-            continue
-        pub.put(run_simulate(task))
-        ran.append(task["key"])
-    return ran
+    todo = [task for task in tasks if task["key"] not in done]
+    stats = run_tasks(todo, pub.put)
+    stats["keys"] = [task["key"] for task in todo]
+    return stats
+
+
+def run_single(task):
+    """One run in a batch process of its own; returns its result (the runner's fallback for
+    runs whose batch ended without their result)."""
+    results = []
+    run_tasks([task], results.append)
+    return results[-1]
