@@ -85,9 +85,16 @@ def report(label, workers, wall, tree_cpu, n, run_cpu, stats):
              f"ratio wall / (processes' CPU / workers) = {wall / (proc_cpu / workers):.3f}",
              f"  overhead per run = {1e3 * (wall * workers - run_cpu) / n:.2f} ms of core time"]
     if tree_cpu is not None:
-        lines.append(f"  runner CPU (command tree - simulate --batch processes) = "
-                     f"{tree_cpu - proc_cpu:.2f} s ({1e3 * (tree_cpu - proc_cpu) / n:.2f} ms per "
-                     f"run, {100 * (tree_cpu - proc_cpu) / run_cpu:.1f} % of the runs' CPU)")
+        runner_cpu, check_cpu = tree_cpu - proc_cpu, stats["validate_cpu_s"]
+        lines += [f"  runner CPU (command tree - simulate --batch processes) = {runner_cpu:.2f} s "
+                  f"({1e3 * runner_cpu / n:.2f} ms per run, {100 * runner_cpu / run_cpu:.1f} % of "
+                  f"the runs' CPU)",
+                  f"    of which validation (simulate --check-batch) {check_cpu:.2f} s "
+                  f"({1e3 * check_cpu / n:.2f} ms per run), the rest (Python, Dask, the table) "
+                  f"{runner_cpu - check_cpu:.2f} s",
+                  f"  lower bound of the ratio with every core busy: 1 + (runner CPU + processes' "
+                  f"CPU - runs' CPU) / runs' CPU = "
+                  f"{1 + (runner_cpu + proc_cpu - run_cpu) / run_cpu:.3f}"]
     print("\n".join(lines), flush=True)
     return lines, wall / ideal
 
@@ -110,6 +117,9 @@ def main():
     parser.add_argument("--out", default=str(ROOT / "out/sweep_overhead"))
     parser.add_argument("--cluster", action="store_true", help="also run the sweep on a "
                         "scheduler with two workers on 127.0.0.1 and compare the tables")
+    parser.add_argument("--dask-local", action="store_true", help="also run the sweep on a "
+                        "local Dask cluster of worker processes (scripts/sweep --processes), "
+                        "with the first --workers count")
     parser.add_argument("--docs", action="store_true", help="write the results into "
                         "docs/sweeps.md and the README (sections sweep-overhead), and the "
                         "first plot of the sweep's report into docs/sweeps/")
@@ -120,6 +130,7 @@ def main():
     out.mkdir(parents=True, exist_ok=True)
     cores = os.cpu_count()
     text = [f"Measured by `scripts/sweep_overhead.py{' --cluster' if args.cluster else ''}"
+            f"{' --dask-local' if args.dask_local else ''}"
             f"{' --workers ' + ' '.join(map(str, args.workers)) if args.workers != [cores] else ''}"
             f"` on {os.path.relpath(args.sweep, ROOT)} ({cores} cores):", ""]
     summary = []
@@ -138,6 +149,17 @@ def main():
         text += lines
         summary.append((workers, ratio, wall, 1e3 * (wall * workers - run_cpu) / n, before))
     first = out / f"local_{args.workers[0]}"
+    if args.dask_local:
+        workers, before = args.workers[0], load()
+        dask_local = out / f"dask_local_{workers}"
+        wall, tree_cpu, _ = timed_sweep(args, dask_local, ["--workers", str(workers),
+                                                           "--processes"])
+        n, run_cpu, _ = table_stats(dask_local)
+        lines, _ = report(f"local Dask cluster (--processes), {workers} worker process(es)",
+                          workers, wall, tree_cpu, n, run_cpu, run_stats(dask_local))
+        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
+        print(lines[-1])
+        text += lines
     if args.cluster:
         with cluster_module.LoopbackCluster(out / "cluster_processes", workers=2) as cluster:
             remote = out / "cluster"

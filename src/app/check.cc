@@ -65,25 +65,27 @@ void writeFlow(const YAML::Node& node, std::string* out) {
   *out += emitted;
 }
 
-// A copy of the tree for validation in which every contact restitution that is a number in
-// [0, 1] reads 1. Compiling matches a Hunt-Crossley factor to each restitution (tens of ms, a
-// function of the restitution alone, whose only check is that range); with 1 it costs nothing,
-// and every other check runs on the real values. Others are kept for the loader to refuse.
-YAML::Node withoutRestitutionFit(const YAML::Node& root) {
-  YAML::Node copy = YAML::Clone(root);
+// Sets every contact restitution of the tree that is a number in [0, 1] to 1, for validation.
+// Compiling matches a Hunt-Crossley factor to each restitution (tens of ms, a function of the
+// restitution alone, whose only check is that range); with 1 it costs nothing, and every other
+// check runs on the real values. Others are kept for the loader to refuse. In place: a copy of
+// the tree costs as much as the rest of a check.
+void skipRestitutionFit(YAML::Node* root) {
   // Looked up through const nodes: a non-const operator[] would add missing keys.
-  const YAML::Node contact = root.IsMap() ? root["contact"] : YAML::Node();
-  if (!contact.IsMap()) return copy;
+  const YAML::Node& tree = *root;
+  const YAML::Node contact = tree.IsMap() ? tree["contact"] : YAML::Node();
+  if (!contact.IsMap()) return;
+  std::vector<std::string> laws;
   for (const auto& pair : contact) {
     const YAML::Node law = pair.second;
     const YAML::Node e = law.IsMap() ? law["restitution"] : YAML::Node();
     double value = 0;
     if (e.IsScalar() && e.Tag() != "!" && YAML::convert<double>::decode(e, value) && value >= 0.0 &&
         value <= 1.0) {
-      copy["contact"][pair.first.Scalar()]["restitution"] = 1.0;
+      laws.push_back(pair.first.Scalar());
     }
   }
-  return copy;
+  for (const std::string& law : laws) (*root)["contact"][law]["restitution"] = 1.0;
 }
 
 }  // namespace
@@ -91,14 +93,15 @@ YAML::Node withoutRestitutionFit(const YAML::Node& root) {
 std::string resolvedScene(const Options& options, TreeCache* cache) {
   YAML::Node root = sceneWithFiles(options, cache);
   for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
+  std::string text;
+  writeFlow(root, &text);  // before the restitutions are set aside
+  skipRestitutionFit(&root);
   try {
-    modelFromYaml(withoutRestitutionFit(root));
+    modelFromYaml(root);
     damageFromYaml(root);
   } catch (const SceneError& e) {
     throw SceneError(options.scene_path + ": " + e.what());
   }
-  std::string text;
-  writeFlow(root, &text);
   return text;
 }
 
