@@ -436,13 +436,18 @@ def _run_singly(client, payloads, accept):
     futures = client.map(task_module.run_single, payloads,
                          key=[f"threshing-run-{p['key']}" for p in payloads], pure=False)
     key_of = {f.key: p["key"] for f, p in zip(futures, payloads)}
-    for future in as_completed(futures, timeout=max(p["timeout_s"] for p in payloads) + 60):
-        if future.status == "finished":
-            accept(future.result())
-        else:
-            error = future.exception()
-            accept(_error_result(key_of[future.key], f"{type(error).__name__}: {error}"))
-        future.release()
+    limit_s = max(p["timeout_s"] for p in payloads) + 60
+    try:
+        for future in as_completed(futures, timeout=limit_s):
+            if future.status == "finished":
+                accept(future.result())
+            else:
+                error = future.exception()
+                accept(_error_result(key_of[future.key], f"{type(error).__name__}: {error}"))
+            future.release()
+    except TimeoutError:  # e.g. no worker left: the runs without a result are errors
+        for future in futures:
+            accept(_error_result(key_of[future.key], f"no result after {limit_s:g} s"))
 
 
 def compare_tables(a_path, b_path):

@@ -223,12 +223,16 @@ class _BatchProcess:
     def __init__(self, tasks, folder):
         self.tasks = tasks
         self.err = open(os.path.join(folder, "stderr.txt"), "w+")
-        self.proc = subprocess.Popen([tasks[0]["simulate"], "--batch", "-"],
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=self.err)
+        try:
+            self.proc = subprocess.Popen([tasks[0]["simulate"], "--batch", "-"],
+                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                         stderr=self.err)
+        except OSError:
+            self.err.close()
+            raise
         self.feeder = threading.Thread(target=_feed, args=(self.proc, tasks), daemon=True)
         self.feeder.start()
-        self.buffer = b""
+        self.chunks = []  # output read but not yet returned; only the last may hold a newline
         self.eof = False
         self.poller = select.poll()
         self.poller.register(self.proc.stdout.fileno(), select.POLLIN | select.POLLHUP)
@@ -237,16 +241,19 @@ class _BatchProcess:
         """The next output line (text), None at the end of the output, or False when none
         came within timeout_s."""
         deadline = time.monotonic() + timeout_s
-        while b"\n" not in self.buffer and not self.eof:
+        # Each chunk is searched once, so a line of many MB (kept forces) costs linear time.
+        while not (self.chunks and b"\n" in self.chunks[-1]) and not self.eof:
             left = deadline - time.monotonic()
             if left <= 0 or not self.poller.poll(left * 1000.0):
                 return False
             data = os.read(self.proc.stdout.fileno(), 1 << 20)
             self.eof = not data
-            self.buffer += data
-        if b"\n" not in self.buffer:
+            if data:
+                self.chunks.append(data)
+        if not (self.chunks and b"\n" in self.chunks[-1]):
             return None
-        line, self.buffer = self.buffer.split(b"\n", 1)
+        line, rest = b"".join(self.chunks).split(b"\n", 1)
+        self.chunks = [rest] if rest else []
         return line.decode("utf-8", "replace")
 
     def finish(self, kill):
