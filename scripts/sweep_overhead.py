@@ -70,9 +70,10 @@ def table_stats(out):
 
 def report(label, workers, wall, tree_cpu, n, run_cpu, stats):
     """Lines of the measurement (tree_cpu None: not measured, the workers are not children);
-    returns them with the ratio."""
+    returns them with the ratio and its lower bound (None without tree_cpu)."""
     ideal = run_cpu / workers
     proc_cpu = stats["process_cpu_s"]
+    bound = None
     rest = wall - stats["validate_s"] - stats["dispatch_s"]
     lines = [f"{label}: {n} runs on {workers} workers, {stats['processes']} simulate --batch "
              f"processes (batches of at most {stats['batch']})",
@@ -86,17 +87,21 @@ def report(label, workers, wall, tree_cpu, n, run_cpu, stats):
              f"  overhead per run = {1e3 * (wall * workers - run_cpu) / n:.2f} ms of core time"]
     if tree_cpu is not None:
         runner_cpu, check_cpu = tree_cpu - proc_cpu, stats["validate_cpu_s"]
+        bound = 1 + (runner_cpu + proc_cpu - run_cpu) / run_cpu
         lines += [f"  runner CPU (command tree - simulate --batch processes) = {runner_cpu:.2f} s "
                   f"({1e3 * runner_cpu / n:.2f} ms per run, {100 * runner_cpu / run_cpu:.1f} % of "
                   f"the runs' CPU)",
                   f"    of which validation (simulate --check-batch) {check_cpu:.2f} s "
                   f"({1e3 * check_cpu / n:.2f} ms per run), the rest (Python, Dask, the table) "
-                  f"{runner_cpu - check_cpu:.2f} s",
-                  f"  lower bound of the ratio with every core busy: 1 + (runner CPU + processes' "
-                  f"CPU - runs' CPU) / runs' CPU = "
-                  f"{1 + (runner_cpu + proc_cpu - run_cpu) / run_cpu:.3f}"]
+                  f"{runner_cpu - check_cpu:.2f} s"]
+        if workers == os.cpu_count():  # every core runs runs: the CPU bounds the wall time
+            lines.append(f"  lower bounds with every core busy: ratio >= 1 + (runner CPU + "
+                         f"processes' CPU - runs' CPU) / runs' CPU = {bound:.3f}; wall >= the "
+                         f"command tree's CPU / cores = {tree_cpu / workers:.2f} s")
+        else:
+            bound = None
     print("\n".join(lines), flush=True)
-    return lines, wall / ideal
+    return lines, wall / ideal, bound
 
 
 def run_stats(out):
@@ -139,15 +144,15 @@ def main():
         local = out / f"local_{workers}"
         wall, tree_cpu, _ = timed_sweep(args, local, ["--workers", str(workers)])
         n, run_cpu, bad = table_stats(local)
-        lines, ratio = report(f"local, {workers} worker thread(s)", workers, wall, tree_cpu,
-                              n, run_cpu, run_stats(local))
+        lines, ratio, bound = report(f"local, {workers} worker thread(s)", workers, wall,
+                                     tree_cpu, n, run_cpu, run_stats(local))
         lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
         if bad:
             lines.append(f"  {len(bad)} runs not ok, e.g. run {bad[0]['run']}: "
                          f"{bad[0]['status']} {bad[0]['message']}")
         print(lines[-1])
         text += lines
-        summary.append((workers, ratio, wall, 1e3 * (wall * workers - run_cpu) / n, before))
+        summary.append((workers, ratio, wall, bound, tree_cpu / workers, before))
     first = out / f"local_{args.workers[0]}"
     if args.dask_local:
         workers, before = args.workers[0], load()
@@ -155,7 +160,7 @@ def main():
         wall, tree_cpu, _ = timed_sweep(args, dask_local, ["--workers", str(workers),
                                                            "--processes"])
         n, run_cpu, _ = table_stats(dask_local)
-        lines, _ = report(f"local Dask cluster (--processes), {workers} worker process(es)",
+        lines, _, _ = report(f"local Dask cluster (--processes), {workers} worker process(es)",
                           workers, wall, tree_cpu, n, run_cpu, run_stats(dask_local))
         lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
         print(lines[-1])
@@ -167,7 +172,7 @@ def main():
             wall, _, _ = timed_sweep(args, remote, ["--scheduler", cluster.address])
         n2, run_cpu2, _ = table_stats(remote)
         diffs = runner.compare_tables(first / "runs.csv", remote / "runs.csv")
-        lines, ratio = report("dask-scheduler with two dask-worker processes on 127.0.0.1", 2,
+        lines, ratio, _ = report("dask-scheduler with two dask-worker processes on 127.0.0.1", 2,
                               wall, None, n2, run_cpu2, run_stats(remote))
         lines += [f"  load average (1, 5, 15 min) before {before}, after {load()}",
                   "  table equal to the local one apart from wall_s, cpu_s, worker" if not diffs
@@ -196,10 +201,11 @@ def readme_text(summary):
                          f"{ratio:.2f}, " + ("with a table equal to the local one apart from wall "
                                              "times" if equal else "with a different table"))
             continue
-        workers, ratio, wall, overhead_ms, before = entry
-        parts.append(f"on {workers} local worker(s), {wall:.1f} s of wall time, wall / (runs' "
-                     f"CPU / workers) = {ratio:.2f} and {overhead_ms:.1f} ms of overhead per run "
-                     f"(load average {before.split()[0]} before)")
+        workers, ratio, wall, bound, cpu_wall, before = entry
+        parts.append(f"on {workers} local worker(s), {wall:.1f} s of wall time and wall / (runs' "
+                     f"CPU / workers) = {ratio:.2f} at a load average of {before.split()[0]}" +
+                     (f"; from the CPU times, with every core busy, at least {cpu_wall:.1f} s "
+                      f"and {bound:.2f}" if bound else ""))
     return ("**Overhead** (`scripts/sweep_overhead.py`, the 1000 single-strike runs of "
             "`config/sweeps/single_strike_1000.yaml` in `simulate --batch` processes): " +
             "; ".join(parts) + ". Details, the cost model and conditions: "
