@@ -8,7 +8,8 @@
 // of a scene path in "args"; "return" lists the outputs put into the result line (default
 // summary and outcomes; also events, forces, trace). Output files named in "args" are written
 // too. Scene trees are parsed once per scene and list of override files (a bounded cache), so
-// that runs differing in their --set values do not re-read the base scene.
+// that runs differing in their --set values do not re-read the base scene (an inline scene
+// from its second line on).
 //
 // Output: one JSON line per run, in input order, flushed as the run ends:
 //   {"id": "r1", "status": "ok", "exit": 0, "message": "", "cpu_s": ..., "wall_s": ...,
@@ -27,9 +28,11 @@
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "app.h"
+#include "json.h"
 #include "threshing_sim/scene/scene_loader.h"
 
 namespace threshing_sim {
@@ -38,6 +41,15 @@ namespace {
 
 // Scene trees kept at most (the cache is emptied when full: a sweep's runs come in order).
 constexpr size_t kMaxCachedTrees = 64;
+
+// Hashes of the inline scenes seen, kept at most (then forgotten).
+constexpr size_t kMaxSeenScenes = 4096;
+
+// Parsed scene trees (with their override files applied), and the inline scenes seen once.
+struct SceneCache {
+  TreeCache trees;
+  std::unordered_set<size_t> seen;
+};
 
 // The scene path shown in messages for a line whose scene is "scene_yaml".
 const char kInlineScene[] = "(scene_yaml)";
@@ -74,54 +86,27 @@ struct Result {
 };
 
 // ---------------------------------------------------------------------------------------------
-// JSON: strings out; the lines in are read with yaml-cpp (JSON is YAML's flow style).
+// The lines in.
 
-void appendJsonString(const std::string& text, std::string* out) {
-  out->push_back('"');
-  for (const char c : text) {
-    if (c == '"' || c == '\\') {
-      out->push_back('\\');
-      out->push_back(c);
-    } else if (c == '\n') {
-      *out += "\\n";
-    } else if (c == '\t') {
-      *out += "\\t";
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escape[8];
-      std::snprintf(escape, sizeof(escape), "\\u%04x", static_cast<unsigned>(c));
-      *out += escape;
-    } else {
-      out->push_back(c);
-    }
-  }
-  out->push_back('"');
-}
+using Kind = JsonValue::Kind;
 
-// A short rendering of a bad value for a message.
-std::string shown(const YAML::Node& node) {
-  if (node.IsScalar()) return "'" + node.Scalar() + "'";
-  YAML::Emitter emitter;
-  emitter << YAML::Flow << node;
-  std::string text = emitter.c_str();
-  return text.size() > 200 ? text.substr(0, 200) + "..." : text;
-}
-
-std::vector<std::string> stringList(const YAML::Node& node, const char* key) {
-  if (!node.IsSequence())
-    throw OptionError(std::string(key) + ": expected a list of strings (got " + shown(node) + ")");
+std::vector<std::string> stringList(const JsonValue& value, const char* key) {
+  if (value.kind != Kind::kArray)
+    throw OptionError(std::string(key) + ": expected a list of strings (got " + showJson(value) +
+                      ")");
   std::vector<std::string> items;
-  for (const YAML::Node& item : node) {
-    if (!item.IsScalar())
-      throw OptionError(std::string(key) + ": expected a string (got " + shown(item) + ")");
-    items.push_back(item.Scalar());
+  for (const JsonValue& item : value.items) {
+    if (item.kind != Kind::kString)
+      throw OptionError(std::string(key) + ": expected a string (got " + showJson(item) + ")");
+    items.push_back(item.text);
   }
   return items;
 }
 
 // "return": output names among kOutputs.
-void readReturned(const YAML::Node& node, BatchLine* line) {
+void readReturned(const JsonValue& value, BatchLine* line) {
   std::fill(std::begin(line->returned), std::end(line->returned), false);
-  for (const std::string& name : stringList(node, "return")) {
+  for (const std::string& name : stringList(value, "return")) {
     size_t k = 0;
     while (k < kNumOutputs && name != kOutputs[k].name) ++k;
     if (k == kNumOutputs)
@@ -131,36 +116,39 @@ void readReturned(const YAML::Node& node, BatchLine* line) {
   }
 }
 
+// A line's id: a string or a number.
+void readId(const JsonValue& object, BatchLine* line) {
+  for (const auto& [key, value] : object.members) {
+    if (key != "id") continue;
+    if (value.kind != Kind::kString && value.kind != Kind::kNumber)
+      throw OptionError("id: expected a string or number (got " + showJson(value) + ")");
+    line->id = value.text;
+  }
+}
+
 // One input line into *line (its id first, for the error line); throws OptionError naming
 // the bad key or value.
-void readLine(const std::string& text, BatchLine* out) {
-  BatchLine& line = *out;
-  YAML::Node node;
+void readLine(const std::string& text, BatchLine* line) {
+  JsonValue object;
   try {
-    node = YAML::Load(text);
-  } catch (const YAML::Exception& e) {
-    throw OptionError("not a JSON line (column " + std::to_string(e.mark.column + 1) + ": " +
-                      e.msg + ")");
+    object = parseJson(text);
+  } catch (const JsonError& e) {
+    throw OptionError(std::string("not a JSON line (") + e.what() + ")");
   }
-  if (!node.IsMap()) throw OptionError("expected a JSON object (got " + shown(node) + ")");
-  const YAML::Node& read_only = node;
-  if (read_only["id"].IsScalar()) line.id = read_only["id"].Scalar();
-  for (const auto& entry : node) {
-    const std::string key = entry.first.Scalar();
-    if (key == "id") {
-      if (!entry.second.IsScalar())
-        throw OptionError("id: expected a string or number (got " + shown(entry.second) + ")");
-    } else if (key == "args") {
-      line.args = stringList(entry.second, "args");
+  if (object.kind != Kind::kObject)
+    throw OptionError("expected a JSON object (got " + showJson(object) + ")");
+  readId(object, line);
+  for (const auto& [key, value] : object.members) {
+    if (key == "args") {
+      line->args = stringList(value, "args");
     } else if (key == "scene_yaml") {
-      if (!entry.second.IsScalar())
-        throw OptionError("scene_yaml: expected the scene's text (got " + shown(entry.second) +
-                          ")");
-      line.inline_scene = true;
-      line.scene_yaml = entry.second.Scalar();
+      if (value.kind != Kind::kString)
+        throw OptionError("scene_yaml: expected the scene's text (got " + showJson(value) + ")");
+      line->inline_scene = true;
+      line->scene_yaml = value.text;
     } else if (key == "return") {
-      readReturned(entry.second, &line);
-    } else {
+      readReturned(value, line);
+    } else if (key != "id") {
       throw OptionError("unknown key '" + key + "' (expected id, args, scene_yaml, return)");
     }
   }
@@ -198,12 +186,16 @@ YAML::Node parseSceneText(const std::string& text) {
 }
 
 // The line's scene tree with its override files applied (parsed once per scene and files).
-YAML::Node baseTree(const BatchLine& line, const Options& options, TreeCache* cache) {
-  if (cache->size() >= kMaxCachedTrees) cache->clear();
-  if (!line.inline_scene) return sceneWithFiles(options, cache);
+// A scene text is kept from its second line on: the runner's lines each carry a scene of
+// their own, and a copy for the cache would cost a tenth of a short run.
+YAML::Node baseTree(const BatchLine& line, const Options& options, SceneCache* cache) {
+  if (cache->trees.size() >= kMaxCachedTrees) cache->trees.clear();
+  if (cache->seen.size() >= kMaxSeenScenes) cache->seen.clear();
+  if (!line.inline_scene) return sceneWithFiles(options, &cache->trees);
   std::string key = std::string(1, '\1') + line.scene_yaml;
   for (const std::string& path : options.set_files) key += "\t" + path;
-  if (cache->count(key) != 0) return YAML::Clone(cache->at(key));
+  const auto found = cache->trees.find(key);
+  if (found != cache->trees.end()) return YAML::Clone(found->second);
   YAML::Node root = parseSceneText(line.scene_yaml);
   if (root.IsMap()) {
     for (const std::string& path : options.set_files) {
@@ -211,12 +203,13 @@ YAML::Node baseTree(const BatchLine& line, const Options& options, TreeCache* ca
         applyOverride(&root, assignment);
     }
   }
-  (*cache)[key] = YAML::Clone(root);
+  if (!cache->seen.insert(std::hash<std::string>()(key)).second)
+    cache->trees[key] = YAML::Clone(root);
   return root;
 }
 
 // The compiled model of the line (as loadScene builds it) and its damage thresholds.
-Model lineModel(const BatchLine& line, const Options& options, TreeCache* cache,
+Model lineModel(const BatchLine& line, const Options& options, SceneCache* cache,
                 DamageThresholds* damage) {
   YAML::Node root = baseTree(line, options, cache);
   if (!root.IsMap())
@@ -242,7 +235,7 @@ void writeFile(const std::string& path, const char* name, const std::string& tex
 }
 
 // Runs the line; fills the result's status and outputs. Throws on a bad line or scene.
-void runLine(const BatchLine& line, TreeCache* cache, Result* result) {
+void runLine(const BatchLine& line, SceneCache* cache, Result* result) {
   const Options options = lineOptions(line);
   DamageThresholds damage;
   const Model model = lineModel(line, options, cache, &damage);
@@ -295,25 +288,22 @@ std::string resultLine(const Result& result, double cpu_s, double wall_s) {
 }
 
 // The result of one input line: a run, or an error naming what was wrong with it.
-Result processLine(const std::string& text, long number, TreeCache* cache) {
+Result processLine(const std::string& text, long number, SceneCache* cache) {
   Result result;
   BatchLine line;
   line.id = std::to_string(number);
   try {
     readLine(text, &line);
-    result.id = line.id;
     runLine(line, cache, &result);
   } catch (const OptionError& e) {
-    result.id = line.id;
     result.message = e.what();
   } catch (const SceneError& e) {
-    result.id = line.id;
     result.message = e.what();
   } catch (const std::exception& e) {
-    result.id = line.id;
     result.exit = 1;
     result.message = e.what();
   }
+  result.id = line.id;
   return result;
 }
 
@@ -327,7 +317,7 @@ int runBatch(const std::string& path) {
   }
   std::istream& in = path == "-" ? std::cin : file;
   int status = 0;
-  TreeCache cache;
+  SceneCache cache;
   long number = 0;
   for (std::string text; std::getline(in, text);) {
     ++number;

@@ -167,6 +167,7 @@ class BatchTest(unittest.TestCase):
                  {"id": "output", "args": self.runs[0].arguments, "return": ["movie"]},
                  {"id": "modes", "args": [*self.runs[0].arguments, "--modes"]},
                  {"id": "yaml", "scene_yaml": "{drum: [1, 2"},
+                 {"id": "unié \U0001F600", "args": [0.06]},  # sent as \u escapes
                  good]
         text = "".join(json.dumps(x) + "\n" for x in lines[:3]) + "{not json\n" + \
             "".join(json.dumps(x) + "\n" for x in lines[3:])
@@ -174,9 +175,10 @@ class BatchTest(unittest.TestCase):
                               text=True, timeout=120)
         self.assertEqual(proc.returncode, 2)
         results = {x["id"]: x for x in map(json.loads, proc.stdout.splitlines())}
-        self.assertEqual(len(results), 8)  # the two good lines share their id
+        self.assertEqual(len(results), 9)  # the two good lines share their id
         expected = {"speed": "fast", "option": "'0'", "4": "JSON", "key": "'retrun'",
-                    "output": "'movie'", "modes": "--modes", "yaml": "(scene_yaml):1"}
+                    "output": "'movie'", "modes": "--modes", "yaml": "(scene_yaml):1",
+                    "unié \U0001F600": "expected a string (got 0.06)"}
         for name, word in expected.items():
             self.assertEqual(results[name]["status"], "error", name)
             self.assertEqual(results[name]["exit"], 2, name)
