@@ -26,7 +26,7 @@ import re
 import sys
 import tempfile
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+from tslib import ROOT
 SCANNED_DIRS = ["src", "include", "test", "bench", "scripts", "launch", "msg", "srv", "cfg",
                 "config", "rviz", ".ci", "docs"]
 SCANNED_ROOT_FILES = ["README.md", "CMakeLists.txt", "package.xml"]

@@ -23,12 +23,11 @@ import subprocess
 import sys
 import tempfile
 
+from tslib import ROOT
 from tslib.binaries import BIN_DIR
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-
-def run(bench, scene, free_teeth, tolerance, reps, samples, cpu):
+def run_point(bench, scene, free_teeth, tolerance, reps, samples, cpu):
     """One bench_work_precision point as a dict (its JSON output)."""
     cmd = [bench, scene, "--set", "integrator.type=event_driven",
            "--set", "integrator.free_teeth=" + free_teeth,
@@ -99,10 +98,10 @@ def main():
     ap.add_argument("--bench", default=str(BIN_DIR / "bench_work_precision"))
     args = ap.parse_args()
 
-    ref = run(args.bench, args.scene, "integrated", args.ref_tolerance, 1, args.samples, args.cpu)
+    ref = run_point(args.bench, args.scene, "integrated", args.ref_tolerance, 1, args.samples, args.cpu)
     rows = []
     for free_teeth in ("integrated", "exact"):
-        r = run(args.bench, args.scene, free_teeth, args.tolerance, args.reps, args.samples,
+        r = run_point(args.bench, args.scene, free_teeth, args.tolerance, args.reps, args.samples,
                 args.cpu)
         rows.append((free_teeth, r))
     print("scene %s, event-driven tolerance %g; reference: integrated at %g (%d steps)" %

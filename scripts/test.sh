@@ -35,6 +35,14 @@ junit() {  # name command...
 # reports each kind of dangling reference).
 junit doc-refs /usr/bin/python3 "$ROOT/scripts/check_doc_refs.py"
 junit doc-refs-self-test /usr/bin/python3 "$ROOT/scripts/check_doc_refs.py" --self-test
+# Issue 25: scripts/ is one package (tslib) with thin entry points: no import cycle, no name
+# defined in two modules, every entry point answers --help.
+junit scripts-package /usr/bin/python3 "$ROOT/test/scripts/test_scripts_package.py"
 junit fuzz bash "$ROOT/scripts/fuzz.sh" 30
+# Issue 25: the sweep-file loader fuzzed (test/fuzz/fuzz_sweep_file.py): up to 100000 inputs
+# in at most 85 s (at least 10000), none may hang (1 s of CPU each) or raise anything but
+# SweepError.
+junit fuzz-sweep-file /usr/bin/python3 "$ROOT/test/fuzz/fuzz_sweep_file.py" --inputs 100000 \
+  --max-seconds 85 --min-inputs 10000 --artifacts "$WS/fuzz_sweep_file"
 junit sanitize bash "$ROOT/scripts/sanitize.sh"
 /usr/bin/python3 "$ROOT/scripts/count_results.py" "$WS/build/test_results"

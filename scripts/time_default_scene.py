@@ -12,12 +12,11 @@ import statistics
 import subprocess
 import tempfile
 
+from tslib import ROOT
 from tslib.binaries import BIN_DIR
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
-
-def run(simulate, scene, extra, summary):
+def run_once(simulate, scene, extra, summary):
     subprocess.run([simulate, scene, "--quiet", "--summary", summary] + extra, check=True)
     with open(summary) as f:
         return json.load(f)
@@ -38,7 +37,7 @@ def main():
         summary = os.path.join(tmp, "s.json")
         speeds = []
         for name, extra in settings:
-            runs = [run(args.simulate, args.scene, extra, summary) for _ in range(args.repeat)]
+            runs = [run_once(args.simulate, args.scene, extra, summary) for _ in range(args.repeat)]
             wall = statistics.median(r["wall_time_s"] for r in runs)
             r = runs[0]
             v = r["kernels"][0]["velocity_mps"] if r["kernels"] else [0, 0]

@@ -10,9 +10,9 @@ import pathlib
 import shutil
 import sys
 
-from . import spec as spec_module
+from tslib import ROOT
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+from . import spec as spec_module
 
 
 def _compare_teeth():

@@ -70,3 +70,8 @@ def splice(name, body, path=None):
 def link(target, page):
     """A link from page to target (both paths): relative to the page's folder."""
     return os.path.relpath(pathlib.Path(target).resolve(), pathlib.Path(page).resolve().parent)
+
+
+def in_folder(folder, name):
+    """name inside folder, as a link ("findings.md" where folder is ".")."""
+    return name if folder == "." else f"{folder}/{name}"

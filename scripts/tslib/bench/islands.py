@@ -1,5 +1,4 @@
 """The island-local scheme's part of the benchmark (scripts/bench.py --part islands).
-
 Measures, with the same pinned, cached bench_work_precision points as the rest of bench.py:
 
 1. Scaling of the stream scene (config/bench/stream.yaml, 2 ms) with the kernel count, up to
@@ -25,12 +24,17 @@ import shutil
 import subprocess
 import tempfile
 
-import bench  # scripts/bench.py: Runner, stream files, node runs, CSV helpers
-import stage_profile  # scripts/stage_profile.py: instructions per stage (imports no bench*)
-from tslib import markdown, plots
+from tslib import BENCH_DIR, DOCS, ROOT, markdown, plots
+from tslib.bench import stages as stage_profile
+from tslib.bench.config import NODE_DURATION_S, say
+from tslib.bench.measure import node_try
+from tslib.bench.scenes import stream_override_file
+from tslib.bench.stages import STREAM
+from tslib.bench.tables import write_csv
+from tslib.binaries import BIN_DIR
+from tslib.numbers import fmt
 
-STREAM = bench.BENCH_DIR / "stream.yaml"
-STRIKE = bench.BENCH_DIR / "single_strike.yaml"
+STRIKE = BENCH_DIR / "single_strike.yaml"
 COUNTS = [0, 1, 10, 100, 1000, 10000]
 GLOBAL_MAX = 1000  # the global scheme is run up to this count (it costs kernels x events)
 KNOBS = {"event_driven": "integrator.tolerance=1e-6", "time_stepping": "integrator.dt=1e-6"}
@@ -51,10 +55,10 @@ def kernel_file(count, layout, gen_dir):
         path.write_text("# No kernels: the stream scene's teeth, drum and grate alone.\n"
                         "kernels: []\n")
         return path
-    return bench.stream_override_file(count, gen_dir, layout)
+    return stream_override_file(count, gen_dir, layout)
 
 
-def scaling(runner, gen_dir, quick):
+def island_scaling(runner, gen_dir, quick):
     counts = [0, 1, 10] if quick else COUNTS
     futures = []
     for (scheme, integrator), settings in SCHEMES.items():
@@ -135,9 +139,9 @@ def instructions(gen_dir, quick):
     """Instructions of the stepping loop per run, per contact event (impact or compliant
     episode) and per island step, and the real-time factor they give at INSTRUCTIONS_PER_S."""
     if shutil.which("valgrind") is None:
-        bench.say("islands bench: valgrind not installed, instruction counts skipped")
+        say("islands bench: valgrind not installed, instruction counts skipped")
         return []
-    bench_bin = bench.BIN_DIR / "bench_work_precision"
+    bench_bin = BIN_DIR / "bench_work_precision"
     rows = []
     with tempfile.TemporaryDirectory() as work:
         for label, scene, extra, integrator in instruction_cases(gen_dir, quick):
@@ -154,7 +158,7 @@ def instructions(gen_dir, quick):
                          "island_steps": run["scheduler"]["island_steps"],
                          "per_event": total / events, "per_island_step": total / steps,
                          "island_body_steps": run["scheduler"]["island_body_steps"]})
-            bench.say(f"islands bench: {label}, {integrator}: {total:.3g} instructions, "
+            say(f"islands bench: {label}, {integrator}: {total:.3g} instructions, "
                       f"{total / events:.3g} per contact event")
     return rows
 
@@ -166,16 +170,16 @@ def stage_table(gen_dir, quick):
         return None
     case_list = stage_profile.cases(lambda n, sparse: kernel_file(
         n, ("sparse", sparse) if sparse is not None else False, gen_dir))
-    results = stage_profile.profile(bench.BIN_DIR / "simulate", case_list, say=bench.say)
+    results = stage_profile.profile(BIN_DIR / "simulate", case_list, say=say)
     return stage_profile.table(results)
 
 
 def node_table(gen_dir, quick):
     if quick:
         return []
-    cfg = {"node_duration": bench.NODE_DURATION_S}
-    setup = bench.ROOT / ".build" / "ws" / "devel" / "setup.bash"
-    if not (bench.BIN_DIR / "threshing_sim_node").exists() or not setup.exists():
+    cfg = {"node_duration": NODE_DURATION_S}
+    setup = ROOT / ".build" / "ws" / "devel" / "setup.bash"
+    if not (BIN_DIR / "threshing_sim_node").exists() or not setup.exists():
         return []
     rows = []
     port = 11800 + os.getpid() % 100
@@ -183,16 +187,13 @@ def node_table(gen_dir, quick):
                               ("time stepping, dt 1e-6 s", "time_stepping")):
         settings = SCHEMES[("islands", integrator)][2:]
         for n in (1, 10, 100, 1000):
-            row = bench.node_try(cfg, gen_dir, setup, port, integrator, settings, n)
+            row = node_try(cfg, gen_dir, setup, port, integrator, settings, n)
             if row is None:  # no summary (or too slow to finish): larger counts are slower
                 break
             row["setting"] = label
             rows.append(row)
     return rows
 
-
-def fmt(x, digits=3):
-    return bench.fmt(x, digits) if x is not None else "-"
 
 
 def plot(rows, out_dir):
@@ -279,13 +280,13 @@ def targets(scal, instr, node):
 def write_doc(scal, instr, node, tgt, out_dir, fig_rel, stages=None):
     lines = ["| case | target | measured | met |", "|---|---|---|---|"]
     for case, goal, value, met in tgt:
-        lines.append(f"| {case} | {goal} | {fmt(value)} | {'yes' if met else '**no**'} |")
+        lines.append(f"| {case} | {goal} | {fmt(value, 3, none='-')} | {'yes' if met else '**no**'} |")
     target_table = "\n".join(lines)
     sc = ["| layout | kernels | scheme | integrator | real-time factor | kernels struck | "
           "impacts | island steps |", "|---|---|---|---|---|---|---|---|"]
     for r in sorted(scal, key=lambda r: (r["layout"], r["integrator"], r["scheme"], r["n"])):
         sc.append(f"| {r['layout']} | {r['n']} | {r['scheme']} | {r['integrator']} | "
-                  f"{fmt(r['real_time_factor'])}{'' if r['completed'] else ' (cut short)'} | "
+                  f"{fmt(r['real_time_factor'], 3, none='-')}{'' if r['completed'] else ' (cut short)'} | "
                   f"{r['kernels_struck']} | {r['impacts']} | {r['island_steps']} |")
     ev = ["| layout | kernels | integrator | " + " | ".join(EVENT_KINDS) + " |",
           "|---|---|---|" + "---|" * len(EVENT_KINDS)]
@@ -294,18 +295,18 @@ def write_doc(scal, instr, node, tgt, out_dir, fig_rel, stages=None):
             continue
         per = r["n"] * r["sim_time_s"]
         ev.append(f"| {r['layout']} | {r['n']} | {r['integrator']} | " +
-                  " | ".join(fmt(r[k] / per) for k in EVENT_KINDS) + " |")
+                  " | ".join(fmt(r[k] / per, 3, none='-') for k in EVENT_KINDS) + " |")
     ins = ["| case | integrator | instructions | real-time factor at 3e9/s | contact events | "
            "island steps | per event | per island step | bodies per island step |",
            "|---|---|---|---|---|---|---|---|---|"]
     for r in instr:
         ins.append(f"| {r['case']} | {r['integrator']} | {r['instructions']:.3g} | "
-                   f"{fmt(r['rtf_at_3e9'])} | {r['contact_events']} | {r['island_steps']} | "
+                   f"{fmt(r['rtf_at_3e9'], 3, none='-')} | {r['contact_events']} | {r['island_steps']} | "
                    f"{r['per_event']:.3g} | {r['per_island_step']:.3g} | "
                    f"{r['island_body_steps'] / max(1, r['island_steps']):.3g} |")
     nd = ["| setting | kernels | real-time factor | overruns |", "|---|---|---|---|"]
     for r in node:
-        nd.append(f"| {r['setting']} | {r['n']} | {fmt(r['rtf'])} | {r['overruns']} |")
+        nd.append(f"| {r['setting']} | {r['n']} | {fmt(r['rtf'], 3, none='-')} | {r['overruns']} |")
     doc = f"""# The island-local scheme: measured
 
 Regenerated by `python3 scripts/bench.py --part islands` (Release, one pinned CPU per point,
@@ -346,7 +347,7 @@ def stages_section(out_dir, stages):
     """The "Instructions per stage" section: the recorded "before" table of the page (or of
     docs/bench_islands.md) kept, the current one from this run (or kept when not measured)."""
     old = ""
-    for page in (pathlib.Path(out_dir) / "bench_islands.md", bench.DOCS / "bench_islands.md"):
+    for page in (pathlib.Path(out_dir) / "bench_islands.md", DOCS / "bench_islands.md"):
         if page.exists():
             old = page.read_text()
             if markdown.section_body(old, "stage-profile-before") is not None:
@@ -356,20 +357,20 @@ def stages_section(out_dir, stages):
     return stage_profile.section(current, before)
 
 
-def run(args, runner, gen_dir, out, fig_dir):
+def run_islands(args, runner, gen_dir, out, fig_dir):
     quick = args.quick
-    scal = scaling(runner, gen_dir, quick)
-    bench.write_csv(fig_dir / "islands_scaling.csv", scal)
+    scal = island_scaling(runner, gen_dir, quick)
+    write_csv(fig_dir / "islands_scaling.csv", scal)
     plot(scal, fig_dir)
     instr = instructions(gen_dir, quick)
-    bench.write_csv(fig_dir / "islands_instructions.csv", instr)
+    write_csv(fig_dir / "islands_instructions.csv", instr)
     node = [] if args.no_node else node_table(gen_dir, quick)
-    bench.write_csv(fig_dir / "islands_node.csv", node)
+    write_csv(fig_dir / "islands_node.csv", node)
     tgt = targets(scal, instr, node)
     stages = stage_table(gen_dir, quick)
     doc, table = write_doc(scal, instr, node, tgt, out, "bench/", stages)
     (out / "bench_islands.md").write_text(doc)
     if not quick and not args.no_readme and not args.out:
         markdown.splice("islands-table", table)
-    bench.say(f"islands bench: wrote {out / 'bench_islands.md'}")
+    say(f"islands bench: wrote {out / 'bench_islands.md'}")
     return scal

@@ -1,0 +1,37 @@
+"""Numbers for tables and checks: the formats of the scripts' tables and the relative
+differences they report (one definition each; the scripts import them from here)."""
+import math
+
+
+def fmt(x, digits=2, none="–"):
+    """x with `digits` significant digits, in exponent form outside [1e-3, 1e4); integers as
+    they are, 0 as "0", None as `none` (the benchmark's tables)."""
+    if x is None:
+        return none
+    if isinstance(x, int):
+        return str(x)
+    if x == 0:
+        return "0"
+    return f"{x:.{digits}g}" if 1e-3 <= abs(x) < 1e4 else f"{x:.{digits - 1}e}"
+
+
+def fmt3(value):
+    """value with three significant digits ("%.3g"), NaN as "-" (the tooth comparison)."""
+    if isinstance(value, float) and math.isnan(value):
+        return "-"
+    return f"{value:.3g}"
+
+
+def fmt3_range(pair):
+    """A range "lo-hi" of two values in fmt3's form."""
+    return f"{fmt3(pair[0])}-{fmt3(pair[1])}"
+
+
+def rel_error(a, b):
+    """Relative error of a against the reference b: |a - b| / |b| (absolute when b is 0)."""
+    return abs(a - b) / abs(b) if b != 0 else abs(a - b)
+
+
+def rel_change(a, b):
+    """Relative change from a to b: |b - a| / |a| (|a| floored at 1e-12)."""
+    return abs(b - a) / max(abs(a), 1e-12)
