@@ -1,6 +1,6 @@
 // The parts of the headless simulator (simulate.cc's main) shared by its modes: the command
 // line (options.cc), one run to its outputs (run.cc), validation without a run (check.cc) and
-// many runs in one process (batch.cc).
+// many runs in one process (batch.cc, its JSON lines read by json.cc).
 #pragma once
 
 #include <yaml-cpp/yaml.h>
