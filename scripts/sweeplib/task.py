@@ -1,5 +1,5 @@
 """The work of the runs on a worker: one `simulate --batch` process runs many runs, each
-result handed on as its run ends (run_tasks); run_simulate runs one run as a process of its own.
+result handed on as its run ends (run_tasks, run_batch on Dask, run_single for one run).
 
 This module is shipped to the workers by value (cloudpickle), so a worker needs only Python,
 python3-distributed and the simulate binary at the given path; it imports nothing from the
@@ -49,14 +49,6 @@ def _worker_name():
         return name
 
 
-def _read(path):
-    try:
-        with open(path) as f:
-            return f.read()
-    except OSError:
-        return None
-
-
 def _signal_name(number):
     try:
         return signal.Signals(number).name
@@ -64,37 +56,10 @@ def _signal_name(number):
         return f"signal {number}"
 
 
-def run_simulate(task):
-    """Runs one simulation. task: key, scene (resolved YAML text), simulate (path), sha
-    (expected sha256 of the binary), timeout_s, keep (extra outputs: events, forces).
-    Returns a dict: key, status (ok, failed, crash, timeout, error), message, summary (JSON
-    text), outcomes (CSV text), files (kept outputs), wall_s, cpu_s (the child's user + system
-    time), worker (host:pid)."""
-    started = time.perf_counter()
-    result = {"key": task["key"], "status": "error", "message": "", "summary": None,
-              "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0,
-              "worker": _worker_name()}
-    try:
-        sha = _binary_sha(task["simulate"])
-    except OSError as e:
-        result["message"] = f"cannot read simulate at {task['simulate']}: {e.strerror}"
-        return result
-    if sha != task["sha"]:
-        result["message"] = (f"simulate at {task['simulate']} on this worker is not the "
-                             f"client's binary (sha256 {sha[:12]} != {task['sha'][:12]})")
-        return result
-    try:
-        _execute(task, _thread_folder(), result)
-    except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
-        result["status"], result["message"] = "error", f"{type(e).__name__}: {e}"
-    result["wall_s"] = time.perf_counter() - started
-    return result
-
-
 def _thread_folder():
-    """This thread's folder for its runs' files, made once (under $TMPDIR if set, else in
-    memory where /dev/shm exists) and removed at exit: a folder made and removed per run costs
-    milliseconds on some file systems, during which the worker would idle."""
+    """This thread's folder for its batch processes' stderr, made once (under $TMPDIR if set,
+    else in memory where /dev/shm exists) and removed at exit: a folder made and removed per
+    batch costs milliseconds on some file systems, during which the worker would idle."""
     key = (os.getpid(), threading.get_ident())
     folder = _FOLDERS.get(key)
     if folder is None or not os.path.isdir(folder):
@@ -103,7 +68,7 @@ def _thread_folder():
         folder = tempfile.mkdtemp(prefix="sweep-run-", dir=base)
         atexit.register(shutil.rmtree, folder, True)
         _FOLDERS[key] = folder
-    for name in os.listdir(folder):  # no output of the previous run may be taken for this one's
+    for name in os.listdir(folder):  # nothing of the previous batch may be taken for this one's
         os.unlink(os.path.join(folder, name))
     return folder
 
@@ -126,47 +91,6 @@ def _wait_exit(proc, timeout_s):
         return bool(poller.poll(timeout_s * 1000.0))
     finally:
         os.close(fd)
-
-
-def _execute(task, folder, result):
-    scene = os.path.join(folder, "scene.yaml")
-    with open(scene, "w") as f:
-        f.write(task["scene"])
-    summary, outcomes = os.path.join(folder, "summary.json"), os.path.join(folder, "outcomes.csv")
-    command = [task["simulate"], scene, "--summary", summary, "--outcomes", outcomes, "--quiet"]
-    for name in task["keep"]:
-        command += [f"--{name}", os.path.join(folder, f"{name}.csv")]
-    with open(os.path.join(folder, "stderr.txt"), "w+") as err:
-        proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                stderr=err)
-        timed_out = not _wait_exit(proc, task["timeout_s"])
-        if timed_out:
-            proc.kill()
-        _, status, usage = os.wait4(proc.pid, 0)
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        err.seek(0)
-        stderr = err.read().strip()
-    result["cpu_s"] = usage.ru_utime + usage.ru_stime
-    result["summary"] = _read(summary)
-    result["outcomes"] = _read(outcomes)
-    for name in task["keep"]:
-        result["files"][name] = _read(os.path.join(folder, f"{name}.csv"))
-    code = proc.returncode
-    if timed_out:
-        result["status"] = "timeout"
-        result["message"] = f"no result after {task['timeout_s']:g} s; killed"
-    elif code < 0:
-        result["status"] = "crash"
-        result["message"] = f"simulate killed by {_signal_name(-code)}" + \
-            (f": {stderr[-500:]}" if stderr else "")
-    elif code == 0 and result["summary"] is not None:
-        result["status"] = "ok"
-    elif code == 1 and result["summary"] is not None:
-        result["status"] = "failed"
-        result["message"] = stderr[-500:] if stderr else "status failed"
-    else:
-        result["status"] = "error"
-        result["message"] = f"exit status {code}" + (f": {stderr[-500:]}" if stderr else "")
 
 
 # ------------------------------------------------------------------------------------------
