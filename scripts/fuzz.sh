@@ -31,7 +31,7 @@ link() {  # name fuzz-target-source objects... -- libs...
 }
 link fuzz_scene "$ROOT/test/fuzz/fuzz_scene.cc" "${SAN_LIB_OBJS[@]}" -- -lyaml-cpp
 link fuzz_simulate_cli "$ROOT/test/fuzz/fuzz_simulate_cli.cc" "$SAN_OBJ/simulate_main.o" \
-  "${SAN_LIB_OBJS[@]}" -- -lyaml-cpp
+  "${SAN_APP_OBJS[@]}" "${SAN_LIB_OBJS[@]}" -- -lyaml-cpp
 link fuzz_command_bag "$ROOT/test/fuzz/fuzz_command_bag.cc" "$SAN_OBJ/command_bag.o" -- \
   -lrosbag -lrosbag_storage -lroscpp_serialization -lrostime -lcpp_common -lroscpp \
   -lconsole_bridge -lboost_system -lclass_loader -lboost_filesystem -ltinyxml2 -lroslib \

@@ -1,7 +1,8 @@
 # Sourced by scripts/fuzz.sh and scripts/sanitize.sh: compiles the core, the scene loader,
-# simulate (main renamed simulate_main) and the command-bag reader once with clang 14, ASan,
-# UBSan and libFuzzer's coverage instrumentation, into .build/san/obj (two at a time, only what
-# changed). Sets SAN_CXX, SAN_FLAGS, SAN_OBJ (directory) and SAN_LIB_OBJS (core + scene).
+# simulate (main renamed simulate_main; its other parts are SAN_APP_OBJS) and the command-bag
+# reader once with clang 14, ASan, UBSan and libFuzzer's coverage instrumentation, into
+# .build/san/obj (two at a time, only what changed). Sets SAN_CXX, SAN_FLAGS, SAN_OBJ
+# (directory), SAN_LIB_OBJS (core + scene) and SAN_APP_OBJS.
 SAN_CXX=clang++-14
 SAN_OBJ="$ROOT/.build/san/obj"
 SAN_FLAGS=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
@@ -20,8 +21,8 @@ for p in clang-14 libclang-rt-14-dev; do
   }
 done
 [ -d "$ROOT/.build/ws/devel/include/threshing_sim" ] || bash "$ROOT/scripts/setup.sh"
-san_stale() {  # object source: true if the object must be rebuilt
-  [ ! -f "$1" ] || [ -n "$(find "$2" -newer "$1")" ] ||
+san_stale() {  # object source [header]: true if the object must be rebuilt
+  [ ! -f "$1" ] || [ -n "$(find "$2" ${3:+"$3"} -newer "$1")" ] ||
     [ -n "$(find "$ROOT/include" "$ROOT/src/core" -name '*.h' -newer "$1" | head -1)" ]
 }
 san_jobs=()
@@ -48,8 +49,16 @@ for src in "$ROOT"/src/core/*.cc "$ROOT"/src/core/*/*.cc "$ROOT"/src/scene/*.cc 
   san_stale "$obj" "$src" && san_jobs+=("$src|$obj|$extra")
   case "$src" in */command_bag.cc) ;; *) SAN_LIB_OBJS+=("$obj") ;; esac
 done
-san_stale "$SAN_OBJ/simulate_main.o" "$ROOT/src/app/simulate.cc" &&
+san_stale "$SAN_OBJ/simulate_main.o" "$ROOT/src/app/simulate.cc" "$ROOT/src/app/app.h" &&
   san_jobs+=("$ROOT/src/app/simulate.cc|$SAN_OBJ/simulate_main.o|-Dmain=simulate_main")
+# simulate's other parts (options, run, check, batch): SAN_APP_OBJS, linked with simulate_main.o.
+SAN_APP_OBJS=()
+for src in "$ROOT"/src/app/*.cc; do
+  [ "$src" = "$ROOT/src/app/simulate.cc" ] && continue
+  obj="$SAN_OBJ/app_$(basename "$src" .cc).o"
+  san_stale "$obj" "$src" "$ROOT/src/app/app.h" && san_jobs+=("$src|$obj|")
+  SAN_APP_OBJS+=("$obj")
+done
 if [ ${#san_jobs[@]} -gt 0 ]; then
   echo "sanitizer build: compiling ${#san_jobs[@]} files"
   export SAN_CXX

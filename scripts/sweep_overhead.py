@@ -2,13 +2,21 @@
 """Measures the sweep runner's overhead (docs/sweeps.md, "Overhead").
 
 Runs `scripts/sweep run SWEEP` from scratch (fresh output folder, nothing cached) as a child
-process and compares its wall time with the runs' own CPU time (user + system of each simulate
-process, from wait4, column cpu_s of runs.csv) divided by the workers:
+process and compares its wall time with the CPU time of the runs. Runs share simulate --batch
+processes, so a run's CPU is the one simulate measures for it in-process (thread CPU clock, from
+reading its line to writing its result; column cpu_s of runs.csv); the batch processes' own CPU
+(user + system from wait4: the runs plus process start, dynamic linking and the lines' I/O) is
+in run_stats.json:
 
-  ratio         = wall / (sum of the runs' CPU / workers)          target <= 1.10
+  ratio         = wall / (sum of the runs' CPU / workers)                  target <= 1.10
+  ratio (processes) = wall / (sum of the simulate processes' CPU / workers)
+                  (the old definition: one simulate process per run, its wait4 CPU)
   overhead/run  = (wall * workers - sum of the runs' CPU) / runs   core time lost per run
-  runner CPU    = CPU of the whole command tree (wait4) - sum of the runs' CPU
+  runner CPU    = CPU of the whole command tree (wait4) - the simulate --batch processes' CPU
+                  (local runs only: validation, Python, the table)
 
+and where the wall time goes: validation (simulate --check-batch), the runs (dispatch, from the
+first batch to the last result) and the rest (Python start, imports, the table at the end).
 With --cluster it also starts a dask-scheduler and two dask-workers on 127.0.0.1, runs the same
 sweep against them and checks that the table equals the local one apart from wall/CPU times and
 worker names. The load average is printed before and after: the ratio only means something on
@@ -16,6 +24,7 @@ a machine that is otherwise idle.
 """
 import argparse
 import csv
+import json
 import os
 import pathlib
 import shutil
@@ -59,19 +68,44 @@ def table_stats(out):
     return len(rows), sum(float(r["cpu_s"]) for r in rows), bad
 
 
-def report(label, workers, wall, tree_cpu, n, run_cpu):
-    """Lines of the measurement; returns them with the ratio."""
+def report(label, workers, wall, tree_cpu, n, run_cpu, stats):
+    """Lines of the measurement (tree_cpu None: not measured, the workers are not children);
+    returns them with the ratio and its lower bound (None without tree_cpu)."""
     ideal = run_cpu / workers
-    lines = [f"{label}: {n} runs on {workers} workers",
-             f"  wall {wall:.2f} s; runs' own CPU {run_cpu:.2f} s ({1e3 * run_cpu / n:.1f} ms "
-             f"per run); CPU / workers {ideal:.2f} s",
-             f"  ratio wall / (CPU / workers) = {wall / ideal:.3f} (target <= 1.10)",
-             f"  overhead per run = {1e3 * (wall * workers - run_cpu) / n:.2f} ms of core time",
-             f"  runner CPU (command tree - runs) = {tree_cpu - run_cpu:.2f} s "
-             f"({1e3 * (tree_cpu - run_cpu) / n:.2f} ms per run, "
-             f"{100 * (tree_cpu - run_cpu) / run_cpu:.1f} % of the runs' CPU)"]
+    proc_cpu = stats["process_cpu_s"]
+    bound = None
+    rest = wall - stats["validate_s"] - stats["dispatch_s"]
+    lines = [f"{label}: {n} runs on {workers} workers, {stats['processes']} simulate --batch "
+             f"processes (batches of at most {stats['batch']})",
+             f"  wall {wall:.2f} s (target <= 6 s) = validation {stats['validate_s']:.2f} s + "
+             f"runs {stats['dispatch_s']:.2f} s + start and table {rest:.2f} s",
+             f"  runs' own CPU {run_cpu:.2f} s ({1e3 * run_cpu / n:.2f} ms per run, thread CPU "
+             f"in simulate); CPU / workers {ideal:.2f} s",
+             f"  ratio wall / (runs' CPU / workers) = {wall / ideal:.3f} (target <= 1.10)",
+             f"  simulate processes' CPU {proc_cpu:.2f} s ({1e3 * proc_cpu / n:.2f} ms per run); "
+             f"ratio wall / (processes' CPU / workers) = {wall / (proc_cpu / workers):.3f}",
+             f"  overhead per run = {1e3 * (wall * workers - run_cpu) / n:.2f} ms of core time"]
+    if tree_cpu is not None:
+        runner_cpu, check_cpu = tree_cpu - proc_cpu, stats["validate_cpu_s"]
+        bound = 1 + (runner_cpu + proc_cpu - run_cpu) / run_cpu
+        lines += [f"  runner CPU (command tree - simulate --batch processes) = {runner_cpu:.2f} s "
+                  f"({1e3 * runner_cpu / n:.2f} ms per run, {100 * runner_cpu / run_cpu:.1f} % of "
+                  f"the runs' CPU)",
+                  f"    of which validation (simulate --check-batch) {check_cpu:.2f} s "
+                  f"({1e3 * check_cpu / n:.2f} ms per run), the rest (Python, Dask, the table) "
+                  f"{runner_cpu - check_cpu:.2f} s"]
+        if workers == os.cpu_count():  # every core runs runs: the CPU bounds the wall time
+            lines.append(f"  lower bounds with every core busy: ratio >= 1 + (runner CPU + "
+                         f"processes' CPU - runs' CPU) / runs' CPU = {bound:.3f}; wall >= the "
+                         f"command tree's CPU / cores = {tree_cpu / workers:.2f} s")
+        else:
+            bound = None
     print("\n".join(lines), flush=True)
-    return lines, wall / ideal
+    return lines, wall / ideal, bound
+
+
+def run_stats(out):
+    return json.loads((out / "run_stats.json").read_text())
 
 
 def load():
@@ -88,6 +122,9 @@ def main():
     parser.add_argument("--out", default=str(ROOT / "out/sweep_overhead"))
     parser.add_argument("--cluster", action="store_true", help="also run the sweep on a "
                         "scheduler with two workers on 127.0.0.1 and compare the tables")
+    parser.add_argument("--dask-local", action="store_true", help="also run the sweep on a "
+                        "local Dask cluster of worker processes (scripts/sweep --processes), "
+                        "with the first --workers count")
     parser.add_argument("--docs", action="store_true", help="write the results into "
                         "docs/sweeps.md and the README (sections sweep-overhead), and the "
                         "first plot of the sweep's report into docs/sweeps/")
@@ -98,6 +135,7 @@ def main():
     out.mkdir(parents=True, exist_ok=True)
     cores = os.cpu_count()
     text = [f"Measured by `scripts/sweep_overhead.py{' --cluster' if args.cluster else ''}"
+            f"{' --dask-local' if args.dask_local else ''}"
             f"{' --workers ' + ' '.join(map(str, args.workers)) if args.workers != [cores] else ''}"
             f"` on {os.path.relpath(args.sweep, ROOT)} ({cores} cores):", ""]
     summary = []
@@ -106,30 +144,42 @@ def main():
         local = out / f"local_{workers}"
         wall, tree_cpu, _ = timed_sweep(args, local, ["--workers", str(workers)])
         n, run_cpu, bad = table_stats(local)
-        lines, ratio = report(f"local cluster, {workers} worker(s)", workers, wall, tree_cpu,
-                              n, run_cpu)
+        lines, ratio, bound = report(f"local, {workers} worker thread(s)", workers, wall,
+                                     tree_cpu, n, run_cpu, run_stats(local))
         lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
         if bad:
             lines.append(f"  {len(bad)} runs not ok, e.g. run {bad[0]['run']}: "
                          f"{bad[0]['status']} {bad[0]['message']}")
         print(lines[-1])
         text += lines
-        summary.append((workers, ratio, 1e3 * (wall * workers - run_cpu) / n,
-                        1e3 * (tree_cpu - run_cpu) / n, before))
+        summary.append((workers, ratio, wall, bound, tree_cpu / workers, before))
     first = out / f"local_{args.workers[0]}"
+    if args.dask_local:
+        workers, before = args.workers[0], load()
+        dask_local = out / f"dask_local_{workers}"
+        wall, tree_cpu, _ = timed_sweep(args, dask_local, ["--workers", str(workers),
+                                                           "--processes"])
+        n, run_cpu, _ = table_stats(dask_local)
+        lines, _, _ = report(f"local Dask cluster (--processes), {workers} worker process(es)",
+                          workers, wall, tree_cpu, n, run_cpu, run_stats(dask_local))
+        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
+        print(lines[-1])
+        text += lines
     if args.cluster:
         with cluster_module.LoopbackCluster(out / "cluster_processes", workers=2) as cluster:
             remote = out / "cluster"
+            before = load()
             wall, _, _ = timed_sweep(args, remote, ["--scheduler", cluster.address])
         n2, run_cpu2, _ = table_stats(remote)
         diffs = runner.compare_tables(first / "runs.csv", remote / "runs.csv")
-        lines = [f"scheduler with two dask-worker processes on 127.0.0.1: {n2} runs, wall "
-                 f"{wall:.2f} s, ratio {wall / (run_cpu2 / 2):.3f}",
-                 "  table equal to the local one apart from wall_s, cpu_s, worker" if not diffs
-                 else f"  {len(diffs)} differences from the local table, e.g. {diffs[0]}"]
-        print("\n".join(lines))
+        lines, ratio, _ = report("dask-scheduler with two dask-worker processes on 127.0.0.1", 2,
+                              wall, None, n2, run_cpu2, run_stats(remote))
+        lines += [f"  load average (1, 5, 15 min) before {before}, after {load()}",
+                  "  table equal to the local one apart from wall_s, cpu_s, worker" if not diffs
+                  else f"  {len(diffs)} differences from the local table, e.g. {diffs[0]}"]
+        print("\n".join(lines[-2:]))
         text += lines
-        summary.append(("cluster", not diffs))
+        summary.append(("cluster", not diffs, ratio, wall))
     if args.docs:
         subprocess.run([sys.executable, str(ROOT / "scripts/sweep"), "report", str(first)],
                        check=True, timeout=600)
@@ -146,17 +196,20 @@ def readme_text(summary):
     parts = []
     for entry in summary:
         if entry[0] == "cluster":
-            parts.append("the same sweep on a scheduler with two workers gave "
-                         + ("a table equal to the local one apart from wall times"
-                            if entry[1] else "a different table"))
+            _, equal, ratio, wall = entry
+            parts.append(f"on a dask-scheduler with two dask-workers, {wall:.1f} s and a ratio of "
+                         f"{ratio:.2f}, " + ("with a table equal to the local one apart from wall "
+                                             "times" if equal else "with a different table"))
             continue
-        workers, ratio, overhead_ms, runner_ms, before = entry
-        parts.append(f"on {workers} worker(s), wall / (runs' CPU / workers) = {ratio:.2f} and "
-                     f"{overhead_ms:.1f} ms of overhead per run (the runner's own CPU: "
-                     f"{runner_ms:.1f} ms per run; load average {before.split()[0]} before)")
+        workers, ratio, wall, bound, cpu_wall, before = entry
+        parts.append(f"on {workers} local worker(s), {wall:.1f} s of wall time and wall / (runs' "
+                     f"CPU / workers) = {ratio:.2f} at a load average of {before.split()[0]}" +
+                     (f"; from the CPU times, with every core busy, at least {cpu_wall:.1f} s "
+                      f"and {bound:.2f}" if bound else ""))
     return ("**Overhead** (`scripts/sweep_overhead.py`, the 1000 single-strike runs of "
-            "`config/sweeps/single_strike_1000.yaml`): " + "; ".join(parts) +
-            ". Details and conditions: [`docs/sweeps.md`](docs/sweeps.md#overhead).")
+            "`config/sweeps/single_strike_1000.yaml` in `simulate --batch` processes): " +
+            "; ".join(parts) + ". Details, the cost model and conditions: "
+            "[`docs/sweeps.md`](docs/sweeps.md#overhead).")
 
 
 if __name__ == "__main__":

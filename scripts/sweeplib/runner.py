@@ -201,9 +201,9 @@ class Progress:
 
 # ------------------------------------------------------------------------------------------
 
-def _connect(scheduler, workers, processes):
+def _connect(scheduler, workers):
     """A Dask client: to an existing scheduler, or to a new local cluster of `workers`
-    single-threaded workers (processes, or threads of this process)."""
+    single-threaded worker processes."""
     import logging
 
     import cloudpickle
@@ -221,14 +221,17 @@ def _connect(scheduler, workers, processes):
                      "distributed.scheduler.work-stealing": False,
                      "distributed.admin.tick.interval": "500ms",
                      "distributed.worker.memory.monitor-interval": "1s"})
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                            dashboard_address=None, silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
 def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=None,
               processes=False, batch=None, progress_stream=sys.stderr, log=print):
-    """Runs every run not in the cache; returns the table (rows in sweep order) and stats."""
+    """Runs every run not in the cache; returns the table (rows in sweep order) and stats.
+    Without a scheduler the runs go to `workers` threads of this process (default: one per
+    core), each feeding simulate --batch processes; with processes=True to a local Dask
+    cluster of worker processes instead; with a scheduler to its Dask workers."""
     out.mkdir(parents=True, exist_ok=True)
     cache = Cache(out / "sweep.sqlite")
     table = Table(sweep, out, cache.db)
@@ -244,62 +247,14 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
         f" from the cache, {sum(len(by_key[k]) for k in todo)} to run -> {out}")
     progress = Progress(len(runs), len(runs) - sum(len(by_key[k]) for k in todo),
                         progress_stream)
-    stats = {"runs": len(runs), "cached": len(runs) - sum(len(by_key[k]) for k in todo)}
+    stats = {"runs": len(runs), "cached": len(runs) - sum(len(by_key[k]) for k in todo),
+             "processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
     started = time.monotonic()
     if todo:
-        _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes,
-                  cache, table, progress, stats, batch)
-    stats["dispatch_s"] = time.monotonic() - started
-    table.finish()
-    rows = [table.rows[i] for i in sorted(table.rows)]
-    stats["failed"] = sum(r["status"] != "ok" for r in rows)
-    return rows, stats
-
-
-def batch_size(n_runs, workers):
-    """Runs per Dask task: up to 8, and at least 16 tasks per worker, so that the task overhead
-    (about 1 ms) is spread over several runs and the last tasks still balance the workers."""
-    return max(1, min(8, math.ceil(n_runs / (16 * max(workers, 1)))))
-
-
-def _error_result(key, message):
-    return {"key": key, "status": "error", "message": message, "summary": None,
-            "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": ""}
-
-
-def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, processes, cache,
-              table, progress, stats, batch=None):
-    """Sends the runs in batches (task.run_batch); results arrive one by one on a Pub/Sub
-    topic as each run ends. Runs whose batch finished without their result (a lost message)
-    are sent again one per task, returning their result."""
-    import queue
-    import uuid
-
-    from distributed import Sub, Variable
-
-    client, cluster = _connect(scheduler, workers or os.cpu_count() or 1, processes)
-    try:
-        threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
-        stats["workers"] = threads
         payload = {key: {"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
                          "sha": binary_sha, "timeout_s": sweep.timeout_s,
-                          "keep": by_key[key][0].keep}
+                         "keep": by_key[key][0].keep}
                    for key in todo}
-        topic = f"threshing-sweep-{uuid.uuid4().hex}"
-        sub = Sub(topic, client=client)
-        done_keys = Variable(topic + "-done", client=client)
-        done_keys.set([])
-        departures = queue.Queue()
-        client.subscribe_topic("all", lambda event: departures.put(event)
-                               if event[1].get("action") == "remove-worker" else None)
-        k = batch or batch_size(len(todo), threads)
-        stats["batch"] = k
-        batches = [todo[i:i + k] for i in range(0, len(todo), k)]
-        # One map call: every submit call would read the caller's source (Dask records it).
-        futures = client.map(task_module.run_batch,
-                             [[payload[key] for key in keys] for keys in batches],
-                             [topic] * len(batches),
-                             key=[f"{topic}-batch-{i}" for i in range(len(batches))], pure=False)
         pending = set(todo)
 
         def accept(result):
@@ -311,6 +266,124 @@ def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, pro
                 table.add(run, result)
                 progress.update(result["status"])
 
+        work = [payload[key] for key in todo]
+        if scheduler or processes:
+            _dispatch(work, scheduler, workers or os.cpu_count() or 1, batch, accept, pending,
+                      stats)
+        else:
+            _dispatch_local(work, workers or os.cpu_count() or 1, batch, accept, pending, stats)
+    stats["dispatch_s"] = time.monotonic() - started
+    table.finish()
+    rows = [table.rows[i] for i in sorted(table.rows)]
+    stats["failed"] = sum(r["status"] != "ok" for r in rows)
+    return rows, stats
+
+
+# Largest batch: a simulate --batch process costs a few ms to start (exec, dynamic linking, a
+# Dask task); 64 runs spread that over about a second of runs.
+MAX_BATCH = 64
+
+
+def batch_sizes(n_runs, workers, fixed=None):
+    """Runs per batch, in order: `fixed` each, or guided (each batch a quarter of the remaining
+    runs' share per worker, at most MAX_BATCH), so that the first batches spread the
+    process start over many runs and the last ones, of one or two runs, balance the workers."""
+    sizes, left = [], n_runs
+    while left > 0:
+        k = fixed or max(1, min(MAX_BATCH, math.ceil(left / (4 * max(workers, 1)))))
+        k = min(k, left)
+        sizes.append(k)
+        left -= k
+    return sizes
+
+
+def _split(work, sizes):
+    batches, start = [], 0
+    for k in sizes:
+        batches.append(work[start:start + k])
+        start += k
+    return batches
+
+
+def _add_stats(stats, batch_stats):
+    for name in ("processes", "process_cpu_s", "process_wall_s"):
+        stats[name] += batch_stats.get(name, 0)
+
+
+def _dispatch_local(work, workers, batch, accept, pending, stats):
+    """Threads of this process, each taking the next batch and running it in simulate --batch
+    processes (task.run_tasks); results arrive on a queue as each run ends. No Dask: its import
+    and cluster start cost more than the threads need (docs/sweeps.md, "Overhead")."""
+    import queue
+    import socket
+    import threading
+
+    batches = queue.Queue()
+    sizes = batch_sizes(len(work), workers, batch)
+    for b in _split(work, sizes):
+        batches.put(b)
+    stats.update(workers=workers, batch=max(sizes), batches=len(sizes))
+    results, lock = queue.Queue(), threading.Lock()
+    prefix = f"{socket.gethostname()}:{os.getpid()}"
+
+    def worker(i):
+        while True:
+            try:
+                b = batches.get_nowait()
+            except queue.Empty:
+                return
+            batch_stats = task_module.run_tasks(b, results.put, f"{prefix}:thread-{i}")
+            with lock:
+                _add_stats(stats, batch_stats)
+
+    threads = [threading.Thread(target=worker, args=(i,), daemon=True) for i in range(workers)]
+    for t in threads:
+        t.start()
+    # Every run ends within its timeout, so the threads end; the wait is bounded by them.
+    while pending and (any(t.is_alive() for t in threads) or not results.empty()):
+        try:
+            accept(results.get(timeout=0.5))
+        except queue.Empty:
+            pass
+    for t in threads:
+        t.join(timeout=10)
+    for key in sorted(pending):
+        accept(_error_result(key, "no result from the local worker threads"))
+
+
+def _error_result(key, message):
+    return {"key": key, "status": "error", "message": message, "summary": None,
+            "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": ""}
+
+
+def _dispatch(work, scheduler, workers, batch, accept, pending, stats):
+    """Sends the runs to Dask in batches (task.run_batch: one simulate --batch process per
+    batch); results arrive one by one on a Pub/Sub topic as each run ends. Runs whose batch
+    finished without their result (a lost message) are sent again one per task, returning
+    their result."""
+    import queue
+    import uuid
+
+    from distributed import Sub, Variable
+
+    client, cluster = _connect(scheduler, workers)
+    try:
+        threads = sum(w["nthreads"] for w in client.scheduler_info()["workers"].values())
+        stats["workers"] = threads
+        topic = f"threshing-sweep-{uuid.uuid4().hex}"
+        sub = Sub(topic, client=client)
+        done_keys = Variable(topic + "-done", client=client)
+        done_keys.set([])
+        departures = queue.Queue()
+        client.subscribe_topic("all", lambda event: departures.put(event)
+                               if event[1].get("action") == "remove-worker" else None)
+        sizes = batch_sizes(len(work), threads, batch)
+        stats.update(batch=max(sizes), batches=len(sizes))
+        batches = _split(work, sizes)
+        # One map call: every submit call would read the caller's source (Dask records it).
+        futures = client.map(task_module.run_batch, batches, [topic] * len(batches),
+                             key=[f"{topic}-batch-{i}" for i in range(len(batches))], pure=False)
+        all_keys = [p["key"] for p in work]
         deadline = None
         # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
         # (a Sub.get per result would cost a round trip through the event loop).
@@ -334,17 +407,20 @@ def _dispatch(sweep, todo, by_key, simulate, binary_sha, scheduler, workers, pro
             if not departures.empty():
                 while not departures.empty():
                     departures.get()
-                done_keys.set([key for key in todo if key not in pending])
+                done_keys.set([key for key in all_keys if key not in pending])
             if all(f.done() for f in futures):
                 # Every batch ended. Results of the batches that finished are at most a moment
                 # behind; those of failed batches (e.g. KilledWorker) will not come.
-                expected = {key for f, keys in zip(futures, batches) if f.status == "finished"
-                            for key in keys} & pending
+                expected = {p["key"] for f, b in zip(futures, batches) if f.status == "finished"
+                            for p in b} & pending
                 deadline = deadline or time.monotonic() + 10
                 if not expected or time.monotonic() > deadline:
                     break
+        for f in futures:
+            if f.status == "finished":
+                _add_stats(stats, f.result())
         if pending:
-            _run_singly(client, [payload[key] for key in todo if key in pending], accept)
+            _run_singly(client, [p for p in work if p["key"] in pending], accept)
         client.unsubscribe_topic("all")
         del sub
     finally:
@@ -357,16 +433,21 @@ def _run_singly(client, payloads, accept):
     """One task per run, results returned by the tasks (the fallback path)."""
     from distributed import as_completed
 
-    futures = client.map(task_module.run_simulate, payloads,
+    futures = client.map(task_module.run_single, payloads,
                          key=[f"threshing-run-{p['key']}" for p in payloads], pure=False)
     key_of = {f.key: p["key"] for f, p in zip(futures, payloads)}
-    for future in as_completed(futures):
-        if future.status == "finished":
-            accept(future.result())
-        else:
-            error = future.exception()
-            accept(_error_result(key_of[future.key], f"{type(error).__name__}: {error}"))
-        future.release()
+    limit_s = max(p["timeout_s"] for p in payloads) + 60
+    try:
+        for future in as_completed(futures, timeout=limit_s):
+            if future.status == "finished":
+                accept(future.result())
+            else:
+                error = future.exception()
+                accept(_error_result(key_of[future.key], f"{type(error).__name__}: {error}"))
+            future.release()
+    except TimeoutError:  # e.g. no worker left: the runs without a result are errors
+        for future in futures:
+            accept(_error_result(key_of[future.key], f"no result after {limit_s:g} s"))
 
 
 def compare_tables(a_path, b_path):

@@ -1,12 +1,15 @@
-"""The work of one run on a Dask worker: one `simulate` process on the resolved scene.
+"""The work of the runs on a worker: one `simulate --batch` process runs many runs, each
+result handed on as its run ends (run_tasks, run_batch on Dask, run_single for one run).
 
 This module is shipped to the workers by value (cloudpickle), so a worker needs only Python,
 python3-distributed and the simulate binary at the given path; it imports nothing from the
-repository. The run's CPU time is the child's own (user + system from wait4), so that the
-runner's overhead can be measured against it.
+repository. A run's CPU time is the one simulate measures for it in its thread (thread CPU
+clock, from reading its line to its result); the batch processes' own CPU (user + system from
+wait4) is counted apart, so that the runner's overhead can be measured against both.
 """
 import atexit
 import hashlib
+import json
 import os
 import select
 import shutil
@@ -46,14 +49,6 @@ def _worker_name():
         return name
 
 
-def _read(path):
-    try:
-        with open(path) as f:
-            return f.read()
-    except OSError:
-        return None
-
-
 def _signal_name(number):
     try:
         return signal.Signals(number).name
@@ -61,37 +56,10 @@ def _signal_name(number):
         return f"signal {number}"
 
 
-def run_simulate(task):
-    """Runs one simulation. task: key, scene (resolved YAML text), simulate (path), sha
-    (expected sha256 of the binary), timeout_s, keep (extra outputs: events, forces).
-    Returns a dict: key, status (ok, failed, crash, timeout, error), message, summary (JSON
-    text), outcomes (CSV text), files (kept outputs), wall_s, cpu_s (the child's user + system
-    time), worker (host:pid)."""
-    started = time.perf_counter()
-    result = {"key": task["key"], "status": "error", "message": "", "summary": None,
-              "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0,
-              "worker": _worker_name()}
-    try:
-        sha = _binary_sha(task["simulate"])
-    except OSError as e:
-        result["message"] = f"cannot read simulate at {task['simulate']}: {e.strerror}"
-        return result
-    if sha != task["sha"]:
-        result["message"] = (f"simulate at {task['simulate']} on this worker is not the "
-                             f"client's binary (sha256 {sha[:12]} != {task['sha'][:12]})")
-        return result
-    try:
-        _execute(task, _thread_folder(), result)
-    except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
-        result["status"], result["message"] = "error", f"{type(e).__name__}: {e}"
-    result["wall_s"] = time.perf_counter() - started
-    return result
-
-
 def _thread_folder():
-    """This thread's folder for its runs' files, made once (under $TMPDIR if set, else in
-    memory where /dev/shm exists) and removed at exit: a folder made and removed per run costs
-    milliseconds on some file systems, during which the worker would idle."""
+    """This thread's folder for its batch processes' stderr, made once (under $TMPDIR if set,
+    else in memory where /dev/shm exists) and removed at exit: a folder made and removed per
+    batch costs milliseconds on some file systems, during which the worker would idle."""
     key = (os.getpid(), threading.get_ident())
     folder = _FOLDERS.get(key)
     if folder is None or not os.path.isdir(folder):
@@ -100,7 +68,7 @@ def _thread_folder():
         folder = tempfile.mkdtemp(prefix="sweep-run-", dir=base)
         atexit.register(shutil.rmtree, folder, True)
         _FOLDERS[key] = folder
-    for name in os.listdir(folder):  # no output of the previous run may be taken for this one's
+    for name in os.listdir(folder):  # nothing of the previous batch may be taken for this one's
         os.unlink(os.path.join(folder, name))
     return folder
 
@@ -125,53 +93,194 @@ def _wait_exit(proc, timeout_s):
         os.close(fd)
 
 
-def _execute(task, folder, result):
-    scene = os.path.join(folder, "scene.yaml")
-    with open(scene, "w") as f:
-        f.write(task["scene"])
-    summary, outcomes = os.path.join(folder, "summary.json"), os.path.join(folder, "outcomes.csv")
-    command = [task["simulate"], scene, "--summary", summary, "--outcomes", outcomes, "--quiet"]
-    for name in task["keep"]:
-        command += [f"--{name}", os.path.join(folder, f"{name}.csv")]
-    with open(os.path.join(folder, "stderr.txt"), "w+") as err:
-        proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                stderr=err)
-        timed_out = not _wait_exit(proc, task["timeout_s"])
-        if timed_out:
-            proc.kill()
-        _, status, usage = os.wait4(proc.pid, 0)
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        err.seek(0)
-        stderr = err.read().strip()
-    result["cpu_s"] = usage.ru_utime + usage.ru_stime
-    result["summary"] = _read(summary)
-    result["outcomes"] = _read(outcomes)
-    for name in task["keep"]:
-        result["files"][name] = _read(os.path.join(folder, f"{name}.csv"))
-    code = proc.returncode
+# ------------------------------------------------------------------------------------------
+# Many runs per process: simulate --batch.
+
+# A batch process that closed its output: the wait for its exit status [s].
+EXIT_WAIT_S = 10.0
+
+
+def _batch_line(task):
+    return json.dumps({"id": task["key"], "scene_yaml": task["scene"], "args": [],
+                       "return": ["summary", "outcomes", *task["keep"]]}) + "\n"
+
+
+def _feed(proc, tasks):
+    """Writes the tasks' lines to the batch process (in a thread: the process answers while it
+    reads, and both pipes are bounded)."""
+    try:
+        for task in tasks:
+            proc.stdin.write(_batch_line(task).encode())
+        proc.stdin.close()
+    except (BrokenPipeError, OSError, ValueError):
+        pass  # the process died or was killed: its reader records why
+
+
+def _line_result(task, line, worker):
+    """A run's result from its line of simulate --batch output."""
+    result = {"key": task["key"], "status": "error", "message": "", "summary": None,
+              "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": worker}
+    try:
+        answer = json.loads(line)
+    except ValueError:
+        result["message"] = f"unreadable simulate --batch line: {line[:300]!r}"
+        return result
+    if answer.get("id") != task["key"]:
+        result["message"] = f"simulate --batch answered {answer.get('id')!r} for {task['key']}"
+        return result
+    result.update(wall_s=answer.get("wall_s", 0.0), cpu_s=answer.get("cpu_s", 0.0),
+                  summary=answer.get("summary"), outcomes=answer.get("outcomes"))
+    result["files"] = {name: answer.get(name) for name in task["keep"]}
+    status, message = answer.get("status"), answer.get("message", "")
+    if status == "ok" and result["summary"] is not None:
+        result["status"] = "ok"
+    elif status == "failed" and result["summary"] is not None:
+        result["status"], result["message"] = "failed", message or "status failed"
+    else:
+        result["message"] = f"exit status {answer.get('exit')}: simulate: error: {message}"
+    return result
+
+
+class _BatchProcess:
+    """One simulate --batch process over a list of tasks, read as it answers."""
+
+    def __init__(self, tasks, folder):
+        self.tasks = tasks
+        self.err = open(os.path.join(folder, "stderr.txt"), "w+")
+        try:
+            self.proc = subprocess.Popen([tasks[0]["simulate"], "--batch", "-"],
+                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                         stderr=self.err)
+        except OSError:
+            self.err.close()
+            raise
+        self.feeder = threading.Thread(target=_feed, args=(self.proc, tasks), daemon=True)
+        self.feeder.start()
+        self.chunks = []  # output read but not yet returned; only the last may hold a newline
+        self.eof = False
+        self.poller = select.poll()
+        self.poller.register(self.proc.stdout.fileno(), select.POLLIN | select.POLLHUP)
+
+    def next_line(self, timeout_s):
+        """The next output line (text), None at the end of the output, or False when none
+        came within timeout_s."""
+        deadline = time.monotonic() + timeout_s
+        # Each chunk is searched once, so a line of many MB (kept forces) costs linear time.
+        while not (self.chunks and b"\n" in self.chunks[-1]) and not self.eof:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self.poller.poll(left * 1000.0):
+                return False
+            data = os.read(self.proc.stdout.fileno(), 1 << 20)
+            self.eof = not data
+            if data:
+                self.chunks.append(data)
+        if not (self.chunks and b"\n" in self.chunks[-1]):
+            return None
+        line, rest = b"".join(self.chunks).split(b"\n", 1)
+        self.chunks = [rest] if rest else []
+        return line.decode("utf-8", "replace")
+
+    def finish(self, kill):
+        """Kills the process (when asked, or when it does not exit after its output ended)
+        and reaps it: (exit code, its CPU time [s], the end of its stderr)."""
+        if kill or not _wait_exit(self.proc, EXIT_WAIT_S):
+            self.proc.kill()
+        _, status, usage = os.wait4(self.proc.pid, 0)
+        self.proc.returncode = os.waitstatus_to_exitcode(status)
+        self.feeder.join(timeout=EXIT_WAIT_S)
+        self.proc.stdout.close()
+        self.err.seek(0)
+        stderr = self.err.read().strip()[-500:]
+        self.err.close()
+        return self.proc.returncode, usage.ru_utime + usage.ru_stime, stderr
+
+
+def _end_result(task, worker, code, stderr, timed_out):
+    """The result of the run a batch process was on when it was killed or ended."""
+    result = _error_result_for(task, worker)
     if timed_out:
         result["status"] = "timeout"
         result["message"] = f"no result after {task['timeout_s']:g} s; killed"
     elif code < 0:
         result["status"] = "crash"
         result["message"] = f"simulate killed by {_signal_name(-code)}" + \
-            (f": {stderr[-500:]}" if stderr else "")
-    elif code == 0 and result["summary"] is not None:
-        result["status"] = "ok"
-    elif code == 1 and result["summary"] is not None:
-        result["status"] = "failed"
-        result["message"] = stderr[-500:] if stderr else "status failed"
+            (f": {stderr}" if stderr else "")
     else:
-        result["status"] = "error"
-        result["message"] = f"exit status {code}" + (f": {stderr[-500:]}" if stderr else "")
+        result["message"] = f"exit status {code}" + (f": {stderr}" if stderr else "") + \
+            " (simulate --batch ended before this run's result)"
+    return result
+
+
+def _error_result_for(task, worker, message=""):
+    return {"key": task["key"], "status": "error", "message": message, "summary": None,
+            "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": worker}
+
+
+def _run_process(tasks, worker, publish, stats):
+    """Runs tasks in one batch process until it ends; a run past its timeout or the end of the
+    process before a result stops it, with that run recorded. Returns how many tasks it
+    consumed (at least one)."""
+    batch = _BatchProcess(tasks, _thread_folder())
+    done, timed_out = 0, False
+    started = time.perf_counter()
+    while done < len(tasks):
+        line = batch.next_line(tasks[done]["timeout_s"])
+        if line is False:
+            timed_out = True
+            break
+        if line is None:
+            break
+        result = _line_result(tasks[done], line, worker)
+        publish(result)
+        done += 1
+    code, cpu_s, stderr = batch.finish(kill=timed_out)
+    stats["process_cpu_s"] += cpu_s
+    stats["process_wall_s"] += time.perf_counter() - started
+    stats["processes"] += 1
+    if done < len(tasks):
+        publish(_end_result(tasks[done], worker, code, stderr, timed_out))
+        done += 1
+    return done
+
+
+def run_tasks(tasks, publish, worker=None):
+    """Runs the tasks (dicts: key, scene, simulate, sha, timeout_s, keep) in simulate --batch
+    processes, calling publish(result) for each run as it ends (result: key, status, message,
+    summary, outcomes, files, wall_s, cpu_s, worker). A run that crashes the process or passes
+    its timeout is recorded so, and a new process takes the runs after it. worker: the name in
+    the results (default host:pid:Dask worker name). Returns the batch processes' statistics:
+    processes, process_cpu_s (user + system, wait4), process_wall_s."""
+    stats = {"processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
+    if not tasks:
+        return stats
+    worker = worker or _worker_name()
+    try:
+        sha = _binary_sha(tasks[0]["simulate"])
+    except OSError as e:
+        sha, message = None, f"cannot read simulate at {tasks[0]['simulate']}: {e.strerror}"
+    if sha is not None and sha != tasks[0]["sha"]:
+        message = (f"simulate at {tasks[0]['simulate']} on this worker is not the client's "
+                   f"binary (sha256 {sha[:12]} != {tasks[0]['sha'][:12]})")
+    if sha is None or sha != tasks[0]["sha"]:
+        for task in tasks:
+            publish(_error_result_for(task, worker, message))
+        return stats
+    position = 0
+    while position < len(tasks):  # each process consumes at least one task
+        try:
+            position += _run_process(tasks[position:], worker, publish, stats)
+        except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
+            publish(_error_result_for(tasks[position], worker, f"{type(e).__name__}: {e}"))
+            position += 1
+    return stats
 
 
 def run_batch(tasks, topic):
-    """Runs a batch of runs on one worker, publishing each result at once (Dask Pub/Sub topic
-    `topic`, to the client), so that a worker that dies loses only its current run. Runs
-    whose keys are in the client's Variable `topic`-done (set when a worker left) are skipped:
-    a batch rerun after a worker died does not redo the runs that worker finished. Returns the
-    keys it ran."""
+    """Runs a batch of runs on one Dask worker (run_tasks), publishing each result at once
+    (Dask Pub/Sub topic `topic`, to the client), so that a worker that dies loses only its
+    current run. Runs whose keys are in the client's Variable `topic`-done (set when a worker
+    left) are skipped: a batch rerun after a worker died does not redo the runs that worker
+    finished. Returns run_tasks' statistics and the keys it ran."""
     from distributed import Pub, Variable
 
     try:
@@ -179,10 +288,15 @@ def run_batch(tasks, topic):
     except Exception:  # no answer: run everything (duplicates are ignored by the client)
         done = set()
     pub = Pub(topic)
-    ran = []
-    for task in tasks:
-        if task["key"] in done:
-            continue
-        pub.put(run_simulate(task))
-        ran.append(task["key"])
-    return ran
+    todo = [task for task in tasks if task["key"] not in done]
+    stats = run_tasks(todo, pub.put)
+    stats["keys"] = [task["key"] for task in todo]
+    return stats
+
+
+def run_single(task):
+    """One run in a batch process of its own; returns its result (the runner's fallback for
+    runs whose batch ended without their result)."""
+    results = []
+    run_tasks([task], results.append)
+    return results[-1]

@@ -228,16 +228,24 @@ class SweepTest(unittest.TestCase):
 
     def test_failures_are_recorded(self):
         """A crashing run (simulate killed by SIGSEGV) and a run past its timeout (one that
-        hangs) are recorded with their messages; the others complete. A wrapper around the
-        real binary crashes or hangs on chosen scenes."""
+        hangs) are recorded with their messages; the others complete, also those after them in
+        the same batch (a new simulate --batch process takes them). A wrapper around the real
+        binary passes each --batch line to it, but crashes or hangs on chosen scenes."""
         wrapper = self.out / "crashy_simulate"
         wrapper.write_text(
-            "#!/bin/sh\n"
-            "for a in \"$@\"; do case \"$a\" in *.yaml)\n"
-            "  grep -q 'restitution: 0.3[},]' \"$a\" && kill -SEGV $$\n"
-            "  grep -q 'duration: 0.003[},]' \"$a\" && exec sleep 60;;\n"
-            "esac; done\n"
-            f"exec {self.simulate} \"$@\"\n")
+            "#!/usr/bin/python3\n"
+            "import os, signal, subprocess, sys, time\n"
+            f"REAL = {str(self.simulate)!r}\n"
+            "if '--batch' not in sys.argv:\n"
+            "    os.execv(REAL, [REAL] + sys.argv[1:])\n"
+            "for line in sys.stdin:\n"
+            "    if 'restitution: 0.3,' in line or 'restitution: 0.3}' in line:\n"
+            "        os.kill(os.getpid(), signal.SIGSEGV)\n"
+            "    if 'duration: 0.003,' in line or 'duration: 0.003}' in line:\n"
+            "        time.sleep(60)\n"
+            "    sys.stdout.write(subprocess.run([REAL, '--batch', '-'], input=line, text=True,\n"
+            "                                    stdout=subprocess.PIPE, timeout=60).stdout)\n"
+            "    sys.stdout.flush()\n")
         wrapper.chmod(0o755)
         spec = self.out / "failures.yaml"
         spec.write_text(
@@ -247,7 +255,9 @@ class SweepTest(unittest.TestCase):
             "  - {name: duration, key: duration, values: [0.002, 0.003]}\n"
             "timeout: 1.5\n")
         out = self.out / "failures"
-        proc = sweep("run", spec, "--simulate", wrapper, "--out", out, "--workers", 2)
+        # One batch of the four runs: ok, timeout, crash, crash (e, then duration).
+        proc = sweep("run", spec, "--simulate", wrapper, "--out", out, "--workers", 2,
+                     "--batch", 4)
         self.assertEqual(proc.returncode, 0, proc.stderr)
         table = {(r["e"], r["duration"]): r for r in rows(out / "runs.csv")}
         self.assertEqual(table[("0.48", "0.002")]["status"], "ok")
@@ -347,8 +357,8 @@ class JUnitResult(unittest.TextTestResult):
         self._record(test, "error", self._exc_info_to_string(err, test))
 
 
-def write_junit(path, result):
-    suite = ET.Element("testsuite", name="test_sweep", tests=str(len(result.cases)),
+def write_junit(path, result, name="test_sweep"):
+    suite = ET.Element("testsuite", name=name, tests=str(len(result.cases)),
                        failures=str(len(result.failures)), errors=str(len(result.errors)))
     for name, kind, text, elapsed in result.cases:
         classname, _, method = name.rpartition(".")
@@ -357,7 +367,7 @@ def write_junit(path, result):
         if kind:
             ET.SubElement(case, kind, message=text.splitlines()[-1] if text else "").text = text
     if not result.cases:  # setUpClass failed: one failing case says so
-        case = ET.SubElement(suite, "testcase", classname="SweepTest", name="setUpClass")
+        case = ET.SubElement(suite, "testcase", classname=name, name="setUpClass")
         ET.SubElement(case, "error", message="set-up failed").text = \
             "\n".join(t for _, t in result.errors)
     pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,253 @@
+#!/usr/bin/python3
+"""simulate --batch against separate simulate processes, bit for bit (docs/sweeps.md, docs/cli.md).
+
+A sweep file with every axis kind (a files list and a files mapping, values, a range by step
+and by count, a unit, cases with their own scene, override files and overrides, seeds, groups
+with their own overrides, and keep, conditional too) is expanded and validated. Every run is
+then run as its own simulate process (the run's arguments: scene, --set-file, --set) and
+compared with:
+
+- simulate --batch with the same arguments as lines (scene trees parsed once, overrides per run);
+- simulate --batch with the resolved scenes as text (the runner's lines);
+- scripts/sweep run locally (threads feeding simulate --batch processes), its table and kept
+  files;
+- scripts/sweep run on a dask-scheduler with two dask-workers on 127.0.0.1.
+
+Summaries must be equal apart from the wall_time_s line; outcomes, events and forces byte for
+byte. A bad line gives an error line naming the bad value and the batch continues. Every wait
+has a timeout; the cluster started here is stopped at the end. Writes JUnit XML (--xml).
+"""
+import argparse
+import csv
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import unittest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "scripts"))
+sys.path.insert(0, str(ROOT / "test/sweeps"))
+from sweeplib import runner, spec  # noqa: E402
+from sweeplib.cluster import LoopbackCluster  # noqa: E402
+from test_sweep import JUnitResult, write_junit  # noqa: E402
+
+ARGS = None
+SCENES = ROOT / "config/scenes"
+OUTPUTS = ("summary", "outcomes", "events", "forces")
+
+SWEEP = f"""
+name: every_axis
+scene: {SCENES}/stream.yaml
+set_files: [{SCENES}/teeth/nylon.yaml]
+set: {{stream.count: 2, duration: 0.0015}}
+axes:
+  - {{name: tooth, files: [{SCENES}/teeth/rigid.yaml, {SCENES}/teeth/polyurethane.yaml]}}
+seeds: {{count: 2, key: stream.seed, first: 3}}
+keep: [events]
+groups:
+  - name: speed
+    axes:
+      - {{name: drum_speed, key: drum.speed, unit: rpm, range: {{from: 800, to: 1100, step: 300}}}}
+      - {{name: length, key: teeth.*.length, values: [0.055, 0.062]}}
+    keep: {{events: true, forces: "drum_speed_rpm == 800"}}
+  - name: restitution
+    axes:
+      - {{name: e, key: contact.tooth_kernel.restitution, range: {{from: 0.3, to: 0.5, count: 2}}}}
+  - name: case
+    set: {{duration: 0.0012}}
+    axes:
+      - name: scene
+        cases:
+          plain: {{scene: {SCENES}/stream.yaml, set: {{stream.count: 3}}}}
+          steel: {{scene: {SCENES}/stream.yaml, set_files: [{SCENES}/teeth/spring_steel.yaml],
+                  set: {{stream.count: 1, drum.speed: 120.5}}}}
+outcomes: [outcomes.peak_normal_force_N, outcomes.detached, outcomes.kernels, steps, impacts]
+timeout: 120
+"""
+
+
+def without_wall_time(summary):
+    """The summary without its one line that is a measurement (wall_time_s)."""
+    return "\n".join(line for line in summary.splitlines() if '"wall_time_s"' not in line)
+
+
+def batch(simulate, lines, timeout=300):
+    """simulate --batch - on the lines; returns the parsed result lines and the exit code."""
+    proc = subprocess.run([simulate, "--batch", "-"], input="".join(json.dumps(x) + "\n"
+                          for x in lines), capture_output=True, text=True, timeout=timeout)
+    return [json.loads(line) for line in proc.stdout.splitlines()], proc.returncode
+
+
+class BatchTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.out = pathlib.Path(ARGS.out)
+        shutil.rmtree(cls.out, ignore_errors=True)
+        cls.out.mkdir(parents=True)
+        cls.simulate = ARGS.simulate
+        cls.sweep_file = cls.out / "every_axis.yaml"
+        cls.sweep_file.write_text(SWEEP)
+        cls.sweep = spec.Sweep(cls.sweep_file)
+        cls.runs = cls.sweep.runs()
+        spec.validate(cls.sweep, cls.runs, cls.simulate, runner.binary_sha(cls.simulate), jobs=2)
+        cls.separate = [cls.run_separately(run) for run in cls.runs]
+
+    @classmethod
+    def run_separately(cls, run):
+        """The run as its own simulate process: its outputs' texts by name."""
+        folder = cls.out / "separate" / str(run.index)
+        folder.mkdir(parents=True)
+        command = [cls.simulate, *run.arguments, "--quiet"]
+        names = ["summary", "outcomes", *run.keep]
+        for name in names:
+            command += [f"--{name}", str(folder / name)]
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, (command, proc.stderr)
+        return {name: (folder / name).read_text() for name in names}
+
+    def assert_same_outputs(self, run, outputs, where):
+        reference = self.separate[run.index]
+        for name in OUTPUTS:
+            if name not in reference:
+                continue
+            mine, theirs = outputs.get(name), reference[name]
+            self.assertIsNotNone(mine, f"{where}: run {run.index} has no {name}")
+            if name == "summary":
+                mine, theirs = without_wall_time(mine), without_wall_time(theirs)
+            self.assertEqual(mine, theirs, f"{where}: run {run.index} ({run.labels}): {name}")
+
+    def test_sweep_covers_every_axis_kind(self):
+        kinds = {a.kind for g in self.sweep.groups for a in g.axes}
+        self.assertEqual(kinds, {"files", "values", "range", "cases"})
+        self.assertTrue(any(a.unit for g in self.sweep.groups for a in g.axes))
+        self.assertEqual(len(self.runs), 2 * 2 * (4 + 2 + 2))
+        self.assertEqual(sum("forces" in r.keep for r in self.runs), 8)
+        # Runs differ where their resolved scenes do (seeds, speeds, teeth all reach the
+        # scene); the steel case's override file sets the whole tooth, so its two teeth are one
+        # run (one key, run once by the sweep).
+        keys = {r.key for r in self.runs}
+        self.assertEqual(len(keys), len(self.runs) - 2)
+        self.assertEqual(len({without_wall_time(s["summary"]) for s in self.separate}),
+                         len(keys))
+
+    def test_batch_of_arguments(self):
+        lines = [{"id": f"run{r.index}", "args": r.arguments, "return": ["summary", "outcomes",
+                                                                         *r.keep]}
+                 for r in self.runs]
+        results, code = batch(self.simulate, lines)
+        self.assertEqual(code, 0)
+        self.assertEqual([x["id"] for x in results], [f"run{r.index}" for r in self.runs])
+        for run, result in zip(self.runs, results):
+            self.assertEqual(result["status"], "ok", result["message"])
+            self.assertGreater(result["cpu_s"], 0)
+            self.assert_same_outputs(run, result, "batch of arguments")
+
+    def test_batch_of_resolved_scenes(self):
+        lines = [{"id": r.key, "scene_yaml": r.scene, "return": ["summary", "outcomes",
+                                                                  *r.keep]}
+                 for r in reversed(self.runs)]  # another order: no state carried between runs
+        results, code = batch(self.simulate, lines)
+        self.assertEqual(code, 0)
+        for run, result in zip(reversed(self.runs), results):
+            self.assertEqual(result["id"], run.key)
+            self.assert_same_outputs(run, result, "batch of resolved scenes")
+
+    def test_bad_lines_are_reported_and_the_batch_goes_on(self):
+        # Run 0 keeps its forces: --forces samples near contacts, so the line asks for them.
+        good = {"id": "good", "args": self.runs[0].arguments,
+                "return": ["summary", "outcomes", *self.runs[0].keep]}
+        lines = [{"id": "speed", "args": [*self.runs[0].arguments, "--set", "drum.speed=fast"]},
+                 good,
+                 {"id": "option", "args": [*self.runs[0].arguments, "--trace-every", "0"]},
+                 {"id": "key", "args": self.runs[0].arguments, "retrun": ["summary"]},
+                 {"id": "output", "args": self.runs[0].arguments, "return": ["movie"]},
+                 {"id": "modes", "args": [*self.runs[0].arguments, "--modes"]},
+                 {"id": "yaml", "scene_yaml": "{drum: [1, 2"},
+                 {"id": "unié \U0001F600", "args": [0.06]},  # sent as \u escapes
+                 good]
+        text = "".join(json.dumps(x) + "\n" for x in lines[:3]) + "{not json\n" + \
+            "".join(json.dumps(x) + "\n" for x in lines[3:])
+        proc = subprocess.run([self.simulate, "--batch", "-"], input=text, capture_output=True,
+                              text=True, timeout=120)
+        self.assertEqual(proc.returncode, 2)
+        results = {x["id"]: x for x in map(json.loads, proc.stdout.splitlines())}
+        self.assertEqual(len(results), 9)  # the two good lines share their id
+        expected = {"speed": "fast", "option": "'0'", "4": "JSON", "key": "'retrun'",
+                    "output": "'movie'", "modes": "--modes", "yaml": "(scene_yaml):1",
+                    "unié \U0001F600": "expected a string (got 0.06)"}
+        for name, word in expected.items():
+            self.assertEqual(results[name]["status"], "error", name)
+            self.assertEqual(results[name]["exit"], 2, name)
+            self.assertIn(word, results[name]["message"], name)
+        self.assertEqual(results["good"]["status"], "ok")
+        self.assert_same_outputs(self.runs[0], results["good"], "after bad lines")
+
+    def check_sweep_output(self, out, where):
+        """A sweep's table and kept files against the separate processes."""
+        with open(out / "runs.csv", newline="") as f:
+            table = list(csv.DictReader(f))
+        self.assertEqual(len(table), len(self.runs))
+        for run, row in zip(self.runs, table):
+            self.assertEqual(row["status"], "ok", row["message"])
+            self.assertEqual(row["key"], run.key)
+            summary = json.loads(self.separate[run.index]["summary"])
+            for column, path in self.sweep.outcomes.items():
+                value = runner._lookup(summary, path)
+                self.assertEqual(row[column], str(value), f"{where}: run {run.index} {column}")
+            folder = out / "files" / run.key
+            kept = {name: (folder / (name + (".json" if name == "summary" else ".csv")))
+                    .read_text() for name in ["summary", "outcomes", *run.keep]}
+            self.assert_same_outputs(run, kept, where)
+            self.assertGreater(float(row["cpu_s"]), 0)
+        stats = json.loads((out / "run_stats.json").read_text())
+        self.assertGreaterEqual(stats["processes"], 1)
+        self.assertGreater(stats["process_cpu_s"], 0)
+        return table
+
+    def test_sweep_locally(self):
+        out = self.out / "local"
+        proc = subprocess.run([sys.executable, str(ROOT / "scripts/sweep"), "run",
+                               str(self.sweep_file), "--simulate", self.simulate, "--out",
+                               str(out), "--workers", "2", "--batch", "5"], capture_output=True,
+                              text=True, timeout=300)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        table = self.check_sweep_output(out, "local sweep")
+        self.assertEqual(len({r["worker"] for r in table}), 2)
+        stats = json.loads((out / "run_stats.json").read_text())
+        self.assertEqual(stats["batches"], 6)  # 30 distinct runs in batches of 5
+
+    def test_sweep_on_dask_scheduler(self):
+        out = self.out / "cluster"
+        with LoopbackCluster(self.out / "cluster_processes", workers=2) as cluster:
+            proc = subprocess.run([sys.executable, str(ROOT / "scripts/sweep"), "run",
+                                   str(self.sweep_file), "--simulate", self.simulate, "--out",
+                                   str(out), "--scheduler", cluster.address],
+                                  capture_output=True, text=True, timeout=300)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        table = self.check_sweep_output(out, "sweep on the scheduler")
+        self.assertEqual(len({r["worker"].rsplit(":", 1)[-1] for r in table}), 2)
+
+
+def main():
+    global ARGS
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--simulate", default=str(
+        ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
+    parser.add_argument("--out", default=str(ROOT / ".build/batch_test"))
+    parser.add_argument("--xml", help="JUnit XML result file")
+    ARGS = parser.parse_args()
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
+    os.environ.pop("THRESHING_SIM_SIMULATE", None)
+    suite = unittest.defaultTestLoader.loadTestsFromTestCase(BatchTest)
+    result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
+    if ARGS.xml:
+        write_junit(ARGS.xml, result, "test_batch")
+    return 0 if result.wasSuccessful() else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
