@@ -34,6 +34,9 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   if (root != nullptr) setenv("FUZZ_SCENES", root, 1);
   if (chdir(scratch.c_str()) != 0) std::abort();
   std::freopen("/dev/null", "w", stdout);
+  // "--batch -" and "--check-batch -" read standard input: give them an empty one, never a
+  // terminal or an open pipe that would block the fuzzer.
+  std::freopen("/dev/null", "r", stdin);
   return 0;
 }
 
