@@ -24,21 +24,21 @@ not from the force samples, which only feed the force history plots.
 """
 import sys
 
-# The modules of the comparison (scripts/tslib/teeth/); the names scripts/sweeplib/findings.py
+# The modules of the comparison (scripts/tslib/teeth/); the names scripts/tslib/sweep/findings.py
 # and test/sweeps/test_sweep.py use as compare_teeth.* are re-exported here.
 from tslib.teeth.analysis import analyse
 from tslib.teeth.cases import (CASES, CONVERGENCE_MODES, FLEXIBLE, FROZEN_CASES,
-                               HISTORY_RPM, LARGE_DEFLECTION, RPM_FULL, VARIANTS, Run,
+                               HISTORY_RPM, LARGE_DEFLECTION, RPM_FULL, VARIANTS, ToothRun,
                                tooth_frequencies)
 from tslib.teeth.cli import main
 from tslib.teeth.findings import write_findings
 from tslib.teeth.plots import make_plots
-from tslib.teeth.report import write_report
+from tslib.teeth.report import write_comparison
 from tslib.teeth.summary import write_summary
 
 __all__ = ["CASES", "CONVERGENCE_MODES", "FLEXIBLE", "FROZEN_CASES", "HISTORY_RPM",
-           "LARGE_DEFLECTION", "RPM_FULL", "VARIANTS", "Run", "analyse", "make_plots", "main",
-           "tooth_frequencies", "write_findings", "write_report", "write_summary"]
+           "LARGE_DEFLECTION", "RPM_FULL", "VARIANTS", "ToothRun", "analyse", "make_plots", "main",
+           "tooth_frequencies", "write_findings", "write_comparison", "write_summary"]
 
 if __name__ == "__main__":
     sys.exit(main(__doc__))

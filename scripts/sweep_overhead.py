@@ -33,11 +33,11 @@ import subprocess
 import sys
 import time
 
-ROOT = pathlib.Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "scripts"))
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # tslib
+from tslib import ROOT  # noqa: E402
 
-from sweeplib import cluster as cluster_module  # noqa: E402
-from sweeplib import runner  # noqa: E402
+from tslib.sweep import cluster as cluster_module  # noqa: E402
+from tslib.sweep import runner  # noqa: E402
 from tslib import markdown  # noqa: E402
 
 
@@ -108,7 +108,7 @@ def run_stats(out):
     return json.loads((out / "run_stats.json").read_text())
 
 
-def load():
+def load_average():
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
@@ -140,13 +140,13 @@ def main():
             f"` on {os.path.relpath(args.sweep, ROOT)} ({cores} cores):", ""]
     summary = []
     for workers in args.workers:
-        before = load()
+        before = load_average()
         local = out / f"local_{workers}"
         wall, tree_cpu, _ = timed_sweep(args, local, ["--workers", str(workers)])
         n, run_cpu, bad = table_stats(local)
         lines, ratio, bound = report(f"local, {workers} worker thread(s)", workers, wall,
                                      tree_cpu, n, run_cpu, run_stats(local))
-        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
+        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load_average()}")
         if bad:
             lines.append(f"  {len(bad)} runs not ok, e.g. run {bad[0]['run']}: "
                          f"{bad[0]['status']} {bad[0]['message']}")
@@ -155,26 +155,26 @@ def main():
         summary.append((workers, ratio, wall, bound, tree_cpu / workers, before))
     first = out / f"local_{args.workers[0]}"
     if args.dask_local:
-        workers, before = args.workers[0], load()
+        workers, before = args.workers[0], load_average()
         dask_local = out / f"dask_local_{workers}"
         wall, tree_cpu, _ = timed_sweep(args, dask_local, ["--workers", str(workers),
                                                            "--processes"])
         n, run_cpu, _ = table_stats(dask_local)
         lines, _, _ = report(f"local Dask cluster (--processes), {workers} worker process(es)",
                           workers, wall, tree_cpu, n, run_cpu, run_stats(dask_local))
-        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load()}")
+        lines.append(f"  load average (1, 5, 15 min) before {before}, after {load_average()}")
         print(lines[-1])
         text += lines
     if args.cluster:
         with cluster_module.LoopbackCluster(out / "cluster_processes", workers=2) as cluster:
             remote = out / "cluster"
-            before = load()
+            before = load_average()
             wall, _, _ = timed_sweep(args, remote, ["--scheduler", cluster.address])
         n2, run_cpu2, _ = table_stats(remote)
         diffs = runner.compare_tables(first / "runs.csv", remote / "runs.csv")
         lines, ratio, _ = report("dask-scheduler with two dask-worker processes on 127.0.0.1", 2,
                               wall, None, n2, run_cpu2, run_stats(remote))
-        lines += [f"  load average (1, 5, 15 min) before {before}, after {load()}",
+        lines += [f"  load average (1, 5, 15 min) before {before}, after {load_average()}",
                   "  table equal to the local one apart from wall_s, cpu_s, worker" if not diffs
                   else f"  {len(diffs)} differences from the local table, e.g. {diffs[0]}"]
         print("\n".join(lines[-2:]))

@@ -2,6 +2,8 @@
 differences they report (one definition each; the scripts import them from here)."""
 import math
 
+RADPS_PER_RPM = math.pi / 30.0  # rad/s per rpm
+
 
 def fmt(x, digits=2, none="–"):
     """x with `digits` significant digits, in exponent form outside [1e-3, 1e4); integers as
@@ -13,6 +15,11 @@ def fmt(x, digits=2, none="–"):
     if x == 0:
         return "0"
     return f"{x:.{digits}g}" if 1e-3 <= abs(x) < 1e4 else f"{x:.{digits - 1}e}"
+
+
+def fmt4(value):
+    """A float with four significant digits ("%.4g"), anything else as str() (the sweep reports)."""
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
 
 
 def fmt3(value):

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Fuzz target over the sweep-file loader (scripts/sweeplib/spec.py; issue 25, item 4).
+"""Fuzz target over the sweep-file loader (scripts/tslib/sweep/spec.py; issue 25, item 4).
 
 A seeded, deterministic mutation fuzzer: input i is made by its own random generator
 (seed, i) from one of the real sweep files of config/sweeps/, with grammar-aware mutations
@@ -46,7 +46,7 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 import yaml  # noqa: E402
 
-from sweeplib import spec  # noqa: E402
+from tslib.sweep import spec  # noqa: E402
 
 CORPUS = sorted((ROOT / "config/sweeps").glob("*.yaml"))
 

@@ -2,7 +2,7 @@
 """Guards the structure of scripts/ (issue 25, item 5): the scripts are one package, tslib, with
 thin entry points.
 
-- no import cycle among the modules of scripts/ (the entry points, tslib, sweeplib), lazy
+- no import cycle among the modules of scripts/ (the entry points and tslib, tslib.sweep included), lazy
   imports inside functions included; the graph is built with `ast`, nothing is imported;
 - no top-level name (function, class, constant) defined in two modules of the package: a helper
   such as fmt, rel or ROOT lives in one module and the others import it;
@@ -26,10 +26,6 @@ SCRIPTS = pathlib.Path(os.environ.get("SCRIPTS_DIR", ROOT / "scripts")).resolve(
 # Entry points that take no options (--help would run them): the result counter of
 # scripts/test.sh and the fault injector of scripts/soak.sh (needs a running node).
 NO_HELP = {"count_results", "soak_faults"}
-# Modules left out of the duplicate check: scripts/sweep, scripts/sweep_overhead.py and
-# scripts/sweeplib are being folded into tslib (issue 25); until then they keep their own ROOT
-# and helpers. They stay in the import graph.
-NOT_YET_FOLDED = ("sweep", "sweep_overhead", "sweeplib")
 # Names every entry point may define for itself.
 PER_MODULE = {"main", "parse_args"}
 
@@ -166,7 +162,7 @@ def duplicates(folder=None):
     where = {}
     skip = installed()
     for name, path in modules(folder).items():
-        if name.split(".")[0] in NOT_YET_FOLDED or name in skip:
+        if name in skip:
             continue
         for defined in top_level_names(path) - PER_MODULE:
             where.setdefault(defined, []).append(name)

@@ -31,8 +31,8 @@ import unittest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT / "test/sweeps"))
-from sweeplib import runner, spec  # noqa: E402
-from sweeplib.cluster import LoopbackCluster  # noqa: E402
+from tslib.sweep import runner, spec  # noqa: E402
+from tslib.sweep.cluster import LoopbackCluster  # noqa: E402
 from test_sweep import JUnitResult, write_junit  # noqa: E402
 
 ARGS = None

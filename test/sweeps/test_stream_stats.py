@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Stream statistics and the stop rule of sweeps (scripts/sweeplib/stats.py, docs/sweeps.md).
+"""Stream statistics and the stop rule of sweeps (scripts/tslib/sweep/stats.py, docs/sweeps.md).
 
 The estimators against closed forms on synthetic data: the cluster (batch-means) standard error
 of a kernel mean over the runs, the naive one, and the paired relative difference between two
@@ -24,7 +24,7 @@ import unittest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "scripts"))
 sys.path.insert(0, str(ROOT / "test/sweeps"))
-from sweeplib import runner, spec, stats  # noqa: E402
+from tslib.sweep import runner, spec, stats  # noqa: E402
 from test_sweep import JUnitResult, write_junit  # noqa: E402
 
 SWEEP = ROOT / "scripts/sweep"

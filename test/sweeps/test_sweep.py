@@ -24,7 +24,7 @@ import xml.etree.ElementTree as ET
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "scripts"))
-from sweeplib.cluster import LoopbackCluster, wait_for  # noqa: E402
+from tslib.sweep.cluster import LoopbackCluster, wait_for  # noqa: E402
 
 SWEEP = ROOT / "scripts/sweep"
 SMALL = ROOT / "config/sweeps/small.yaml"
@@ -104,7 +104,7 @@ class SweepTest(unittest.TestCase):
         """config/sweeps/findings.yaml resolves, run for run, to the scenes and outputs of
         compare_teeth.py's sweep (its full one, not --quick)."""
         import compare_teeth as ct
-        from sweeplib import spec
+        from tslib.sweep import spec
         sweep_file = spec.Sweep(ROOT / "config/sweeps/findings.yaml")
         runs = sweep_file.runs()
         spec.validate(sweep_file, runs, self.simulate, "sha", jobs=2)
@@ -115,16 +115,16 @@ class SweepTest(unittest.TestCase):
             mine[(labels["group"], labels["case"], labels["tooth"], labels["drum_speed_rpm"],
                   modes)] = (r.scene, r.keep)
         out = self.out / "ct"
-        theirs = [ct.Run(out, "sweep", c, v, r, forces=r == ct.HISTORY_RPM)
+        theirs = [ct.ToothRun(out, "sweep", c, v, r, forces=r == ct.HISTORY_RPM)
                   for c in ct.CASES for v in ct.VARIANTS for r in ct.RPM_FULL]
-        theirs += [ct.Run(out, "frozen", c, v, r, modes=0)
+        theirs += [ct.ToothRun(out, "frozen", c, v, r, modes=0)
                    for c in ct.FROZEN_CASES for v in ct.FLEXIBLE for r in ct.RPM_FULL]
-        theirs += [ct.Run(out, "convergence", "single_strike", v, ct.HISTORY_RPM, modes=m)
+        theirs += [ct.ToothRun(out, "convergence", "single_strike", v, ct.HISTORY_RPM, modes=m)
                    for v in ct.FLEXIBLE for m in ct.CONVERGENCE_MODES]
-        theirs += [ct.Run(out, "euler_bernoulli", c, v, ct.HISTORY_RPM,
+        theirs += [ct.ToothRun(out, "euler_bernoulli", c, v, ct.HISTORY_RPM,
                           rotation="euler_bernoulli")
                    for c in ct.FROZEN_CASES for v in ct.FLEXIBLE]
-        theirs += [ct.Run(out, "modal", c, v, ct.HISTORY_RPM, model="modal")
+        theirs += [ct.ToothRun(out, "modal", c, v, ct.HISTORY_RPM, model="modal")
                    for c, teeth in ct.LARGE_DEFLECTION.items() for v in teeth]
         self.assertEqual(len(mine), len(theirs))
         commands = [t.command(self.simulate) for t in theirs]
@@ -315,7 +315,7 @@ class BinaryLookupTest(unittest.TestCase):
     def test_found_under_cmake_prefix_path(self):
         os.environ["CMAKE_PREFIX_PATH"] = os.pathsep.join(
             [str(self.ws / "other"), str(self.ws / "devel"), "/usr"])
-        from sweeplib.runner import resolve_simulate
+        from tslib.sweep.runner import resolve_simulate
         self.assertEqual(resolve_simulate(None), (self.lib / "simulate").resolve())
         # And the binary found runs.
         proc = subprocess.run([str(resolve_simulate(None)), str(ROOT / "config/default_scene.yaml"),
@@ -324,7 +324,7 @@ class BinaryLookupTest(unittest.TestCase):
 
     def test_not_found_names_where_it_looked(self):
         os.environ["CMAKE_PREFIX_PATH"] = str(self.ws / "other")
-        from sweeplib.runner import resolve_simulate
+        from tslib.sweep.runner import resolve_simulate
         with self.assertRaises(SystemExit) as caught:
             resolve_simulate(None)
         self.assertIn("CMAKE_PREFIX_PATH", str(caught.exception))

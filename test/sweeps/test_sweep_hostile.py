@@ -2,7 +2,7 @@
 """Hostile sweep files are refused, never hung (issue 25, item 4; docs/sweeps.md "Limits").
 
 One test per hostile case: each writes a sweep file past one limit of
-scripts/sweeplib/spec.py and asserts that spec.Sweep refuses it with a SweepError naming the
+scripts/tslib/sweep/spec.py and asserts that spec.Sweep refuses it with a SweepError naming the
 key (and the limit) in less than 1 s of CPU time (and 3 s of wall time: the machine is shared). Before the limits, `seeds: 1000000000` made
 `scripts/sweep check` run out of memory, and a derived `10 ** 10 ** 10` passed `check` and
 hung `scripts/sweep run`: the two cases are also run through the command, which must refuse
@@ -13,7 +13,7 @@ capped, so code without the limits fails the tests instead of hanging them or th
 Writes a JUnit XML file (--xml) for scripts/test.sh's count.
 
   test/sweeps/test_sweep_hostile.py [--simulate PATH] [--xml FILE] [--scripts DIR] [TEST...]
-  (--scripts: the sweeplib to test, e.g. another checkout's scripts/ folder)
+  (--scripts: the tslib.sweep to test, e.g. another checkout's scripts/ folder)
 """
 import argparse
 import math
@@ -33,7 +33,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCENE = ROOT / "config/scenes/single_strike.yaml"
 ARGS = None
 TIMES = []  # (test, CPU seconds) of each refusal
-spec = None  # sweeplib.spec, imported in main() from --scripts
+spec = None  # tslib.sweep.spec, imported in main() from --scripts
 
 REFUSE_S = 1.0     # a hostile file is refused within this CPU time
 REFUSE_WALL_S = 3.0  # and this wall time (slack for a loaded machine)
@@ -420,7 +420,7 @@ def main():
     parser.add_argument("--simulate", default=str(
         ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
     parser.add_argument("--scripts", default=str(ROOT / "scripts"),
-                        help="folder holding the sweeplib package to test")
+                        help="folder holding the tslib package (tslib.sweep) to test")
     parser.add_argument("--xml", help="JUnit XML result file")
     parser.add_argument("tests", nargs="*", help="only these tests, e.g. "
                         "HostileTest.test_seeds_count")
@@ -428,7 +428,7 @@ def main():
                         help="write spec.limits_markdown() into docs/sweeps.md and exit")
     ARGS = parser.parse_args()
     sys.path.insert(0, ARGS.scripts)
-    from sweeplib import spec as module
+    from tslib.sweep import spec as module
     spec = module
     if ARGS.write_doc:
         path = ROOT / "docs/sweeps.md"

@@ -1,10 +1,9 @@
 """The tooth comparison's cases, teeth and speeds, and its runs: one simulate invocation per
-case, tooth variant and drum speed (Run), run in parallel (run_all), and the teeth's
+case, tooth variant and drum speed (ToothRun), run in parallel (run_all), and the teeth's
 frequencies (simulate --modes)."""
 import concurrent.futures
 import csv
 import json
-import math
 import re
 import subprocess
 import time
@@ -45,7 +44,7 @@ RPM_QUICK = [800, 1200]
 HISTORY_RPM = 800          # speed whose contact force histories are recorded and plotted
 CONVERGENCE_MODES = [2, 4, 6, 8, 10]
 QUICK_STREAM = ["--set", "stream.count=2", "--set", "duration=0.003"]
-RADPS_PER_RPM = math.pi / 30.0
+from tslib.numbers import RADPS_PER_RPM  # noqa: E402
 
 # Physical references (docs/model.md §10 and §9a).
 MEASURED_FORCE_N = (43.9, 71.9)   # measured threshing force on a kernel
@@ -69,7 +68,7 @@ def scene_args(case, variant):
     return args
 
 
-class Run:
+class ToothRun:
     """One simulate invocation: a case with a tooth variant at a drum speed."""
 
     def __init__(self, out, group, case, variant, rpm, modes=None, forces=False, quick=False,

@@ -10,11 +10,11 @@ from tslib import ROOT
 from tslib.binaries import find_binary
 from tslib.teeth.analysis import analyse
 from tslib.teeth.cases import (CASES, CONVERGENCE_MODES, FLEXIBLE, FROZEN_CASES, HISTORY_RPM,
-                               LARGE_DEFLECTION, RPM_FULL, RPM_QUICK, Run, VARIANTS, run_all,
+                               LARGE_DEFLECTION, RPM_FULL, RPM_QUICK, ToothRun, VARIANTS, run_all,
                                tooth_frequencies)
 from tslib.teeth.findings import write_findings
 from tslib.teeth.plots import make_plots
-from tslib.teeth.report import write_report
+from tslib.teeth.report import write_comparison
 from tslib.teeth.summary import write_summary
 
 
@@ -57,16 +57,16 @@ def main(doc=None):
     out.mkdir(parents=True, exist_ok=True)
 
     # The sweep, the frozen-tooth controls and the modal convergence check.
-    runs = [Run(out, "sweep", c, v, r, forces=r == history_rpm, quick=args.quick)
+    runs = [ToothRun(out, "sweep", c, v, r, forces=r == history_rpm, quick=args.quick)
             for c in CASES for v in variants for r in rpms]
-    runs += [Run(out, "frozen", c, v, r, modes=0)
+    runs += [ToothRun(out, "frozen", c, v, r, modes=0)
              for c in FROZEN_CASES for v in variants if v != "rigid" for r in rpms]
     if not args.quick:
-        runs += [Run(out, "convergence", "single_strike", v, history_rpm, modes=m)
+        runs += [ToothRun(out, "convergence", "single_strike", v, history_rpm, modes=m)
                  for v in FLEXIBLE for m in CONVERGENCE_MODES]
-        runs += [Run(out, "euler_bernoulli", c, v, history_rpm, rotation="euler_bernoulli")
+        runs += [ToothRun(out, "euler_bernoulli", c, v, history_rpm, rotation="euler_bernoulli")
                  for c in FROZEN_CASES for v in FLEXIBLE]
-        runs += [Run(out, "modal", c, v, history_rpm, model="modal")
+        runs += [ToothRun(out, "modal", c, v, history_rpm, model="modal")
                  for c, teeth in LARGE_DEFLECTION.items() for v in teeth]
     print(f"compare_teeth: {len(runs)} simulations on {args.jobs} workers -> {out}", flush=True)
     started = time.monotonic()
@@ -78,7 +78,7 @@ def main(doc=None):
     sample_us = 1e6 * runs[0].summary()["outcomes"]["sample_interval_s"]
     a = analyse(runs, sample_us)
     plots = make_plots(out, runs, a, freqs, rpms, history_rpm)
-    write_report(out, a, len(runs), rpms, plots)
+    write_comparison(out, a, len(runs), rpms, plots)
     print(f"compare_teeth: wrote {out / 'report.md'} and {len(plots)} plots")
     if args.findings:
         docs = pathlib.Path(args.docs)

@@ -32,7 +32,7 @@ def strike_table(a):
                            "in 43.9-71.9 N", "first contact [us]"], rows)
 
 
-def write_report(out, a, n_runs, rpms, plots):
+def write_comparison(out, a, n_runs, rpms, plots):
     lines = ["# Tooth comparison", "",
              f"{n_runs} simulations: cases {', '.join(CASES)}; teeth {', '.join(VARIANTS)}; "
              f"drum speeds {', '.join(str(r) for r in rpms)} rpm; controls with frozen teeth "

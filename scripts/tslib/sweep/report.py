@@ -12,16 +12,17 @@ import math
 import pathlib
 
 from tslib import plots
+from tslib.numbers import fmt4
 
 from . import spec as spec_module
 
-plt = plots.pyplot()
+pyplt = plots.pyplot()  # matplotlib.pyplot, Agg backend
 
-COLORS = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+CYCLE_COLORS = pyplt.rcParams["axes.prop_cycle"].by_key()["color"]
 MARKERS = "osv^D<>phX*"
 
 
-def _number(text):
+def _parse_number(text):
     try:
         value = float(text)
     except (TypeError, ValueError):
@@ -35,7 +36,7 @@ def load_table(out):
 
 
 def _numeric(rows, column):
-    return all(_number(r.get(column)) is not None for r in rows if r.get(column, "") != "")
+    return all(_parse_number(r.get(column)) is not None for r in rows if r.get(column, "") != "")
 
 
 def _order(rows, column):
@@ -48,30 +49,30 @@ def _order(rows, column):
 
 
 def _key(value):
-    number = _number(value)
+    number = _parse_number(value)
     return (0, number, "") if number is not None else (1, 0.0, value)
 
 
 def line_plot(rows, plot, path, axes):
     """Mean of y against x per line value, band over the rest; returns a summary table."""
     x, y, lines = plot["x"], plot["y"], plot.get("lines")
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig, ax = pyplt.subplots(figsize=(7.5, 4.5))
     summary = []
     groups = _order(rows, lines) if lines else [None]
     for i, group in enumerate(groups):
         chosen = [r for r in rows if lines is None or r[lines] == group]
         by_x = {}
         for r in chosen:
-            value = _number(r.get(y))
-            if value is not None and _number(r[x]) is not None:
-                by_x.setdefault(_number(r[x]), []).append(value)
+            value = _parse_number(r.get(y))
+            if value is not None and _parse_number(r[x]) is not None:
+                by_x.setdefault(_parse_number(r[x]), []).append(value)
         if not by_x:
             continue
         xs = sorted(by_x)
         mean = [sum(by_x[v]) / len(by_x[v]) for v in xs]
         lo = [min(by_x[v]) for v in xs]
         hi = [max(by_x[v]) for v in xs]
-        color = COLORS[i % len(COLORS)]
+        color = CYCLE_COLORS[i % len(CYCLE_COLORS)]
         ax.plot(xs, mean, marker=MARKERS[i % len(MARKERS)], color=color, markersize=4,
                 label=str(group) if lines else y)
         if any(h > l for l, h in zip(lo, hi)):
@@ -90,7 +91,7 @@ def line_plot(rows, plot, path, axes):
         ax.legend(fontsize=7, ncol=2 if len(groups) > 5 else 1)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    pyplt.close(fig)
     return summary
 
 
@@ -112,7 +113,7 @@ def pareto_plot(rows, plot, path, axes):
     config_axes = [a for a in axes if a != "seed"]
     configs = {}
     for r in rows:
-        vx, vy = _number(r.get(x)), _number(r.get(y))
+        vx, vy = _parse_number(r.get(x)), _parse_number(r.get(y))
         if vx is None or vy is None:
             continue
         configs.setdefault(tuple(r[a] for a in config_axes), []).append((vx, vy))
@@ -120,13 +121,13 @@ def pareto_plot(rows, plot, path, axes):
     points = [(sum(p[0] for p in configs[n]) / len(configs[n]),
                sum(p[1] for p in configs[n]) / len(configs[n])) for n in names]
     front = pareto_front(points)
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig, ax = pyplt.subplots(figsize=(7.5, 4.5))
     groups = _order(rows, color) if color else [None]
     for i, group in enumerate(groups):
         chosen = [k for k, n in enumerate(names)
                   if color is None or n[config_axes.index(color)] == group]
         ax.scatter([points[k][0] for k in chosen], [points[k][1] for k in chosen], s=14,
-                   color=COLORS[i % len(COLORS)], marker=MARKERS[i % len(MARKERS)],
+                   color=CYCLE_COLORS[i % len(CYCLE_COLORS)], marker=MARKERS[i % len(MARKERS)],
                    alpha=0.7, label=str(group) if color else None)
     ordered = sorted(front, key=lambda k: points[k][0])
     ax.plot([points[k][0] for k in ordered], [points[k][1] for k in ordered], "k--", lw=1)
@@ -140,7 +141,7 @@ def pareto_plot(rows, plot, path, axes):
     ax.legend(fontsize=7, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
+    pyplt.close(fig)
     return [(dict(zip(config_axes, names[k])), points[k]) for k in ordered]
 
 
@@ -154,13 +155,9 @@ def default_plots(rows, axes, outcomes):
             if _numeric(rows, y)]
 
 
-def _fmt(value):
-    return f"{value:.4g}" if isinstance(value, float) else str(value)
-
-
 def write_report(out, sweep_path=None, simulate=None, **findings_options):
     """Writes OUT/report.md and its plots OUT/plot_*.png; returns the report's path. A sweep
-    whose report kind is `findings` gets compare_teeth.py's report (sweeplib.findings)."""
+    whose report kind is `findings` gets compare_teeth.py's report (tslib.sweep.findings)."""
     out = pathlib.Path(out)
     if sweep_path is None:
         recorded = out / "sweep_file.txt"
@@ -188,7 +185,7 @@ def write_report(out, sweep_path=None, simulate=None, **findings_options):
     statuses = {}
     for r in rows:
         statuses[r["status"]] = statuses.get(r["status"], 0) + 1
-    cpu = sum(_number(r["cpu_s"]) or 0.0 for r in rows)
+    cpu = sum(_parse_number(r["cpu_s"]) or 0.0 for r in rows)
     lines = [f"# Sweep report: {sweep.name}", "",
              f"Generated by `scripts/sweep report {out}` from `{out / 'runs.csv'}` (sweep file "
              f"`{sweep.path}`). {len(rows)} runs: "
@@ -221,7 +218,7 @@ def write_report(out, sweep_path=None, simulate=None, **findings_options):
                       "| " + " | ".join(list(front[0][0]) if front else ["-"]) +
                       f" | {plot['pareto']['x']} | {plot['pareto']['y']} |",
                       "|---" * ((len(front[0][0]) if front else 1) + 2) + "|"]
-            lines += ["| " + " | ".join(c.values()) + f" | {_fmt(p[0])} | {_fmt(p[1])} |"
+            lines += ["| " + " | ".join(c.values()) + f" | {fmt4(p[0])} | {fmt4(p[1])} |"
                       for c, p in front[:20]]
         else:
             name = f"plot_{i}_{plot['y']}_vs_{plot['x']}.png"
@@ -229,12 +226,12 @@ def write_report(out, sweep_path=None, simulate=None, **findings_options):
             lines += [f"### {plot['y']} against {plot['x']}", "", f"![{plot['y']}]({name})",
                       "", f"| {plot.get('lines') or 'all'} | min | max | runs |",
                       "|---|---|---|---|"]
-            lines += [f"| {g if g is not None else 'all'} | {_fmt(lo)} | {_fmt(hi)} | {n} |"
+            lines += [f"| {g if g is not None else 'all'} | {fmt4(lo)} | {fmt4(hi)} | {n} |"
                       for g, lo, hi, n in summary]
         lines.append("")
     if sweep.report.get("stream_statistics") is not None:
         from . import stats
-        lines += stats.section(out, sweep)
+        lines += stats.stream_section(out, sweep)
     path = out / "report.md"
     path.write_text("\n".join(lines))
     return path

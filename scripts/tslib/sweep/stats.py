@@ -173,7 +173,7 @@ def _float(text):
     return value if math.isfinite(value) else None
 
 
-def _read(path):
+def _read_csv(path):
     if not path.is_file():
         return []
     with open(path, newline="") as f:
@@ -192,8 +192,8 @@ class Data:
     def __init__(self, out, settings):
         out = pathlib.Path(out)
         self.settings = settings
-        runs = _read(out / "runs.csv")
-        kernels = _read(out / "kernels.csv")
+        runs = _read_csv(out / "runs.csv")
+        kernels = _read_csv(out / "kernels.csv")
         self.cpu_s = sum(_float(r.get("cpu_s")) or 0.0 for r in runs)
         self.streams = {}    # stream -> {level: {"runs", "cpu", "seeds": {seed: {q: [..]}}}}
         self.not_ok = {}     # stream -> list of (level, seed, status)
@@ -429,7 +429,7 @@ def _pct(x, digits=2):
     return f"{100 * x:.{digits}f} %"
 
 
-def analyse(out, sweep):
+def analyse_streams(out, sweep):
     """Per stream: levels, means, differences, verdict and cost model (a dict)."""
     settings = Settings(sweep)
     data = Data(out, settings)
@@ -508,10 +508,10 @@ def analyse(out, sweep):
     return result
 
 
-def section(out, sweep, heading="##", link_report=None):
+def stream_section(out, sweep, heading="##", link_report=None):
     """The stream statistics section (markdown lines)."""
     out = pathlib.Path(out)
-    a = analyse(out, sweep)
+    a = analyse_streams(out, sweep)
     settings, data = a["settings"], a["data"]
     stop = None
     if (out / "stop.json").is_file():
@@ -615,7 +615,7 @@ def section(out, sweep, heading="##", link_report=None):
     return lines
 
 
-def splice_docs(out, sweep, page):
+def splice_stream_docs(out, sweep, page):
     """Writes the section into page between <!-- stream-statistics --> markers."""
     from tslib import markdown
 
@@ -623,6 +623,6 @@ def splice_docs(out, sweep, page):
         path = pathlib.Path(path).resolve()
         return path.relative_to(markdown.ROOT) if path.is_relative_to(markdown.ROOT) else path
 
-    body = section(out, sweep, heading=None, link_report=f"`scripts/sweep report {short(out)}` "
+    body = stream_section(out, sweep, heading=None, link_report=f"`scripts/sweep report {short(out)}` "
                    f"(sweep file `{short(sweep.path)}`)")
     return markdown.splice("stream-statistics", "\n".join(body), page)

@@ -55,7 +55,7 @@ def write(out, sweep, rows, simulate, findings=False, docs=None, readme=None):
     sample_us = 1e6 * runs[0].summary()["outcomes"]["sample_interval_s"]
     a = ct.analyse(runs, sample_us)
     plots = ct.make_plots(out, runs, a, freqs, rpms, history_rpm)
-    ct.write_report(out, a, len(runs), rpms, plots)
+    ct.write_comparison(out, a, len(runs), rpms, plots)
     if findings:
         docs = pathlib.Path(docs or ROOT / "docs")
         figures = docs / "findings"

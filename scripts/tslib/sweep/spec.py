@@ -22,7 +22,7 @@ import subprocess
 
 import yaml
 
-RADPS_PER_RPM = math.pi / 30.0
+from tslib.numbers import RADPS_PER_RPM  # noqa: E402
 UNITS = {None: 1.0, "rad/s": 1.0, "rpm": RADPS_PER_RPM}
 TOP_KEYS = {"name", "scene", "set_files", "set", "axes", "seeds", "outcomes", "derived",
             "timeout", "keep", "report", "groups", "stop"}
@@ -758,7 +758,7 @@ class Sweep:
             _fail(f"{where}: timeout", f"must be > 0 s and at most the limit of "
                   f"{MAX_TIMEOUT_S:g} s (got {_show(self.timeout_s)})")
         self.report = self._report(f"{where}: report", spec.get("report"))
-        self.stop = spec.get("stop")  # seeds in rounds (sweeplib/stats.py), or None
+        self.stop = spec.get("stop")  # seeds in rounds (tslib/sweep/stats.py), or None
 
     def _check_size(self, where):
         """The number of runs, refused past MAX_RUNS, and the size of their simulate arguments,
