@@ -357,9 +357,10 @@ def run_rounds(sweep, simulate, sha, out, scheduler=None, workers=None, processe
     validated = {}
     cluster = None
     address = scheduler
-    if scheduler is None:
-        # One local cluster for every round (runner's settings), instead of one per round.
-        client, cluster = runner._connect(None, workers or os.cpu_count() or 1, processes)
+    if scheduler is None and processes:
+        # A local Dask cluster (processes=True): one for every round instead of one per round.
+        # Without it each round runs on local threads, which start at no cost.
+        client, cluster = runner._connect(None, workers or os.cpu_count() or 1)
         address = cluster.scheduler_address
         client.close()
     rounds = []
