@@ -4,9 +4,8 @@
 // The test replaces the global operator new / delete and, underneath them, malloc and its
 // relatives (Eigen allocates with malloc, not new), so that every heap allocation of this
 // process goes through one counting hook. The hook counts only inside a window opened around
-// the steps under test; on a non-zero count the call stack of the first allocation in the window
-// is printed (addresses resolve with addr2line or gdb).
-#include <dlfcn.h>
+// the steps under test; on a non-zero count the call stacks of the first allocations in the window
+// are printed (addresses resolve with addr2line or gdb).
 #include <execinfo.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -39,44 +38,21 @@ namespace {
 // Counting state: only allocations inside an open window are counted.
 bool g_window_open = false;  // counting enabled [-]
 long g_allocations = 0;      // allocations counted in the window [-]
-bool g_have_trace = false;   // the first counted allocation's stack is stored [-]
-void* g_trace[48];           // return addresses of that stack
-int g_trace_depth = 0;       // entries used in g_trace [-]
-bool g_in_hook = false;      // re-entrancy guard (backtrace may allocate on first use)
-
-// When set, allocations made under buildIsland (an island's sub-model and workspace) or
-// advanceTo (the global integrator inside an island) are not counted: what is left is the
-// island scheduler's own work (calendar, neighbour search, formation, splitting).
-bool g_skip_island_systems = false;
-
-// Whether the current call stack passes through a function whose (mangled) name holds one of
-// the skipped names (dladdr does not allocate).
-bool underIslandSystem() {
-  void* frames[64];
-  const int n = backtrace(frames, 64);
-  for (int f = 0; f < n; ++f) {
-    Dl_info info;
-    if (dladdr(frames[f], &info) == 0 || info.dli_sname == nullptr) continue;
-    if (std::strstr(info.dli_sname, "11buildIsland") != nullptr ||
-        std::strstr(info.dli_sname, "9advanceToERK") != nullptr)
-      return true;
-  }
-  return false;
-}
+// Call stacks of the first kMaxTraces counted allocations (return addresses).
+constexpr int kMaxTraces = 12;
+constexpr int kTraceDepth = 48;
+void* g_trace[kMaxTraces][kTraceDepth];
+int g_trace_depth[kMaxTraces];  // entries used in each [-]
+int g_traces = 0;               // stacks stored [-]
+bool g_in_hook = false;         // re-entrancy guard (backtrace may allocate on first use)
 
 void countAllocation() {
   if (!g_window_open || g_in_hook) return;
-  if (g_skip_island_systems) {
-    g_in_hook = true;
-    const bool skip = underIslandSystem();
-    g_in_hook = false;
-    if (skip) return;
-  }
   ++g_allocations;
-  if (!g_have_trace) {
+  if (g_traces < kMaxTraces) {
     g_in_hook = true;
-    g_trace_depth = backtrace(g_trace, 48);
-    g_have_trace = true;
+    g_trace_depth[g_traces] = backtrace(g_trace[g_traces], kTraceDepth);
+    ++g_traces;
     g_in_hook = false;
   }
 }
@@ -155,7 +131,7 @@ namespace {
 // Opens the counting window; closing it returns the count.
 void openWindow() {
   g_allocations = 0;
-  g_have_trace = false;
+  g_traces = 0;
   g_window_open = true;
 }
 long closeWindow() {
@@ -163,11 +139,12 @@ long closeWindow() {
   return g_allocations;
 }
 
-// Prints the stack of the first allocation in the last window.
+// Prints the stacks of the first allocations in the last window (at most kMaxTraces).
 void printFirstAllocation() {
-  if (!g_have_trace) return;
-  std::fprintf(stderr, "first allocation in the window, call stack:\n");
-  backtrace_symbols_fd(g_trace, g_trace_depth, STDERR_FILENO);
+  for (int a = 0; a < g_traces; ++a) {
+    std::fprintf(stderr, "allocation %d of %ld in the window, call stack:\n", a + 1, g_allocations);
+    backtrace_symbols_fd(g_trace[a], g_trace_depth[a], STDERR_FILENO);
+  }
 }
 
 // The global scheme (integrator.islands: false): the island scheme allocates when an island
@@ -254,13 +231,14 @@ TEST(Allocations, StreamTimeStepping) {
 
 // --- The island scheme: islands forming and splitting ------------------------------------------
 // The same pattern with integrator.islands: true, one scheduling window per step: the measured
-// windows must build and dissolve islands, so that the calendar, the tooth sweeps, the island
-// grid and neighbour search, formation and splitting all run; none of them may allocate once a
-// first pass has warmed every buffer. Not counted: an island's sub-system (buildIsland copies
-// the bodies' models into the slot's Model and resets its Data) and the global integrator
-// stepping it (advanceTo), whose workspace is sized per sub-system.
+// windows must build, merge and dissolve islands, so that the calendar, the tooth sweeps, the
+// island grid and neighbour search, formation and splitting all run, and so must every island's
+// sub-system: building it (its sub-model and the reset of its state, in a system of the pool
+// that holds islands of its shape) and the global integrator stepping it (advanceTo). Nothing
+// is left out of the count: once a first pass has warmed every buffer and filled the pool of
+// sub-systems, none of it may allocate.
 long islandAllocationsAfterWarmUp(const Model& m, int warm_steps, int measured_steps, long* built,
-                                  long* dissolved) {
+                                  long* dissolved, long* kernel_pairs) {
   Data d;
   resetData(m, &d);
   for (int i = 0; i < warm_steps + measured_steps; ++i) {
@@ -271,19 +249,19 @@ long islandAllocationsAfterWarmUp(const Model& m, int warm_steps, int measured_s
   for (int i = 0; i < warm_steps; ++i) step(m, &d);
   void* probe[2];
   backtrace(probe, 2);
-  Dl_info info;
-  dladdr(probe[0], &info);
   const SchedulerStats before = d.stats.scheduler;
-  g_skip_island_systems = true;
+  const size_t events_before = d.events.size();
   openWindow();
   int failed = 0;
   for (int i = 0; i < measured_steps; ++i) failed += step(m, &d) == StepStatus::kFailed ? 1 : 0;
   const long count = closeWindow();
-  g_skip_island_systems = false;
   EXPECT_EQ(failed, 0);
   EXPECT_EQ(d.t_s, t_end) << "the measured pass must repeat the warm-up pass";
   *built = d.stats.scheduler.islands_built - before.islands_built;
   *dissolved = d.stats.scheduler.islands_dissolved - before.islands_dissolved;
+  *kernel_pairs = 0;
+  for (size_t e = events_before; e < d.events.size(); ++e)
+    *kernel_pairs += d.events[e].pair.kind == PairKind::kKernelKernel ? 1 : 0;
   if (count != 0) printFirstAllocation();
   return count;
 }
@@ -293,22 +271,29 @@ Model loadIslandConfig(const std::string& relative, std::vector<std::string> ove
   return loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/" + relative, overrides);
 }
 
-// The stream: six teeth, kernels on pedicels struck one after another, a grate of bars.
-TEST(Allocations, IslandsFormAndSplitEventDriven) {
-  const Model m = loadIslandConfig("config/scenes/stream.yaml", {"integrator.type=event_driven"});
-  long built = 0, dissolved = 0;
-  EXPECT_EQ(islandAllocationsAfterWarmUp(m, 5, 60, &built, &dissolved), 0);
+// The stream: six teeth, kernels on pedicels struck one after another and knocked into each
+// other, a grate of bars. The counted windows build and dissolve islands (of several shapes),
+// and kernels touch each other in them (kernel-kernel contact events).
+void expectIslandsWithoutAllocation(const Model& m, int warm_steps, int measured_steps) {
+  long built = 0, dissolved = 0, kernel_pairs = 0;
+  EXPECT_EQ(islandAllocationsAfterWarmUp(m, warm_steps, measured_steps, &built, &dissolved,
+                                         &kernel_pairs),
+            0);
   EXPECT_GT(built, 0);
   EXPECT_GT(dissolved, 0);
+  EXPECT_GT(kernel_pairs, 0);
+}
+
+TEST(Allocations, IslandsFormAndSplitEventDriven) {
+  expectIslandsWithoutAllocation(
+      loadIslandConfig("config/scenes/stream.yaml", {"integrator.type=event_driven"}), 5, 60);
 }
 
 TEST(Allocations, IslandsFormAndSplitTimeStepping) {
-  const Model m = loadIslandConfig("config/scenes/stream.yaml",
-                                   {"integrator.type=time_stepping", "integrator.dt=1e-6"});
-  long built = 0, dissolved = 0;
-  EXPECT_EQ(islandAllocationsAfterWarmUp(m, 5, 60, &built, &dissolved), 0);
-  EXPECT_GT(built, 0);
-  EXPECT_GT(dissolved, 0);
+  expectIslandsWithoutAllocation(
+      loadIslandConfig("config/scenes/stream.yaml",
+                       {"integrator.type=time_stepping", "integrator.dt=1e-6"}),
+      5, 60);
 }
 
 // A drum speed change during contact: the drum is commanded from 800 to 1200 rpm at the start

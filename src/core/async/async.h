@@ -72,14 +72,35 @@ struct OrientedEllipse {
   double b_m = 0;                // semi-minor [m]
 };
 
+// The sub-system of an island: a Model of its bodies (plus every obstacle) and its Data. Kept
+// in a pool (AsyncState::systems) and reused by the islands of its shape, the same teeth and as
+// many kernels, so that its state and integrator workspace already have the sizes such an
+// island needs: once a run has formed the islands of every shape it meets, as many at once,
+// building one allocates nothing.
+struct IslandSystem {
+  std::vector<int> teeth;  // global tooth indices, ascending (the shape, with n_kernels)
+  int n_kernels = 0;       // kernels of the shape [-]
+  bool in_use = false;     // held by a live island
+  // The model whose teeth, obstacles and constants the sub-model holds (nullptr: none yet, or
+  // maybe another model's: a set-up forgets it): a build for that model copies only the
+  // kernels. The teeth's free-tooth propagators are kept while the teeth stay alike.
+  const Model* teeth_of = nullptr;
+  Model model;  // the sub-model (compiled per-body data copied from the full model)
+  Data data;    // the sub-system's state, clock and integrator workspace
+  std::vector<ToothPropagator> kept_prop;  // the teeth's propagators across a reset of data
+};
+
 // One island: a sub-system of teeth and kernels (plus every obstacle) integrated together.
 struct Island {
   bool alive = false;
-  std::vector<int> teeth;    // global tooth indices, ascending (local order)
-  std::vector<int> kernels;  // global kernel indices, ascending (local order)
-  Model model;               // the sub-model (compiled per-body data copied from the full model)
-  Data data;                 // the sub-system's state, clock and integrator workspace
-  // Additive statistics of data.stats already merged into the global statistics.
+  std::vector<int> teeth;       // global tooth indices, ascending (local order)
+  std::vector<int> kernels;     // global kernel indices, ascending (local order)
+  IslandSystem* sys = nullptr;  // its sub-system (one of AsyncState::systems) while alive
+  Model& model() { return sys->model; }
+  const Model& model() const { return sys->model; }
+  Data& data() { return sys->data; }
+  const Data& data() const { return sys->data; }
+  // Additive statistics of data().stats already merged into the global statistics.
   long merged_impacts = 0, merged_episodes = 0, merged_recoveries = 0, merged_rejected = 0,
        merged_depth_corrections = 0, merged_steps = 0;
   double merged_impulse_Ns = 0, merged_drive_work_J = 0;  // [N s], [J]
@@ -100,8 +121,10 @@ struct AsyncState {
   std::vector<KernelClock> kernels;  // per kernel
   std::vector<int> tooth_island;     // per tooth: island slot, -1 = free (closed form)
   std::vector<Island> islands;       // island slots (dead ones are reused)
-  PairTable stored_memory;           // pair memory (global keys) of pairs outside islands
-  std::vector<int> heap;             // calendar: kernels by wake time (binary min-heap)
+  // Sub-systems of islands, by shape (see IslandSystem): kept while the state lives.
+  std::vector<std::unique_ptr<IslandSystem>> systems;
+  PairTable stored_memory;  // pair memory (global keys) of pairs outside islands
+  std::vector<int> heap;    // calendar: kernels by wake time (binary min-heap)
   // Uniform grid of lazy kernels' bound circles: open-addressing table cell -> first kernel.
   double cell_m = 0;                            // cell size [m]
   double r_cap_m = 0;                           // largest bound radius a lazy kernel is given [m]

@@ -154,25 +154,26 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
   for (size_t s = 0; s < as->islands.size(); ++s) {
     Island& isl = as->islands[s];
     if (!isl.alive) continue;
-    isl.data.omega_target_radps = d->omega_target_radps;
-    const long steps_before = isl.data.steps;
+    isl.data().omega_target_radps = d->omega_target_radps;
+    const long steps_before = isl.data().steps;
     // advanceTo's work budget scales with the interval; an island's interval is one window, so
     // a budget spent while time still advances is renewed, a bounded number of times.
     StepStatus st = StepStatus::kOk;
     for (int renewal = 0; renewal <= kMaxBudgetRenewals; ++renewal) {
-      const double t_before = isl.data.t_s;
-      st = advanceTo(isl.model, &isl.data, t1);
-      if (st != StepStatus::kFailed || isl.data.stats.failure.cause != FailureCause::kWorkBudget ||
-          !(isl.data.t_s > t_before))
+      const double t_before = isl.data().t_s;
+      st = advanceTo(isl.model(), &isl.data(), t1);
+      if (st != StepStatus::kFailed ||
+          isl.data().stats.failure.cause != FailureCause::kWorkBudget ||
+          !(isl.data().t_s > t_before))
         break;
     }
-    as->counters.island_body_steps +=
-        (isl.data.steps - steps_before) * static_cast<long>(isl.teeth.size() + isl.kernels.size());
-    if (!timeStepping(m)) isl.data.t_s = t1;  // it lands on t1 or an ulp past it
+    as->counters.island_body_steps += (isl.data().steps - steps_before) *
+                                      static_cast<long>(isl.teeth.size() + isl.kernels.size());
+    if (!timeStepping(m)) isl.data().t_s = t1;  // it lands on t1 or an ulp past it
     mergeIslandResults(m, d, as, static_cast<int>(s));
     storeIslandState(m, d, *as, static_cast<int>(s));
     if (st == StepStatus::kFailed) {
-      d->stats.failure = isl.data.stats.failure;  // the island's cause, where it stalled
+      d->stats.failure = isl.data().stats.failure;  // the island's cause, where it stalled
       return st;
     }
     if (st == StepStatus::kRecovered) worst = st;
@@ -274,7 +275,16 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   const int K = static_cast<int>(m.kernels.size()), T = static_cast<int>(m.teeth.size());
   as->kernels.assign(K, KernelClock());
   as->tooth_island.assign(T, -1);
-  for (Island& isl : as->islands) isl.alive = false;
+  for (Island& isl : as->islands) {
+    isl.alive = false;
+    isl.sys = nullptr;
+  }
+  // The pool's systems are kept with their workspaces; their copies of the teeth are forgotten
+  // (the model may be another).
+  for (const std::unique_ptr<IslandSystem>& sys : as->systems) {
+    sys->in_use = false;
+    sys->teeth_of = nullptr;
+  }
   as->stored_memory.clear();
   as->stored_memory.reserve(static_cast<size_t>(K) * (T + 8) + 64);
   as->heap.clear();

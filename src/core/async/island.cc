@@ -17,35 +17,77 @@ PairId pairOfKey(std::uint64_t key) {
                 static_cast<int>(key & 0x3fffffff)};
 }
 
-// The sub-model of an island: the full model's constants, the members' compiled models.
-void buildSubModel(const Model& m, Island* isl) {
-  Model& sm = isl->model;
-  sm.drum = m.drum;
-  for (int p = 0; p < 3; ++p) sm.contact[p] = m.contact[p];
-  sm.gravity_mps2 = m.gravity_mps2;
-  sm.integrator = m.integrator;
-  sm.integrator.islands = false;
-  sm.duration_s = m.duration_s;
-  sm.broadphase_margin_m = m.broadphase_margin_m;
-  sm.hc_min_impact_speed_mps = m.hc_min_impact_speed_mps;
-  sm.macro_collision_gap_s = m.macro_collision_gap_s;
-  sm.deflection_validity_fraction = m.deflection_validity_fraction;
-  sm.obstacles = m.obstacles;
+// Whether what a workspace derives from tooth a alone (its free-tooth propagator, its
+// time-stepping iteration matrices) holds for tooth b: their inputs are equal.
+bool sameDerivedInputs(const ToothModel& a, const ToothModel& b) {
+  auto same = [](const auto& x, const auto& y) {
+    return x.rows() == y.rows() && x.cols() == y.cols() && x == y;
+  };
+  return a.beam_model == b.beam_model && a.n_modes == b.n_modes && same(a.omega0_sq, b.omega0_sq) &&
+         same(a.K_G, b.K_G) && same(a.damping_coeff, b.damping_coeff) && same(a.ld_K, b.ld_K);
+}
+
+// The sub-model of an island: the full model's constants, the members' compiled models. The
+// constants, the teeth and the obstacles are copied only into a system that does not hold
+// those of m yet (a new one, or its first build after a set-up); the kernels on every build.
+// Returns whether the teeth and the integrator's parameters are those the system held (what
+// its workspace derived from them still holds).
+bool buildSubModel(const Model& m, IslandSystem* sys, const std::vector<int>& kernels) {
+  Model& sm = sys->model;
   int offset = 0;
-  sm.teeth.resize(isl->teeth.size());
-  for (size_t l = 0; l < isl->teeth.size(); ++l) {
-    sm.teeth[l] = m.teeth[isl->teeth[l]];
-    sm.teeth[l].dof_offset = offset;
-    offset += sm.teeth[l].n_modes;
+  bool alike = true;
+  if (sys->teeth_of != &m) {
+    alike = sm.integrator.type == m.integrator.type && sm.integrator.theta == m.integrator.theta &&
+            sm.teeth.size() == sys->teeth.size();
+    sm.drum = m.drum;
+    for (int p = 0; p < 3; ++p) sm.contact[p] = m.contact[p];
+    sm.gravity_mps2 = m.gravity_mps2;
+    sm.integrator = m.integrator;
+    sm.integrator.islands = false;
+    sm.duration_s = m.duration_s;
+    sm.broadphase_margin_m = m.broadphase_margin_m;
+    sm.hc_min_impact_speed_mps = m.hc_min_impact_speed_mps;
+    sm.macro_collision_gap_s = m.macro_collision_gap_s;
+    sm.deflection_validity_fraction = m.deflection_validity_fraction;
+    sm.obstacles = m.obstacles;
+    sm.teeth.resize(sys->teeth.size());
+    for (size_t l = 0; l < sys->teeth.size(); ++l) {
+      const ToothModel& tg = m.teeth[sys->teeth[l]];
+      alike = alike && sameDerivedInputs(sm.teeth[l], tg);
+      sm.teeth[l] = tg;
+      sm.teeth[l].dof_offset = offset;
+      offset += sm.teeth[l].n_modes;
+    }
+    sm.kernels.resize(kernels.size());
+    sys->teeth_of = &m;
+  } else {
+    for (const ToothModel& tl : sm.teeth) offset += tl.n_modes;
   }
-  sm.kernels.resize(isl->kernels.size());
-  for (size_t l = 0; l < isl->kernels.size(); ++l) {
-    sm.kernels[l] = m.kernels[isl->kernels[l]];
+  for (size_t l = 0; l < kernels.size(); ++l) {
+    sm.kernels[l] = m.kernels[kernels[l]];
     sm.kernels[l].dof_offset = offset;
     offset += 3;
   }
   sm.n_dof = offset;
   sm.compiled = true;
+  return alike;
+}
+
+// A free system of the shape (teeth, number of kernels) from the pool, the first in pool order
+// (so that a run that repeats another's islands uses the same systems), or a new one.
+IslandSystem* takeSystem(AsyncState* as, const std::vector<int>& teeth, size_t n_kernels) {
+  for (const std::unique_ptr<IslandSystem>& sys : as->systems) {
+    if (!sys->in_use && sys->n_kernels == static_cast<int>(n_kernels) && sys->teeth == teeth) {
+      sys->in_use = true;
+      return sys.get();
+    }
+  }
+  as->systems.push_back(std::make_unique<IslandSystem>());
+  IslandSystem* sys = as->systems.back().get();
+  sys->teeth = teeth;
+  sys->n_kernels = static_cast<int>(n_kernels);
+  sys->in_use = true;
+  return sys;
 }
 
 PairId localToGlobal(const Island& isl, const PairId& p) {
@@ -61,7 +103,7 @@ PairId localToGlobal(const Island& isl, const PairId& p) {
 
 // Stored pair memory of the island's pairs, into its workspace under local keys.
 void loadPairMemory(const Model& m, AsyncState* as, Island* isl) {
-  PairTable& local = isl->data.ws->memory;
+  PairTable& local = isl->data().ws->memory;
   const int T = static_cast<int>(isl->teeth.size()), K = static_cast<int>(isl->kernels.size());
   auto load = [&](const PairId& p_local) {
     const PairMemory* mem = as->stored_memory.find(pairKey(localToGlobal(*isl, p_local)));
@@ -91,7 +133,7 @@ std::string globalWarning(const Island& isl, const std::string& text) {
 }
 
 void mergeCounters(Data* d, AsyncState* as, Island* isl) {
-  const RunStats& s = isl->data.stats;
+  const RunStats& s = isl->data().stats;
   RunStats& g = d->stats;
   g.impacts += s.impacts - isl->merged_impacts;
   g.contact_episodes += s.contact_episodes - isl->merged_episodes;
@@ -100,8 +142,8 @@ void mergeCounters(Data* d, AsyncState* as, Island* isl) {
   g.depth_corrections += s.depth_corrections - isl->merged_depth_corrections;
   g.total_normal_impulse_Ns += s.total_normal_impulse_Ns - isl->merged_impulse_Ns;
   g.drive_work_J += s.drive_work_J - isl->merged_drive_work_J;
-  d->steps += isl->data.steps - isl->merged_steps;
-  as->counters.island_steps += isl->data.steps - isl->merged_steps;
+  d->steps += isl->data().steps - isl->merged_steps;
+  as->counters.island_steps += isl->data().steps - isl->merged_steps;
   isl->merged_impacts = s.impacts;
   isl->merged_episodes = s.contact_episodes;
   isl->merged_recoveries = s.numerical_recoveries;
@@ -109,11 +151,11 @@ void mergeCounters(Data* d, AsyncState* as, Island* isl) {
   isl->merged_depth_corrections = s.depth_corrections;
   isl->merged_impulse_Ns = s.total_normal_impulse_Ns;
   isl->merged_drive_work_J = s.drive_work_J;
-  isl->merged_steps = isl->data.steps;
+  isl->merged_steps = isl->data().steps;
 }
 
 void mergePeaks(Data* d, Island* isl) {
-  const RunStats& s = isl->data.stats;
+  const RunStats& s = isl->data().stats;
   RunStats& g = d->stats;
   if (s.peak_normal_force_N > g.peak_normal_force_N) {
     g.peak_normal_force_N = s.peak_normal_force_N;
@@ -139,7 +181,7 @@ void mergePeaks(Data* d, Island* isl) {
 }
 
 void mergeKernelStats(Data* d, Island* isl) {
-  const RunStats& s = isl->data.stats;
+  const RunStats& s = isl->data().stats;
   RunStats& g = d->stats;
   for (size_t l = 0; l < isl->kernels.size(); ++l) {
     const int i = isl->kernels[l];
@@ -170,11 +212,26 @@ void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vect
   isl.alive = true;
   isl.teeth = teeth;
   isl.kernels = kernels;
-  buildSubModel(m, &isl);
-  const Model& sm = isl.model;
-  Data& sd = isl.data;
+  IslandSystem* sys = takeSystem(as, teeth, kernels.size());
+  isl.sys = sys;
+  const Model& sm = sys->model;
+  Data& sd = sys->data;
+  // What the system's workspace derived from its teeth alone is kept while the teeth stay
+  // alike, though the reset would have it rebuilt on first use (each is rebuilt anyway at
+  // another drum speed or step): the free-tooth propagators (set aside across the reset) and
+  // the time-stepping iteration matrices (their keys restored).
+  const bool alike = buildSubModel(m, sys, kernels);
+  const double iteration_omega = sd.ws->ts.iteration_omega;
+  const double iteration_basis_h = sd.ws->ts.iteration_basis_h;
+  std::swap(sys->kept_prop, sd.ws->ed.prop);
+  if (!alike) sys->kept_prop.clear();
   resetData(sm, &sd);
-  sd.ws->ed.memo.valid = false;  // the slot's model now holds other bodies
+  std::swap(sys->kept_prop, sd.ws->ed.prop);
+  if (alike) {
+    sd.ws->ts.iteration_omega = iteration_omega;
+    sd.ws->ts.iteration_basis_h = iteration_basis_h;
+  }
+  sd.ws->ed.memo.valid = false;  // the system's model now holds other kernels
   sd.t_s = d->t_s;
   sd.theta_rad = d->theta_rad;
   sd.omega_radps = d->omega_radps;
@@ -211,8 +268,8 @@ void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vect
 
 void storeIslandState(const Model& m, Data* d, const AsyncState& as, int s) {
   const Island& isl = as.islands[s];
-  const Model& sm = isl.model;
-  const Data& sd = isl.data;
+  const Model& sm = isl.model();
+  const Data& sd = isl.data();
   for (size_t l = 0; l < isl.teeth.size(); ++l) {
     const ToothModel& tg = m.teeth[isl.teeth[l]];
     const ToothModel& tl = sm.teeth[l];
@@ -230,7 +287,7 @@ void storeIslandState(const Model& m, Data* d, const AsyncState& as, int s) {
 void dissolveIsland(const Model& m, Data* d, AsyncState* as, int s) {
   Island& isl = as->islands[s];
   storeIslandState(m, d, *as, s);
-  for (auto& entry : isl.data.ws->memory) {
+  for (auto& entry : isl.data().ws->memory) {
     if (!worthKeeping(entry.second)) continue;
     as->stored_memory[pairKey(localToGlobal(isl, pairOfKey(entry.first)))] = entry.second;
   }
@@ -240,28 +297,30 @@ void dissolveIsland(const Model& m, Data* d, AsyncState* as, int s) {
     kc.motion = m.kernels[i].pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
                                                                       : KernelMotion::kFree;
     kc.island = -1;
-    kc.t_s = isl.data.t_s;
+    kc.t_s = isl.data().t_s;
     kc.h_s = 0;
   }
   isl.alive = false;
+  isl.sys->in_use = false;
+  isl.sys = nullptr;
   ++as->counters.islands_dissolved;
 }
 
 void mergeIslandResults(const Model& m, Data* d, AsyncState* as, int s) {
   (void)m;
   Island& isl = as->islands[s];
-  for (const ContactEvent& ev : isl.data.events) {
+  for (const ContactEvent& ev : isl.data().events) {
     as->window_events.push_back(ev);
     as->window_events.back().pair = localToGlobal(isl, ev.pair);
   }
-  isl.data.events.clear();
+  isl.data().events.clear();
   mergeCounters(d, as, &isl);
   mergePeaks(d, &isl);
   mergeKernelStats(d, &isl);
 }
 
 bool islandInContact(AsyncState* as, int s) {
-  for (auto& entry : as->islands[s].data.ws->memory)
+  for (auto& entry : as->islands[s].data().ws->memory)
     if (entry.second.state != ContactState::kSeparated) return true;
   return false;
 }
@@ -269,7 +328,7 @@ bool islandInContact(AsyncState* as, int s) {
 void publishIslandContacts(const AsyncState& as, std::vector<ContactInfo>* out) {
   for (const Island& isl : as.islands) {
     if (!isl.alive) continue;
-    for (const ContactInfo& c : isl.data.contacts) {
+    for (const ContactInfo& c : isl.data().contacts) {
       out->push_back(c);
       out->back().pair = localToGlobal(isl, c.pair);
     }

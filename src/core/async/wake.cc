@@ -269,7 +269,7 @@ void islandProximity(const Model& m, const Data& d, const AsyncState& as, int s,
   edges->clear();
   pinned->assign(nT + nK, 0);
   // Pairs in contact.
-  for (const auto& entry : isl.data.ws->memory) {
+  for (const auto& entry : isl.data().ws->memory) {
     if (entry.second.state == ContactState::kSeparated) continue;
     const std::uint64_t key = entry.first;
     const int a = static_cast<int>((key >> 30) & 0x3fffffff),

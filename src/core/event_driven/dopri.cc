@@ -160,6 +160,10 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   const int n_pairs = static_cast<int>(ws.candidates.size());
   growTo(&ws.ed.imp_n, n_pairs);
   growTo(&ws.ed.imp_t, n_pairs);
+  // Their copies (an event bracket's end, a graze probe's saved values) are assigned whole:
+  // they grow with them (keeping their values), so that no assignment reallocates later.
+  for (VecX* copy : {&ws.ed.imp_n_hi, &ws.ed.imp_t_hi, &ws.ed.imp_n_saved, &ws.ed.imp_t_saved})
+    if (copy->size() != ws.ed.imp_n.size()) copy->conservativeResize(ws.ed.imp_n.size());
   ws.ed.imp_n.head(n_pairs).setZero();
   ws.ed.imp_t.head(n_pairs).setZero();
   ws.ed.torque_impulse = 0;
