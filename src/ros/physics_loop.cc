@@ -287,7 +287,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   // boundary after them draws the state it reached, whatever the marker schedule.
   bool framed = false;
   std::function<void(const Data&)> sample;
-  if (counters_.requested_rtf == 0 && params_.sim_clock) {
+  if (params_.strike_frames && counters_.requested_rtf == 0 && params_.sim_clock) {
     frames_.start(data_);
     sample = [this, k, &framed](const Data& d) {
       frames_.sample(d, k * timing_.dt_ns, [this, &framed](const FrameState& f) {
@@ -308,7 +308,10 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   const long end_step = schedule_.endStep();
   const bool last = (end_step > 0 && k >= end_step) || flags_.finished;
   unsigned streams = streams_.due(k, pacer_.realTimeFactor() == 0, clock_.nowSeconds()) |
-                     forced_streams | (last ? kAllStreams : 0u) | (framed ? kMarkerStream : 0u);
+                     forced_streams | (last ? kAllStreams : 0u);
+  // Markers only for the frames: drawn as a frame too (without the chart) unless a strike ended.
+  const bool frame_only = framed && !(streams & kMarkerStream);
+  if (framed) streams |= kMarkerStream;
   if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_.wanted) requestReset(0);
   if (demo_.due(data_) && demo_.reseedIfClear(*model_, &data_)) {
     log_.clearStrikes();
@@ -317,7 +320,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
     flags_.failed = false;
     streams = kAllStreams;
   }
-  if (streams != 0) takeSnapshot(streams);
+  if (streams != 0) takeSnapshot(streams, frame_only && streams == kMarkerStream);
   tryPendingReset();
   if (last) flags_.finished = true;
 }
@@ -474,7 +477,7 @@ void PhysicsLoop::adjustPace() {
   counters_.target_rtf = rtf;
 }
 
-void PhysicsLoop::takeSnapshot(unsigned streams) {
+void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   // The island scheme leaves lone kernels on their own clocks between snapshots.
   if (syncBodies(*model_, &data_) == StepStatus::kFailed) flags_.failed = true;
   Snapshot s;
@@ -501,13 +504,17 @@ void PhysicsLoop::takeSnapshot(unsigned streams) {
   s.measured_rtf = counters_.measured_rtf;
   log_.fill(*model_, data_, &s);
   s.reset = std::exchange(pending_reset_, false);
+  s.frames = std::exchange(frames_pending_, {});
+  // Markers due only for a strike's frames leave out the chart and the status, as the frames
+  // do, unless a strike ended (the chart changes) or the markers start over.
+  s.frame = frame_only && s.strikes.empty() && !s.reset;
   // Back-pressure: at factor 0 the simulation waits for the publisher rather than drop.
   queue_.push(std::move(s), flags_.stop);
 }
 
 // A strike's frame: the markers of an interpolated state (StrikeFrames), stamped with its own
-// time. Only the marker stream: impacts, strikes and commands wait for the boundary's snapshot,
-// so every other topic is what it is without frames.
+// time, kept for the boundary's snapshot (which the frames put on the marker stream). Only
+// markers: impacts, strikes and commands go with the boundary as without frames.
 void PhysicsLoop::takeFrame(const FrameState& f) {
   Snapshot s;
   s.model = model_;
@@ -523,6 +530,7 @@ void PhysicsLoop::takeFrame(const FrameState& f) {
   s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
   s.kernel_impacts = data_.stats.kernel_impacts;
   s.streams = kMarkerStream;
+  s.frame = true;
   s.omega_target_radps = data_.omega_target_radps;
   s.alpha_radps2 = data_.alpha_radps2;
   s.loops = demo_.loops();
@@ -530,13 +538,15 @@ void PhysicsLoop::takeFrame(const FrameState& f) {
   s.requested_rtf = counters_.requested_rtf;
   s.measured_rtf = counters_.measured_rtf;
   // A previous episode's peak arrow is hidden while its pair touches again (its live arrow
-  // shows then), as at a boundary.
-  s.peaks = log_.peaks();
-  for (PeakContact& p : s.peaks)
+  // shows then), as at a boundary; the other peak arrows stay as the last full message drew
+  // them (in a stream they were a third of the frames' bytes).
+  for (const PeakContact& p : log_.peaks())
     for (const ContactInfo& c : f.contacts)
-      if (c.pair == p.pair && c.state != ContactState::kSeparated) p.last_closed_step = s.step;
-  s.reset = std::exchange(pending_reset_, false);
-  queue_.push(std::move(s), flags_.stop);
+      if (c.pair == p.pair && c.state != ContactState::kSeparated) {
+        s.peaks.push_back(p);
+        s.peaks.back().last_closed_step = s.step;
+      }
+  frames_pending_.push_back(std::move(s));
 }
 
 void PhysicsLoop::publishCounters() {

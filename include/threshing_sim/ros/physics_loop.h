@@ -138,7 +138,7 @@ class PhysicsLoop {
   void tryPendingReset();
   void finishReset(bool done, const std::string& message);
   void adjustPace();
-  void takeSnapshot(unsigned streams);
+  void takeSnapshot(unsigned streams, bool frame_only = false);
   void takeFrame(const FrameState& frame);
   void publishCounters();
 
@@ -166,13 +166,14 @@ class PhysicsLoop {
   DemoLoop demo_;
   long reset_steps_ = 0;  // reset the bodies every this many steps, 0 = never
   ResetRequest reset_;
-  bool pending_reset_ = false;        // the next snapshot starts the markers over
-  StrikeFrames frames_;               // the strike's frames at factor 0
-  ThreadCpuClock cpu_clock_;          // the physics thread's CPU time
-  StepMeter step_meter_{cpu_clock_};  // longest step since the last drum command
-  double start_wall_s_ = 0;           // steady time the stepping began [s]
-  double run_wall_s_ = 0;             // wall time from then until the thread ended [s]
-  double last_paused_publish_s_ = 0;  // steady time of the last paused republish [s]
+  bool pending_reset_ = false;            // the next snapshot starts the markers over
+  StrikeFrames frames_;                   // the strike's frames at factor 0
+  std::vector<Snapshot> frames_pending_;  // frames for the next snapshot
+  ThreadCpuClock cpu_clock_;              // the physics thread's CPU time
+  StepMeter step_meter_{cpu_clock_};      // longest step since the last drum command
+  double start_wall_s_ = 0;               // steady time the stepping began [s]
+  double run_wall_s_ = 0;                 // wall time from then until the thread ended [s]
+  double last_paused_publish_s_ = 0;      // steady time of the last paused republish [s]
 };
 
 }  // namespace threshing_sim
