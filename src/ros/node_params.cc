@@ -49,6 +49,7 @@ const std::set<std::string> kNodeKeys = {"scene",
                                          "strike_sample_dt",
                                          "free_flight_factor",
                                          "wait_for_viewer",
+                                         "strike_frames",
                                          "view"};
 
 // Event-driven scenes advance by this much simulated time per advanceTo call [s].
@@ -167,6 +168,7 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh) {
     fail("strike_sample_dt", "must be 0 or >= 1e-8 s (got " + str(p.strike_sample_dt_s) + ")");
   readNumber(pnh, "free_flight_factor", 0.0, 1e3, &p.free_flight_factor);
   read(pnh, "wait_for_viewer", &p.wait_for_viewer);
+  read(pnh, "strike_frames", &p.strike_frames);
   return p;
 }
 

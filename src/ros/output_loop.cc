@@ -121,8 +121,19 @@ void OutputLoop::publishSnapshot(const Snapshot& s, bool with_static_markers) {
         params_.sim_clock ? ros::Time().fromNSec(std::llround(r.t_s.back() * 1e9)) : s.stamp;
     pubs_.strike.publish(strikeHistoryMsg(r, stamp));
   }
-  if ((s.streams & kMarkerStream) || s.reset)
-    pubs_.markers.publish(marker_builder_.build(s, scratch_, with_static_markers));
+  if ((s.streams & kMarkerStream) || s.reset) {
+    // The strike's frames first, in one message with the snapshot's own markers.
+    visualization_msgs::MarkerArray out;
+    for (const Snapshot& f : s.frames) {
+      loadPose(f, &scratch_);
+      visualization_msgs::MarkerArray frame = marker_builder_.build(f, scratch_, false);
+      out.markers.insert(out.markers.end(), frame.markers.begin(), frame.markers.end());
+    }
+    if (!s.frames.empty()) loadPose(s, &scratch_);
+    visualization_msgs::MarkerArray own = marker_builder_.build(s, scratch_, with_static_markers);
+    out.markers.insert(out.markers.end(), own.markers.begin(), own.markers.end());
+    pubs_.markers.publish(out);
+  }
 }
 
 void OutputLoop::publishClock(const ros::Time& t) {

@@ -95,6 +95,72 @@ double Pace::next(const Model& model, const Data& data, double requested_rtf,
 }
 
 // ---------------------------------------------------------------------------------------------
+// StrikeFrames
+
+void StrikeFrames::copy(const Data& data, State* s) {
+  s->t_s = data.t_s;
+  s->theta_rad = data.theta_rad;
+  s->omega_radps = data.omega_radps;
+  s->z = data.z;
+  s->u = data.u;
+  s->contacts = data.contacts;
+  s->closed = std::any_of(data.contacts.begin(), data.contacts.end(), [](const ContactInfo& c) {
+    return c.pair.kind == PairKind::kToothKernel && c.state != ContactState::kSeparated;
+  });
+}
+
+void StrikeFrames::start(const Data& data) { copy(data, &prev_); }
+
+void StrikeFrames::sample(const Data& data, std::int64_t boundary_ns,
+                          const std::function<void(const FrameState&)>& emit) {
+  copy(data, &next_);
+  const State& a = prev_;
+  const State& b = next_;
+  const double h_s = b.t_s - a.t_s;
+  if (!a.closed && !b.closed) episode_frames_ = 0;
+  if ((a.closed || b.closed) && h_s > 0 && a.z.size() == b.z.size()) {
+    // Frame times on the kFrame_ns grid in (a.t_s, b.t_s], strictly before the boundary.
+    const std::int64_t first = static_cast<std::int64_t>(std::floor(a.t_s * 1e9 / kFrame_ns)) + 1;
+    for (std::int64_t m = first;; ++m) {
+      const std::int64_t t_ns = m * kFrame_ns;
+      const double t_s = t_ns * 1e-9;
+      if (t_s <= a.t_s || t_ns <= std::llround(a.t_s * 1e9)) continue;
+      if (t_s > b.t_s || t_ns >= boundary_ns || episode_frames_ >= kMaxEpisodeFrames) break;
+      ++episode_frames_;
+      // Cubic Hermite on positions with their derivatives u = dz/dt (drum: theta, omega).
+      const double x = (t_s - a.t_s) / h_s, x2 = x * x, x3 = x2 * x;
+      const double h00 = 2 * x3 - 3 * x2 + 1, h10 = x3 - 2 * x2 + x, h01 = 3 * x2 - 2 * x3,
+                   h11 = x3 - x2;
+      frame_.t_ns = t_ns;
+      frame_.t_s = t_s;
+      frame_.z = h00 * a.z + (h10 * h_s) * a.u + h01 * b.z + (h11 * h_s) * b.u;
+      frame_.u = (1 - x) * a.u + x * b.u;
+      frame_.theta_rad = h00 * a.theta_rad + h10 * h_s * a.omega_radps + h01 * b.theta_rad +
+                         h11 * h_s * b.omega_radps;
+      frame_.omega_radps = (1 - x) * a.omega_radps + x * b.omega_radps;
+      // The contacts of the nearer step; a pair closed at both ends has its point and forces
+      // interpolated.
+      const State& near = x < 0.5 ? a : b;
+      const State& far = x < 0.5 ? b : a;
+      const double w = x < 0.5 ? x : 1 - x;  // weight of the far step
+      frame_.contacts = near.contacts;
+      for (ContactInfo& c : frame_.contacts) {
+        const auto o = std::find_if(far.contacts.begin(), far.contacts.end(),
+                                    [&](const ContactInfo& f) { return f.pair == c.pair; });
+        if (o == far.contacts.end() || c.state == ContactState::kSeparated ||
+            o->state == ContactState::kSeparated)
+          continue;
+        c.p_W = (1 - w) * c.p_W + w * o->p_W;
+        c.normal_force_N = (1 - w) * c.normal_force_N + w * o->normal_force_N;
+        c.tangential_force_N = (1 - w) * c.tangential_force_N + w * o->tangential_force_N;
+      }
+      emit(frame_);
+    }
+  }
+  std::swap(prev_, next_);
+}
+
+// ---------------------------------------------------------------------------------------------
 // PhysicsLoop
 
 PhysicsLoop::PhysicsLoop(const NodeParams& params, const NodeTiming& timing,
@@ -216,7 +282,21 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   const long k = flags_.step + 1;
   counters_.advance_started_s = clock_.nowSeconds();
   step_meter_.begin();
-  const StepStatus status = log_.advance(*model_, &data_, k * timing_.dt_s);
+  // At factor 0 (a recording) the strike's frames go out between the boundaries (StrikeFrames;
+  // a live view at a factor > 0 shows its markers at marker_rate of wall time instead). The
+  // boundary after them draws the state it reached, whatever the marker schedule.
+  bool framed = false;
+  std::function<void(const Data&)> sample;
+  if (params_.strike_frames && counters_.requested_rtf == 0 && params_.sim_clock) {
+    frames_.start(data_);
+    sample = [this, k, &framed](const Data& d) {
+      frames_.sample(d, k * timing_.dt_ns, [this, &framed](const FrameState& f) {
+        takeFrame(f);
+        framed = true;
+      });
+    };
+  }
+  const StepStatus status = log_.advance(*model_, &data_, k * timing_.dt_s, sample);
   step_meter_.end();
   counters_.advance_started_s = -1;
   flags_.step = k;
@@ -229,6 +309,9 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   const bool last = (end_step > 0 && k >= end_step) || flags_.finished;
   unsigned streams = streams_.due(k, pacer_.realTimeFactor() == 0, clock_.nowSeconds()) |
                      forced_streams | (last ? kAllStreams : 0u);
+  // Markers only for the frames: drawn as a frame too (without the chart) unless a strike ended.
+  const bool frame_only = framed && !(streams & kMarkerStream);
+  if (framed) streams |= kMarkerStream;
   if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_.wanted) requestReset(0);
   if (demo_.due(data_) && demo_.reseedIfClear(*model_, &data_)) {
     log_.clearStrikes();
@@ -237,7 +320,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
     flags_.failed = false;
     streams = kAllStreams;
   }
-  if (streams != 0) takeSnapshot(streams);
+  if (streams != 0) takeSnapshot(streams, frame_only && streams == kMarkerStream);
   tryPendingReset();
   if (last) flags_.finished = true;
 }
@@ -394,7 +477,7 @@ void PhysicsLoop::adjustPace() {
   counters_.target_rtf = rtf;
 }
 
-void PhysicsLoop::takeSnapshot(unsigned streams) {
+void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   // The island scheme leaves lone kernels on their own clocks between snapshots.
   if (syncBodies(*model_, &data_) == StepStatus::kFailed) flags_.failed = true;
   Snapshot s;
@@ -421,8 +504,49 @@ void PhysicsLoop::takeSnapshot(unsigned streams) {
   s.measured_rtf = counters_.measured_rtf;
   log_.fill(*model_, data_, &s);
   s.reset = std::exchange(pending_reset_, false);
+  s.frames = std::exchange(frames_pending_, {});
+  // Markers due only for a strike's frames leave out the chart and the status, as the frames
+  // do, unless a strike ended (the chart changes) or the markers start over.
+  s.frame = frame_only && s.strikes.empty() && !s.reset;
   // Back-pressure: at factor 0 the simulation waits for the publisher rather than drop.
   queue_.push(std::move(s), flags_.stop);
+}
+
+// A strike's frame: the markers of an interpolated state (StrikeFrames), stamped with its own
+// time, kept for the boundary's snapshot (which the frames put on the marker stream). Only
+// markers: impacts, strikes and commands go with the boundary as without frames.
+void PhysicsLoop::takeFrame(const FrameState& f) {
+  Snapshot s;
+  s.model = model_;
+  s.step = flags_.step;
+  s.t_s = f.t_s;
+  s.stamp = ros::Time().fromNSec(f.t_ns);
+  s.theta_rad = f.theta_rad;
+  s.omega_radps = f.omega_radps;
+  s.z = f.z;
+  s.u = f.u;
+  s.kernel_attached = data_.kernel_attached;
+  s.contacts = f.contacts;
+  s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
+  s.kernel_impacts = data_.stats.kernel_impacts;
+  s.streams = kMarkerStream;
+  s.frame = true;
+  s.omega_target_radps = data_.omega_target_radps;
+  s.alpha_radps2 = data_.alpha_radps2;
+  s.loops = demo_.loops();
+  s.target_rtf = counters_.target_rtf;
+  s.requested_rtf = counters_.requested_rtf;
+  s.measured_rtf = counters_.measured_rtf;
+  // A previous episode's peak arrow is hidden while its pair touches again (its live arrow
+  // shows then), as at a boundary; the other peak arrows stay as the last full message drew
+  // them (in a stream they were a third of the frames' bytes).
+  for (const PeakContact& p : log_.peaks())
+    for (const ContactInfo& c : f.contacts)
+      if (c.pair == p.pair && c.state != ContactState::kSeparated) {
+        s.peaks.push_back(p);
+        s.peaks.back().last_closed_step = s.step;
+      }
+  frames_pending_.push_back(std::move(s));
 }
 
 void PhysicsLoop::publishCounters() {

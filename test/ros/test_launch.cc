@@ -2,7 +2,8 @@
 // process against this test's master, one after another:
 //  - bad parameters are refused with a message naming them and a non-zero exit;
 //  - record.launch records a bounded run while drum speed commands arrive;
-//  - replay.launch plays the bag back: the same message counts, monotonic stamps;
+//  - replay.launch plays the bag back: the same message counts (markers: the strike frames
+//    that ride in one message come out one by one), monotonic stamps;
 //  - resimulate.launch re-runs the recorded commands: contact_state and impact_events are
 //    bit-identical (scripts/compare_bags).
 // The tests run in declaration order and share the bags.
@@ -18,6 +19,7 @@
 #include <tf2_msgs/TFMessage.h>
 #include <topic_tools/shape_shifter.h>
 #include <unistd.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <array>
 #include <cstdio>
@@ -152,6 +154,23 @@ std::map<std::string, long> countsByTopic(const std::string& path) {
   return counts;
 }
 
+// The markers messages a replay sends for a bag: play_bag splits a message whose markers carry
+// several stamps (a strike's frames ride with the next boundary's markers) into one per run of
+// equal stamps.
+long replayedMarkerMessages(const std::string& path) {
+  rosbag::Bag bag(path, rosbag::bagmode::Read);
+  long n = 0;
+  for (const rosbag::MessageInstance& m :
+       rosbag::View(bag, rosbag::TopicQuery(std::vector<std::string>{"/markers"}))) {
+    const auto msg = m.instantiate<visualization_msgs::MarkerArray>();
+    if (!msg) continue;
+    for (size_t i = 0; i < msg->markers.size(); ++i)
+      n += i == 0 || msg->markers[i].header.stamp != msg->markers[i - 1].header.stamp;
+    n += msg->markers.empty();
+  }
+  return n;
+}
+
 // A bounded run at real_time_factor 0 in sim clock mode, with speed commands sent while it
 // runs; everything lands in run.bag. The run (2 s of simulated time) is long enough for the
 // commands to land mid-run on a machine up to some 40 times faster than real time.
@@ -222,6 +241,11 @@ TEST(Launch, ReplaysWithTheSameCounts) {
   auto counts = countsByTopic(g_dir + "/run.bag");
   ASSERT_FALSE(counts.empty());
   counts.erase("/clock");  // rosbag play publishes its own /clock instead
+  const long recorded_markers = counts["/markers"];
+  counts["/markers"] = replayedMarkerMessages(g_dir + "/run.bag");
+  std::printf("/markers: %ld messages recorded, %ld replayed (the strike's frames split)\n",
+              recorded_markers, counts["/markers"]);
+  EXPECT_GT(counts["/markers"], recorded_markers) << "the recording holds no strike frames";
 
   ros::NodeHandle nh;
   std::mutex mutex;

@@ -1,11 +1,15 @@
 // Unit tests of StepSampler (no ROS master): strike samples are the integrator's accepted
-// steps, and sampling leaves the run as `simulate` has it (issue 24 item 1).
+// steps, and sampling leaves the run as `simulate` has it (issue 24 item 1). And the strike's
+// frames drawn from them (StrikeFrames, issue 24 "replays that move").
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <cstdio>
 #include <string>
 #include <vector>
 
 #include "threshing_sim/ros/live_view.h"
+#include "threshing_sim/ros/physics_loop.h"
 #include "threshing_sim/ros/step_sampler.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -93,6 +97,59 @@ TEST(StepSampler, TimeSteppingAndIslandsAreNotSampledStepByStep) {
   model.integrator.type = IntegratorType::kTimeStepping;
   EXPECT_FALSE(StepSampler::samplesSteps(model));
   EXPECT_FALSE(StepSampler(model, true, 3e-5).enabled());
+}
+
+// The default strike's frames, as the node takes them at factor 0: at least 20 inside the
+// contact (one per us of its 33 us), on the 1 us grid, strictly between the physics boundaries
+// (whose own snapshots draw the state there) and increasing; the kernel, pushed up by the
+// tooth, never moves back between frames (the interpolant stays between the accepted steps);
+// and the run is bit for bit the run without frames.
+TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) {
+  const Model model = loadScene(scene("config/default_scene.yaml"));
+  constexpr double kEnd_s = 1e-3;
+  constexpr std::int64_t kStep_ns = 10000;
+  Data data;
+  resetData(model, &data);
+  StepSampler sampler(model, true, 3 * kPhysicsStep_s);
+  StrikeRecorder strikes(kPhysicsStep_s);
+  StrikeFrames frames;
+  std::vector<FrameState> got;
+  std::vector<long> boundary_of;
+  for (long k = 1; k * kPhysicsStep_s < kEnd_s + 1e-12; ++k) {
+    frames.start(data);
+    const StepStatus s = sampler.advance(model, &data, k * kPhysicsStep_s, [&](const Data& d) {
+      strikes.sample(d);
+      frames.sample(d, k * kStep_ns, [&](const FrameState& f) {
+        got.push_back(f);
+        boundary_of.push_back(k);
+      });
+    });
+    ASSERT_NE(s, StepStatus::kFailed);
+    data.events.clear();
+  }
+  ASSERT_EQ(strikes.finished().size(), 1u);
+  const StrikeRecord& r = strikes.finished().front();
+  const int o = model.kernels[0].dof_offset;
+  long in_contact = 0;
+  double last_y_m = -1e9;
+  for (size_t i = 0; i < got.size(); ++i) {
+    EXPECT_EQ(got[i].t_ns % StrikeFrames::kFrame_ns, 0);
+    EXPECT_LT(got[i].t_ns, boundary_of[i] * kStep_ns);
+    EXPECT_GT(got[i].t_ns, (boundary_of[i] - 1) * kStep_ns);
+    if (i > 0) {
+      EXPECT_GT(got[i].t_ns, got[i - 1].t_ns);
+    }
+    if (got[i].t_s < r.t_s.front() || got[i].t_s > r.t_s.back()) continue;
+    ++in_contact;
+    EXPECT_GE(got[i].z[o + 1], last_y_m - 1e-12) << "the kernel moved back at " << got[i].t_s;
+    last_y_m = got[i].z[o + 1];
+  }
+  std::printf("%zu frames, %ld within the contact %.3f..%.3f us\n", got.size(), in_contact,
+              r.t_s.front() * 1e6, r.t_s.back() * 1e6);
+  EXPECT_GE(in_contact, 20);
+  EXPECT_LT(got.size(), 60u);  // only around the strike
+  const NodeRun plain = runNode(model, kEnd_s, true);
+  EXPECT_TRUE(plain.data.z == data.z && plain.data.u == data.u && plain.data.t_s == data.t_s);
 }
 
 }  // namespace

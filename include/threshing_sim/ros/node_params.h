@@ -42,6 +42,7 @@ struct NodeParams {
   double strike_sample_dt_s = 2e-7;  // strike history sampling, 0 = per physics step [s]
   double free_flight_factor = 0;     // factor away from contacts, 0 = real_time_factor [-]
   bool wait_for_viewer = false;      // hold t = 0 (publishing markers) until rviz listens
+  bool strike_frames = true;         // factor 0, sim clock: markers every 1 us through strikes
 };
 
 // A relative path resolved against ~scene_base_dir (the launch's working directory), else

@@ -9,11 +9,14 @@
 //    time at real_time_factor 0, wall time otherwise);
 //  - Pace: the factor the pacer aims at (slow near strikes, ~free_flight_factor away from them,
 //    as fast as possible during ~skip_to_contact);
-//  - PhysicsLoop: the loop, pausing, ~step, resets, reconfiguration and snapshots.
+//  - PhysicsLoop: the loop, pausing, ~step, resets, reconfiguration and snapshots; at
+//    real_time_factor 0 (a recording) also the strike's frames (StrikeFrames: markers every
+//    1 us of simulated time through a strike), so that a replay can show the strike.
 #pragma once
 
 #include <ros/publisher.h>
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -62,6 +65,46 @@ class Pace {
   bool skip_saw_free_ = false;  // the skip has passed free flight
 };
 
+// The strike's frames of a recording (real-time factor 0, sim clock): the states drawn every
+// kFrame_ns of simulated time (1 us: 33 frames for the default scene's 33 us strike) while a
+// tooth-kernel pair is closed at either end of an accepted integrator step. Each frame is the
+// cubic Hermite interpolant (positions and their derivatives u = dz/dt) between the two
+// accepted steps around it, which the sampler hands over; the integrator's steps are not
+// changed. A frame is only drawn strictly between two step boundaries (the boundary's own
+// snapshot draws the state there), so the frames' stamps increase.
+struct FrameState {
+  std::int64_t t_ns = 0;  // the frame's time [ns]
+  double t_s = 0, theta_rad = 0, omega_radps = 0;
+  VecX z, u;
+  std::vector<ContactInfo> contacts;  // those of the nearer accepted step, forces interpolated
+};
+
+class StrikeFrames {
+ public:
+  static constexpr std::int64_t kFrame_ns = 1000;  // frame spacing in simulated time [ns]
+  // Frames of one stretch of closed tooth-kernel contact at most (a kernel resting on a tooth
+  // would otherwise add a frame per us for as long as it rests) [-].
+  static constexpr long kMaxEpisodeFrames = 200;
+  // The state at a step boundary, where the next interpolation starts (after any reset).
+  void start(const Data& data);
+  // The state after an accepted step (or at the end of the physics step ending at boundary_ns):
+  // calls emit(frame) for every frame time in (previous state, data.t_s] before boundary_ns.
+  void sample(const Data& data, std::int64_t boundary_ns,
+              const std::function<void(const FrameState&)>& emit);
+
+ private:
+  struct State {
+    double t_s = 0, theta_rad = 0, omega_radps = 0;
+    VecX z, u;
+    std::vector<ContactInfo> contacts;
+    bool closed = false;  // a tooth-kernel pair is closed
+  };
+  static void copy(const Data& data, State* s);
+  State prev_, next_;
+  FrameState frame_;
+  long episode_frames_ = 0;  // frames of the current stretch of closed contact
+};
+
 // What the physics thread reads of the ROS interface: the outputs whose subscribers it waits
 // for, and how it hands back the contact values in force after a refused reconfiguration.
 struct PhysicsHooks {
@@ -95,7 +138,8 @@ class PhysicsLoop {
   void tryPendingReset();
   void finishReset(bool done, const std::string& message);
   void adjustPace();
-  void takeSnapshot(unsigned streams);
+  void takeSnapshot(unsigned streams, bool frame_only = false);
+  void takeFrame(const FrameState& frame);
   void publishCounters();
 
   struct ResetRequest {
@@ -122,12 +166,14 @@ class PhysicsLoop {
   DemoLoop demo_;
   long reset_steps_ = 0;  // reset the bodies every this many steps, 0 = never
   ResetRequest reset_;
-  bool pending_reset_ = false;        // the next snapshot starts the markers over
-  ThreadCpuClock cpu_clock_;          // the physics thread's CPU time
-  StepMeter step_meter_{cpu_clock_};  // longest step since the last drum command
-  double start_wall_s_ = 0;           // steady time the stepping began [s]
-  double run_wall_s_ = 0;             // wall time from then until the thread ended [s]
-  double last_paused_publish_s_ = 0;  // steady time of the last paused republish [s]
+  bool pending_reset_ = false;            // the next snapshot starts the markers over
+  StrikeFrames frames_;                   // the strike's frames at factor 0
+  std::vector<Snapshot> frames_pending_;  // frames for the next snapshot
+  ThreadCpuClock cpu_clock_;              // the physics thread's CPU time
+  StepMeter step_meter_{cpu_clock_};      // longest step since the last drum command
+  double start_wall_s_ = 0;               // steady time the stepping began [s]
+  double run_wall_s_ = 0;                 // wall time from then until the thread ended [s]
+  double last_paused_publish_s_ = 0;      // steady time of the last paused republish [s]
 };
 
 }  // namespace threshing_sim

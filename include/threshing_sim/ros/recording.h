@@ -8,6 +8,7 @@
 //    re-simulated) or ~command_schedule (timed commands), and the boundary a bounded run ends at.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,14 +29,18 @@ class StrikeLog {
   // global scheme), its step (time stepping) or the physics step (island scheme).
   StrikeLog(const Model& model, const NodeParams& params, double dt_s);
 
-  // Advances data to boundary time t_s, sampling strikes and kernel impulses on the way.
-  StepStatus advance(const Model& model, Data* data, double t_s);
+  // Advances data to boundary time t_s, sampling strikes and kernel impulses on the way. With
+  // `sample`, also calls sample(data) with every state the sampler hands over (after each
+  // accepted step near a strike, and at the end): the strike's frames (StrikeFrames).
+  StepStatus advance(const Model& model, Data* data, double t_s,
+                     const std::function<void(const Data&)>& sample = {});
   // After boundary `step`: the completed impacts of data.events (cleared) and the pairs' peaks.
   void afterStep(Data* data, long step);
   void noteCommand(const AppliedCommand& c) { commands_.push_back(c); }
   // The bodies moved (reset, re-seed): open strikes and impulse sums are forgotten.
   void clearStrikes();
   void clearPeaks() { peaks_.clear(); }
+  const std::vector<PeakContact>& peaks() const { return peaks_; }
   // Moves what was recorded since the previous snapshot into s (kernel forces, strike focus on
   // the state stream, finished strikes, impacts, commands, peaks).
   void fill(const Model& model, const Data& data, Snapshot* s);

@@ -70,6 +70,12 @@ struct Snapshot {
   std::vector<StrikeRecord> strikes;        // strikes finished since the previous snapshot
   unsigned streams = 0;                     // Stream bits due
   bool reset = false;                       // bodies were reset: markers start with DELETEALL
+  bool frame = false;  // a strike's frame (StrikeFrames): markers of the bodies, contacts and
+                       // overlay only; rviz keeps the strike chart and status drawn last
+  // The strike's frames since the previous snapshot, oldest first: their markers go out in
+  // this snapshot's `markers` message, before its own, each marker stamped with its frame's
+  // time (scripts/play_bag splits them again), so that a burst of frames is one message.
+  std::vector<Snapshot> frames;
 };
 
 }  // namespace threshing_sim
