@@ -100,10 +100,42 @@ Vec2 contactVelocityDrift(const Model& m, const VecX& z, const VecX& u, const Dr
 }
 
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f) {
+  const double fr = residualForceFactor(g, fn);
   for (const BodyJac& s : g.side) {
     if (s.body < 0 || s.w_n.size() == 0) continue;
     f->segment(bodyDofOffset(m, s.body), s.w_n.size()) += fn * s.w_n + ft * s.w_t;
+    if (fr != 0.0 && s.w_r.size() == s.w_n.size())
+      f->segment(bodyDofOffset(m, s.body), s.w_r.size()) += fr * s.w_r;
   }
+}
+
+namespace {
+
+// Fritsch-Butland slope of a monotone cubic Hermite interpolant at a node between the secants
+// d_left and d_right [any unit]: their harmonic mean where they agree in sign, else 0.
+double hermiteNodeSlope(double d_left, double d_right) {
+  if (!(d_left * d_right > 0.0)) return 0.0;
+  return 2.0 * d_left * d_right / (d_left + d_right);
+}
+
+}  // namespace
+
+double residualSmoothAt(const VecX& table, double length_m, double x_m, double* d_dx) {
+  const int last = static_cast<int>(table.size()) - 1;
+  const double h_m = length_m / last;  // node spacing [m]
+  const double u = std::clamp(x_m / length_m, 0.0, 1.0) * last;
+  const int s = std::min(static_cast<int>(u), last - 1);
+  const double f = u - s;  // position in the interval [s, s + 1] [-]
+  // Secants of the intervals s - 1, s, s + 1 (one-sided at the ends) [m/N per m].
+  const double d_mid = (table[s + 1] - table[s]) / h_m;
+  const double d_left = s > 0 ? (table[s] - table[s - 1]) / h_m : d_mid;
+  const double d_right = s + 1 < last ? (table[s + 2] - table[s + 1]) / h_m : d_mid;
+  const double m0 = s > 0 ? hermiteNodeSlope(d_left, d_mid) : d_mid;
+  const double m1 = s + 1 < last ? hermiteNodeSlope(d_mid, d_right) : d_mid;
+  const double f2 = f * f, f3 = f2 * f;
+  *d_dx = 6.0 * (f - f2) * d_mid + (3.0 * f2 - 4.0 * f + 1.0) * m0 + (3.0 * f2 - 2.0 * f) * m1;
+  return (2.0 * f3 - 3.0 * f2 + 1.0) * table[s] + (f3 - 2.0 * f2 + f) * h_m * m0 +
+         (3.0 * f2 - 2.0 * f3) * table[s + 1] + (f3 - f2) * h_m * m1;
 }
 
 namespace {
@@ -177,18 +209,23 @@ double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mp
 }
 
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
-                                double acc_n_mps2) {
+                                double acc_n_mps2, double r_rate_mpNps) {
   const double delta = -g.gap_m;
   if (delta <= 0.0) return 0.0;
   const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
   const SeriesHertz h{K, chi, std::max(g.residual_mpN, 0.0), -g.vn};
   const double x = h.r > 0.0 ? seriesIndentation(h, delta) : delta;
   double d_x, d_rate;
-  if (h.force(x, &d_x, &d_rate) <= 0.0) return 0.0;
-  // x + r Phi(x, rate) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
-  // delta'', with delta' = -g_N', delta'' = -g_N''.
-  const double x_rate = (h.rate + h.r * d_rate * acc_n_mps2) / (1.0 + h.r * d_x);
-  return d_x * x_rate - d_rate * acc_n_mps2;
+  const double f = h.force(x, &d_x, &d_rate);
+  if (f <= 0.0) return 0.0;
+  // Phi's derivative in r through the damping's split, D = 1 + chi rate / (1 + r s) [N^2/m].
+  const double s = 1.5 * K * std::sqrt(x), split = 1.0 + h.r * s;
+  const double d_r = -K * x * std::sqrt(x) * chi * h.rate * s / (split * split);
+  // x + r Phi(x, rate, r) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
+  // delta'' - r' (Phi + r Phi_r), with delta' = -g_N', delta'' = -g_N''.
+  const double x_rate =
+      (h.rate + h.r * d_rate * acc_n_mps2 - r_rate_mpNps * (f + h.r * d_r)) / (1.0 + h.r * d_x);
+  return d_x * x_rate - d_rate * acc_n_mps2 + d_r * r_rate_mpNps;
 }
 
 }  // namespace internal
