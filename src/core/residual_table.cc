@@ -195,12 +195,24 @@ StationFlexibility clamped(const Sample& r) {
   return f;
 }
 
+// The modes the residual subtracts: the tooth's own, or with a cut-off (residual_modes >
+// n_modes, docs/model.md §9b) those of a copy compiled with residual_modes modes, in *wide.
+const ToothModel& residualBasis(const ToothModel& tooth, double drum_radius_m, ToothModel* wide) {
+  if (tooth.residual_modes <= tooth.n_modes) return tooth;
+  *wide = tooth;
+  wide->n_modes = tooth.residual_modes;
+  compileTooth(drum_radius_m, wide);
+  return *wide;
+}
+
 }  // namespace
 
 StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
                                        double omega_radps) {
   if (tooth.n_modes == 0) return clamped(Sample::Zero());
-  return clamped(ResidualSampler(tooth, drum_radius_m).at(omega_radps));
+  ToothModel wide;
+  const ToothModel& basis = residualBasis(tooth, drum_radius_m, &wide);
+  return clamped(ResidualSampler(basis, drum_radius_m).at(omega_radps));
 }
 
 void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
@@ -216,7 +228,8 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
     return;
   }
   // The tables at the scene's speed, then over [0, max(speed_bound, |omega|)^2] in Omega^2.
-  const ResidualSampler sample(t, drum_radius_m);
+  ToothModel wide;
+  const ResidualSampler sample(residualBasis(t, drum_radius_m, &wide), drum_radius_m);
   Sample exact;
   const StationFlexibility r = clamped(sample.at(omega_radps, &exact));
   t.residual_ww = r.ww;

@@ -458,5 +458,56 @@ TEST(StaticCorrection, AutomaticModeCount) {
   EXPECT_EQ(m.teeth[0].n_modes, 4);
 }
 
+// The residual's cut-off (docs/model.md §9b, "When the truncated modes are not fast"): the
+// rubber tooth of hard case 07 at 4 modes leaves out its truncated modes slower than the
+// contact, pi / t_c (at rest), and its residual is the static flexibility minus those m modes;
+// the default nylon tooth at 4 modes, automatic counts and a tooth without correction are not
+// cut.
+TEST(StaticCorrection, ResidualLeavesOutTruncatedModesSlowerThanTheContact) {
+  Model nylon = testutil::defaultSceneModel();
+  compileModel(&nylon);
+  EXPECT_EQ(nylon.teeth[0].residual_modes, 4);
+  Model rubber = testutil::defaultSceneModel();
+  rubber.drum.initial_speed_radps = 157.08;
+  ToothModel& r = rubber.teeth[0];
+  r.diameter_m = 0.006;
+  r.youngs_modulus_Pa = 1.5e6;
+  r.density_kgpm3 = 950.0;
+  r.poisson_ratio = 0.49;
+  Model auto_count = rubber, off = rubber;
+  compileModel(&rubber);
+  const ToothModel& t = rubber.teeth[0];
+  const int m = t.residual_modes;
+  ASSERT_GT(m, t.n_modes);
+  ASSERT_GT(t.residual_contact_time_s, 0.0);
+  // Modes n + 1 .. m below pi / t_c at rest, mode m + 1 above.
+  ToothModel wide = t;
+  wide.n_modes = m + 1;
+  compileTooth(rubber.drum.radius_m, &wide);
+  const double omega_c = kPi / t.residual_contact_time_s;
+  for (int j = t.n_modes; j < m; ++j) EXPECT_LT(std::sqrt(wide.omega0_sq[j]), omega_c) << j;
+  EXPECT_GE(std::sqrt(wide.omega0_sq[m]), omega_c);
+  // The residual is the static flexibility less the m modes' part, where not clamped.
+  wide.n_modes = m;
+  compileTooth(rubber.drum.radius_m, &wide);
+  const double omega = rubber.drum.initial_speed_radps;
+  const StationFlexibility exact =
+      staticFlexibility(t, rubber.drum.radius_m, omega, kResidualPoints);
+  const StationFlexibility modal = modalFlexibility(wide, omega, kResidualPoints);
+  const int tip = kResidualPoints - 1;
+  EXPECT_NEAR(t.residual_ww[tip], exact.ww[tip] - modal.ww[tip], 1e-9 * exact.ww[tip]);
+  // Smaller than the residual of all truncated modes.
+  ToothModel uncut = t;
+  uncut.residual_modes = 0;
+  EXPECT_LT(t.residual_ww[tip],
+            0.5 * residualFlexibility(uncut, rubber.drum.radius_m, omega).ww[tip]);
+  auto_count.teeth[0].n_modes = kAutoModes;
+  compileModel(&auto_count);
+  EXPECT_EQ(auto_count.teeth[0].residual_modes, auto_count.teeth[0].n_modes);
+  off.teeth[0].static_correction = false;
+  compileModel(&off);
+  EXPECT_EQ(off.teeth[0].residual_modes, off.teeth[0].n_modes);
+}
+
 }  // namespace
 }  // namespace threshing_sim

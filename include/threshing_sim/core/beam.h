@@ -105,7 +105,8 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
 // Residual flexibility of the truncated modes (static minus modal, clamped so that each
 // point's 2 x 2 block stays positive semidefinite) at drum speed omega_radps, at
 // kResidualPoints points. Zero for a rigid tooth (n_modes = 0 means rigid, not "all modes
-// truncated"). Needs compileTooth.
+// truncated"). With a cut-off (ToothModel::residual_modes > n_modes) the modes up to
+// residual_modes are subtracted: the slow truncated ones are in neither part. Needs compileTooth.
 StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
                                        double omega_radps);
 
