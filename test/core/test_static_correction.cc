@@ -332,6 +332,20 @@ TEST(StaticCorrection, SeriesHertzLawAndItsRate) {
                          (2 * dt);
   const double analytic = internal::compliantNormalForceRate(at(0), K, 1.5, 1e-2, -a);
   EXPECT_NEAR(analytic, numeric, 1e-5 * std::abs(numeric));
+
+  // With the residual itself changing, r(t) = r + r' t (the contact point sliding).
+  const double r_rate = 0.4 * r / 1e-4;  // 40 % of r over a contact time of 0.1 ms [m/(N s)]
+  auto at_r = [&](double t) {
+    internal::ContactGeom h = at(t);
+    h.residual_mpN = r + r_rate * t;
+    return h;
+  };
+  const double numeric_r = (internal::compliantNormalForce(at_r(dt), K, 1.5, 1e-2) -
+                            internal::compliantNormalForce(at_r(-dt), K, 1.5, 1e-2)) /
+                           (2 * dt);
+  const double analytic_r = internal::compliantNormalForceRate(at_r(0), K, 1.5, 1e-2, -a, r_rate);
+  EXPECT_NEAR(analytic_r, numeric_r, 1e-5 * std::abs(numeric_r));
+  EXPECT_GT(std::abs(analytic_r - analytic), 1e-3 * std::abs(analytic));  // r' matters
 }
 
 // The residual table's C^1 interpolant (residualSmoothAt): through the table's values, its

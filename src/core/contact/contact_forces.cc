@@ -242,18 +242,23 @@ double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mp
 }
 
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
-                                double acc_n_mps2) {
+                                double acc_n_mps2, double r_rate_mpNps) {
   const double delta = -g.gap_m;
   if (delta <= 0.0) return 0.0;
   const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
   const SeriesHertz h{K, chi, std::max(g.residual_mpN, 0.0), -g.vn};
   const double x = h.r > 0.0 ? seriesIndentation(h, delta) : delta;
   double d_x, d_rate;
-  if (h.force(x, &d_x, &d_rate) <= 0.0) return 0.0;
-  // x + r Phi(x, rate) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
-  // delta'', with delta' = -g_N', delta'' = -g_N''.
-  const double x_rate = (h.rate + h.r * d_rate * acc_n_mps2) / (1.0 + h.r * d_x);
-  return d_x * x_rate - d_rate * acc_n_mps2;
+  const double f = h.force(x, &d_x, &d_rate);
+  if (f <= 0.0) return 0.0;
+  // Phi's derivative in r through the damping's split, D = 1 + chi rate / (1 + r s) [N^2/m].
+  const double s = 1.5 * K * std::sqrt(x), split = 1.0 + h.r * s;
+  const double d_r = -K * x * std::sqrt(x) * chi * h.rate * s / (split * split);
+  // x + r Phi(x, rate, r) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
+  // delta'' - r' (Phi + r Phi_r), with delta' = -g_N', delta'' = -g_N''.
+  const double x_rate =
+      (h.rate + h.r * d_rate * acc_n_mps2 - r_rate_mpNps * (f + h.r * d_r)) / (1.0 + h.r * d_x);
+  return d_x * x_rate - d_rate * acc_n_mps2 + d_r * r_rate_mpNps;
 }
 
 }  // namespace internal

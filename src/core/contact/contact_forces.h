@@ -55,10 +55,11 @@ double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, dou
 // event function of a compliant contact's release) [N].
 double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
                                   double v_floor_mps);
-// Its time derivative [N/s] given the normal relative acceleration g_N'' [m/s^2] (implicit
-// differentiation of the relation above).
+// Its time derivative [N/s] given the normal relative acceleration g_N'' [m/s^2] and the rate of
+// the residual flexibility r' [m/(N s)] (the contact point sliding, the normal turning: w_r . u
+// + Omega dR/dtheta) (implicit differentiation of the relation above).
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
-                                double acc_n_mps2);
+                                double acc_n_mps2, double r_rate_mpNps = 0.0);
 
 }  // namespace internal
 }  // namespace threshing_sim

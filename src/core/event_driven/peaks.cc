@@ -31,9 +31,16 @@ double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& 
     if (s.body < 0 || s.w_n.size() == 0) continue;
     acc_mps2 += s.w_n.dot(udot.segment(bodyDofOffset(c.m, s.body), s.w_n.size()));
   }
-  if (g.residual_mpN > 0.0)  // the residual spring in series (static correction)
+  if (g.residual_mpN > 0.0) {  // the residual spring in series (static correction)
+    const Drive drive = driveAtTime(c, t);
+    double r_rate_mpNps = drive.omega_radps * g.residual_dtheta_mpNprad;  // R' [m/(N s)]
+    for (const BodyJac& s : g.side) {
+      if (s.body < 0 || s.w_r.size() == 0) continue;
+      r_rate_mpNps += s.w_r.dot(u.segment(bodyDofOffset(c.m, s.body), s.w_r.size()));
+    }
     return compliantNormalForceRate(g, mem.hertz_K, mem.v_in_mps, c.m.hc_min_impact_speed_mps,
-                                    acc_mps2);
+                                    acc_mps2, r_rate_mpNps);
+  }
   const double sq = std::sqrt(delta_m);
   return mem.hertz_K *
          (1.5 * sq * rate_mps * (1.0 + chi_spm * rate_mps) - delta_m * sq * chi_spm * acc_mps2);
