@@ -43,6 +43,13 @@ void printModes(const Model& model) {
       std::printf("  modes: auto (Hertz contact time estimate %.3g us, see README)\n",
                   tooth.contact_time_s * 1e6);
     }
+    if (tooth.residual_modes > tooth.n_modes) {
+      std::printf(
+          "  static correction from mode %d on: the truncated modes below it are slower than "
+          "the contact (Hertz time %.3g us) and left out (docs/model.md 9b; modes: auto or more "
+          "modes keeps them)\n",
+          tooth.residual_modes + 1, tooth.residual_contact_time_s * 1e6);
+    }
     if (tooth.n_modes == 0) {
       std::printf("  rigid tooth: no bending modes\n");
       continue;

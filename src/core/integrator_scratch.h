@@ -137,6 +137,9 @@ struct EventDrivenScratch {
   std::vector<std::uint8_t> pk_on, pk_on_end;
   // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
   VecX pk_udot;
+  // The candidates' narrow-phase warm starts (PairMemory::warm_*) before the probes, restored
+  // after them: 4 values per candidate pair.
+  std::vector<double> pk_warm;
   internal::RhsMemo memo;            // the last right-hand side's inputs
   internal::StateValues end_values;  // momentum at the last step end (the energy slot unused)
 };

@@ -76,16 +76,19 @@ double huntCrossleyFactor(double restitution) {
 namespace {
 
 // Shortest Hertz contact time [s] of a kernel of the model struck by the flank of tooth t at
-// its tip speed |Omega_0| (R + L) (at least 1 m/s): F = K delta^{3/2} with K = 4/3 E* sqrt(R*),
-// the kernel's sharpest in-plane curvature b^2 / a against the flat flank, b against the round
-// section across; t_c = 2.9432 delta_max / v with delta_max = (5 m v^2 / (4 K))^{2/5}.
-// Infinite without kernels or with non-physical kernel values (validated later).
-double shortestContactTime(const Model& m, const ToothModel& t) {
-  const double v =
-      std::max(std::abs(m.drum.initial_speed_radps) * (m.drum.radius_m + t.length_m), 1.0);
+// its tip speed |Omega_0| (R + L) (plus the kernel's own initial speed with
+// add_kernel_speeds, an upper bound of the approach speed; at least 1 m/s): F = K delta^{3/2}
+// with K = 4/3 E* sqrt(R*), the kernel's sharpest in-plane curvature b^2 / a against the flat
+// flank, b against the round section across; t_c = 2.9432 delta_max / v with
+// delta_max = (5 m v^2 / (4 K))^{2/5}. Infinite without kernels or with non-physical kernel
+// values (validated later).
+double shortestContactTime(const Model& m, const ToothModel& t, bool add_kernel_speeds = false) {
+  const double v_tip = std::abs(m.drum.initial_speed_radps) * (m.drum.radius_m + t.length_m);
   const double r_t = 0.5 * t.diameter_m;
   double t_c = std::numeric_limits<double>::infinity();
   for (const KernelModel& k : m.kernels) {
+    const double v =
+        std::max(v_tip + (add_kernel_speeds ? k.initial_velocity_mps.norm() : 0.0), 1.0);
     const double e_star = 1.0 / ((1 - t.poisson_ratio * t.poisson_ratio) / t.youngs_modulus_Pa +
                                  (1 - k.poisson_ratio * k.poisson_ratio) / k.youngs_modulus_Pa);
     const double r_in = k.semi_axis_b_m * k.semi_axis_b_m / k.semi_axis_a_m;
@@ -96,6 +99,14 @@ double shortestContactTime(const Model& m, const ToothModel& t) {
     if (std::isfinite(tk) && tk > 0.0) t_c = std::min(t_c, tk);
   }
   return t_c;
+}
+
+// Circular frequency at rest per (beta L)^2 of the clamped-free tooth t, sqrt(EI / rho A) / L^2
+// [rad/s].
+double cantileverFrequencyScale(const ToothModel& t) {
+  const double area = kPi * t.diameter_m * t.diameter_m / 4;
+  const double EI = t.youngs_modulus_Pa * area * t.diameter_m * t.diameter_m / 16;
+  return std::sqrt(EI / (t.density_kgpm3 * area)) / (t.length_m * t.length_m);
 }
 
 // The automatic mode count (teeth.*.modes: auto). A retained mode of circular frequency omega
@@ -111,11 +122,27 @@ int chooseModeCount(const Model& m, const ToothModel& t, double t_c) {
   if (!std::isfinite(t_c)) return 4;
   const double eps = std::max(m.integrator.tolerance, 2.5e-4);
   const double omega_needed = kPi / t_c / std::sqrt(eps);
-  const double area = kPi * t.diameter_m * t.diameter_m / 4;
-  const double EI = t.youngs_modulus_Pa * area * t.diameter_m * t.diameter_m / 16;
-  const double scale = std::sqrt(EI / (t.density_kgpm3 * area)) / (t.length_m * t.length_m);
+  const double scale = cantileverFrequencyScale(t);
   int n = 2;
   while (n < kMaxModes && std::pow(cantileverBetaL(n), 2) * scale < omega_needed) ++n;
+  return n;
+}
+
+// The residual's cut-off (docs/model.md §9b, "When the truncated modes are not fast"). The
+// static correction treats a truncated mode as a massless spring: right for a mode much faster
+// than the contact pulse, which follows the force; a mode slower than the pulse's own
+// frequency omega_c = pi / t_c (half its period longer than the contact) barely moves during
+// it, and as a spring it would deflect by up to (omega_c / omega)^2 too much, and tilt the
+// normal by as much. Such modes are left out of the correction (the tooth is stiff in them,
+// as without it). Returns the number of modes the residual subtracts: n_modes, plus the
+// truncated modes below omega_c (at rest, the lowest, so the cut is on the safe side), at
+// most kMaxModes; t_c from the tip and kernel speeds added (the shortest contact).
+int residualModeCount(const Model& m, const ToothModel& t) {
+  const double t_c = shortestContactTime(m, t, true);
+  if (!t.static_correction || t.n_modes <= 0 || !std::isfinite(t_c)) return t.n_modes;
+  const double omega_c = kPi / t_c, scale = cantileverFrequencyScale(t);
+  int n = t.n_modes;
+  while (n < kMaxModes && std::pow(cantileverBetaL(n), 2) * scale < omega_c) ++n;
   return n;
 }
 // The drum and the global values: checked.
@@ -188,6 +215,8 @@ void compileToothAt(Model* model, size_t k) {
   }
   // The rod truncates no modes: there is no residual flexibility to correct.
   if (rod) t.static_correction = false;
+  t.residual_modes = residualModeCount(m, t);
+  t.residual_contact_time_s = t.residual_modes > 0 ? shortestContactTime(m, t, true) : 0.0;
   try {
     if (!copyTwin(&m, k)) {
       compileTooth(m.drum.radius_m, &m.teeth[k]);

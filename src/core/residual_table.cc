@@ -206,12 +206,24 @@ StationFlexibility clamped(const Sample& r) {
   return f;
 }
 
+// The modes the residual subtracts: the tooth's own, or with a cut-off (residual_modes >
+// n_modes, docs/model.md §9b) those of a copy compiled with residual_modes modes, in *wide.
+const ToothModel& residualBasis(const ToothModel& tooth, double drum_radius_m, ToothModel* wide) {
+  if (tooth.residual_modes <= tooth.n_modes) return tooth;
+  *wide = tooth;
+  wide->n_modes = tooth.residual_modes;
+  compileTooth(drum_radius_m, wide);
+  return *wide;
+}
+
 }  // namespace
 
 StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
                                        double omega_radps) {
   if (tooth.n_modes == 0) return clamped(Sample::Zero());
-  return clamped(ResidualSampler(tooth, drum_radius_m).at(omega_radps));
+  ToothModel wide;
+  const ToothModel& basis = residualBasis(tooth, drum_radius_m, &wide);
+  return clamped(ResidualSampler(basis, drum_radius_m).at(omega_radps));
 }
 
 void compileResidual(double drum_radius_m, double omega_radps, double speed_bound_radps,
@@ -226,9 +238,12 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
     t.residual_nodes_ww = t.residual_nodes_wt = t.residual_nodes_tt = MatX::Zero(P, 0);
     return;
   }
-  // The table over [0, max(speed_bound, |omega|)^2] in Omega^2, then the residual at the
-  // scene's speed from it (within the table's tolerance of the static solve, which it saves).
-  const ResidualSampler sample(t, drum_radius_m);
+  // The table over [0, max(speed_bound, |omega|)^2] in Omega^2 (from the residual's basis: the
+  // tooth's modes, or more when modes slower than the contact are left out of the residual),
+  // then the residual at the scene's speed from it (within the table's tolerance of the static
+  // solve, which it saves).
+  ToothModel wide;
+  const ResidualSampler sample(residualBasis(t, drum_radius_m, &wide), drum_radius_m);
   TableBuild build;
   const double bound = std::max(speed_bound_radps, std::abs(omega_radps));
   buildPanel(sample, 0.0, bound * bound, 0, &build);
@@ -249,6 +264,36 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
   t.residual_table_error = build.error;
 }
 
+namespace {
+
+// The panel of a compiled tooth's table over Omega^2 holding omega_radps^2 (clamped to the
+// table's range), with its Lagrange basis at that speed in ell.
+const ResidualPanel& panelAtSpeed(const ToothModel& t, double omega_radps, double* ell) {
+  const std::vector<ResidualPanel>& panels = t.residual_panels;
+  const double u = std::min(omega_radps * omega_radps, panels.back().u_hi_radps2);
+  size_t k = 0;
+  while (k + 1 < panels.size() && u > panels[k].u_hi_radps2) ++k;
+  const ResidualPanel& p = panels[k];
+  lobattoBasis(p.n_nodes,
+               (2.0 * u - p.u_lo_radps2 - p.u_hi_radps2) / (p.u_hi_radps2 - p.u_lo_radps2), ell);
+  return p;
+}
+
+// The block (ww, wt, tt) at table point s interpolated in Omega^2 by the basis ell of panel p,
+// clamped to positive semidefinite.
+void blockAtPoint(const ToothModel& t, const ResidualPanel& p, const double* ell, int s,
+                  double block[3]) {
+  block[0] = block[1] = block[2] = 0.0;
+  for (int j = 0; j < p.n_nodes; ++j) {
+    block[0] += ell[j] * t.residual_nodes_ww(s, p.first_node + j);
+    block[1] += ell[j] * t.residual_nodes_wt(s, p.first_node + j);
+    block[2] += ell[j] * t.residual_nodes_tt(s, p.first_node + j);
+  }
+  clampResidualBlock(&block[0], &block[1], &block[2]);
+}
+
+}  // namespace
+
 void residualAtSpeed(const ToothModel& t, double omega_radps, double x_m, double* ww, double* wt,
                      double* tt) {
   if (omega_radps == t.residual_omega_radps || t.residual_panels.empty()) {
@@ -257,35 +302,32 @@ void residualAtSpeed(const ToothModel& t, double omega_radps, double x_m, double
     *tt = residualAt(t.residual_tt, t.length_m, x_m);
     return;
   }
-  // The panel holding u = Omega^2 (targets are clamped to the table's range).
-  const std::vector<ResidualPanel>& panels = t.residual_panels;
-  const double u = std::min(omega_radps * omega_radps, panels.back().u_hi_radps2);
-  size_t k = 0;
-  while (k + 1 < panels.size() && u > panels[k].u_hi_radps2) ++k;
-  const ResidualPanel& p = panels[k];
   std::array<double, kFineNodes> ell;
-  lobattoBasis(p.n_nodes,
-               (2.0 * u - p.u_lo_radps2 - p.u_hi_radps2) / (p.u_hi_radps2 - p.u_lo_radps2),
-               ell.data());
+  const ResidualPanel& p = panelAtSpeed(t, omega_radps, ell.data());
   // The two points around x, each interpolated in u and clamped, then blended linearly in x.
   const int last = kResidualPoints - 1;
   const double pos = std::clamp(x_m / t.length_m, 0.0, 1.0) * last;
   const int s = std::min(static_cast<int>(pos), last - 1);
   const double f = pos - s;
   double block[2][3];
-  for (int q = 0; q < 2; ++q) {
-    double sum[3] = {0.0, 0.0, 0.0};
-    for (int j = 0; j < p.n_nodes; ++j) {
-      sum[0] += ell[j] * t.residual_nodes_ww(s + q, p.first_node + j);
-      sum[1] += ell[j] * t.residual_nodes_wt(s + q, p.first_node + j);
-      sum[2] += ell[j] * t.residual_nodes_tt(s + q, p.first_node + j);
-    }
-    clampResidualBlock(&sum[0], &sum[1], &sum[2]);
-    for (int c = 0; c < 3; ++c) block[q][c] = sum[c];
-  }
+  for (int q = 0; q < 2; ++q) blockAtPoint(t, p, ell.data(), s + q, block[q]);
   *ww = (1 - f) * block[0][0] + f * block[1][0];
   *wt = (1 - f) * block[0][1] + f * block[1][1];
   *tt = (1 - f) * block[0][2] + f * block[1][2];
+}
+
+void residualWwAtSpeed(const ToothModel& t, double omega_radps, int first, int count, double* ww) {
+  if (omega_radps == t.residual_omega_radps || t.residual_panels.empty()) {
+    for (int i = 0; i < count; ++i) ww[i] = t.residual_ww[first + i];
+    return;
+  }
+  std::array<double, kFineNodes> ell;
+  const ResidualPanel& p = panelAtSpeed(t, omega_radps, ell.data());
+  double block[3];
+  for (int i = 0; i < count; ++i) {
+    blockAtPoint(t, p, ell.data(), first + i, block);
+    ww[i] = block[0];
+  }
 }
 
 }  // namespace threshing_sim

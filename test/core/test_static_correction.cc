@@ -5,9 +5,11 @@
 
 #include <Eigen/LU>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "../../src/core/internal.h"
+#include "sim_test_util.h"
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/simulator.h"
@@ -337,6 +339,113 @@ TEST(StaticCorrection, SeriesHertzLawAndItsRate) {
                          (2 * dt);
   const double analytic = internal::compliantNormalForceRate(at(0), K, 1.5, 1e-2, -a);
   EXPECT_NEAR(analytic, numeric, 1e-5 * std::abs(numeric));
+
+  // With the residual itself changing, r(t) = r + r' t (the contact point sliding).
+  const double r_rate = 0.4 * r / 1e-4;  // 40 % of r over a contact time of 0.1 ms [m/(N s)]
+  auto at_r = [&](double t) {
+    internal::ContactGeom h = at(t);
+    h.residual_mpN = r + r_rate * t;
+    return h;
+  };
+  const double numeric_r = (internal::compliantNormalForce(at_r(dt), K, 1.5, 1e-2) -
+                            internal::compliantNormalForce(at_r(-dt), K, 1.5, 1e-2)) /
+                           (2 * dt);
+  const double analytic_r = internal::compliantNormalForceRate(at_r(0), K, 1.5, 1e-2, -a, r_rate);
+  EXPECT_NEAR(analytic_r, numeric_r, 1e-5 * std::abs(numeric_r));
+  EXPECT_GT(std::abs(analytic_r - analytic), 1e-3 * std::abs(analytic));  // r' matters
+}
+
+// The residual table's C^1 interpolant (residualSmoothAt): through the table's values, its
+// derivative continuous across the points and equal to the interpolant's slope, monotone and
+// of the table's sign, exact on straight lines.
+TEST(StaticCorrection, ResidualInterpolantIsSmooth) {
+  const ToothModel t = polyurethaneTooth(4);
+  const StationFlexibility r = residualFlexibility(t, 0.14, kRpm800_radps);
+  const double L = t.length_m, h = L / (kResidualPoints - 1);
+  double d_dx = 0.0, d_left = 0.0, d_right = 0.0;
+  for (int j = 0; j < kResidualPoints; ++j) {
+    const double x = j * h;
+    EXPECT_NEAR(internal::residualSmoothAt(r.ww, L, x, &d_dx), r.ww[j], 1e-14 * r.ww.maxCoeff());
+    if (j == 0 || j + 1 == kResidualPoints) continue;
+    const double eps = 1e-9 * h;
+    internal::residualSmoothAt(r.ww, L, x - eps, &d_left);
+    internal::residualSmoothAt(r.ww, L, x + eps, &d_right);
+    const double scale = r.ww.maxCoeff() / L;
+    EXPECT_NEAR(d_left, d_right, 1e-6 * scale) << "slope jumps at point " << j;
+  }
+  // Between the points: the derivative is that of the values; no undershoot below zero.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> uni(0.0, L);
+  for (int trial = 0; trial < 200; ++trial) {
+    const double x = uni(rng), eps = 1e-7 * L;
+    const double v = internal::residualSmoothAt(r.ww, L, x, &d_dx);
+    const double fd = (internal::residualSmoothAt(r.ww, L, x + eps, &d_left) -
+                       internal::residualSmoothAt(r.ww, L, x - eps, &d_right)) /
+                      (2 * eps);
+    EXPECT_NEAR(d_dx, fd, 1e-5 * r.ww.maxCoeff() / L) << x;
+    EXPECT_GE(v, 0.0) << x;
+  }
+  // A straight line stays one.
+  VecX line(kResidualPoints);
+  for (int j = 0; j < kResidualPoints; ++j) line[j] = 2.0 + 3.0 * j * h;
+  EXPECT_NEAR(internal::residualSmoothAt(line, L, 0.37 * L, &d_dx), 2.0 + 3.0 * 0.37 * L, 1e-13);
+  EXPECT_NEAR(d_dx, 3.0, 1e-12);
+}
+
+// The residual along n and its gradient (ContactGeom::residual_mpN, the sides' w_r and
+// residual_dtheta_mpNprad) against central differences of the narrow phase's residual along a
+// motion of the tooth's modes, the kernel and the drum: R' = w_r . u + Omega dR/dtheta. The
+// kernel slides along the tooth (x* moves) and turns the normal; random states along the side.
+TEST(StaticCorrection, ResidualGradientMatchesCentralDifferences) {
+  Model m;
+  m.drum.radius_m = 0.20;
+  m.drum.initial_speed_radps = 83.78;
+  m.teeth = {testutil::nylonTooth(4)};
+  m.kernels = {testutil::makeKernel(5.0e-3, 1.3e-3, Vec2(0.235, 0.012))};
+  compileModel(&m);
+  const ToothModel& tm = m.teeth[0];
+  const PairId pair{PairKind::kToothKernel, 0, 0};
+  const int o = m.kernels[0].dof_offset;
+  auto residualAt = [&](const VecX& z, const VecX& u, double theta, internal::ContactGeom* g) {
+    Workspace ws;
+    internal::updateStations(m, z, theta, &ws);
+    internal::Drive dr;
+    dr.theta_rad = theta;
+    dr.omega_radps = m.drum.initial_speed_radps;
+    internal::evaluateContact(m, z, u, dr, pair, &ws, g);
+    return g->residual_mpN;
+  };
+  std::mt19937 rng(23);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  for (int trial = 0; trial < 20; ++trial) {
+    VecX z = VecX::Zero(m.n_dof), u = VecX::Zero(m.n_dof);
+    const double theta = 0.03 + 0.2 * uni(rng), x_c = 0.03 + 0.022 * uni(rng);
+    for (int i = 0; i < 4; ++i) {
+      z[tm.dof_offset + i] = 5e-5 * uni(rng) / (i + 1);
+      u[tm.dof_offset + i] = 0.1 * uni(rng) / (i + 1);
+    }
+    const Vec2 c_D(0.2 + x_c, 0.005 + 1.3e-3 + 1e-4 * uni(rng));
+    z.segment<2>(o) = Vec2(std::cos(theta) * c_D.x() - std::sin(theta) * c_D.y(),
+                           std::sin(theta) * c_D.x() + std::cos(theta) * c_D.y());
+    z[o + 2] = theta + 0.5 * uni(rng);
+    u.segment<2>(o) = Vec2(20.0 * uni(rng), 20.0 * uni(rng));
+    u[o + 2] = 3000.0 * uni(rng);
+    internal::ContactGeom g;
+    const double R = residualAt(z, u, theta, &g);
+    ASSERT_GT(R, 0.0);
+    double analytic = m.drum.initial_speed_radps * g.residual_dtheta_mpNprad;
+    for (const internal::BodyJac& s : g.side)
+      analytic += s.w_r.dot(u.segment(internal::bodyDofOffset(m, s.body), s.w_r.size()));
+    const double eps_s = 1e-8;
+    auto along = [&](double dt) {
+      internal::ContactGeom h;
+      return residualAt(z + dt * u, u, theta + dt * m.drum.initial_speed_radps, &h);
+    };
+    const double fd = (along(eps_s) - along(-eps_s)) / (2 * eps_s);
+    // Relative to the rate of a residual that changes by itself over 1 ms.
+    EXPECT_NEAR(analytic, fd, 1e-4 * std::abs(fd) + 1e-6 * R / 1e-3)
+        << "trial " << trial << ", x* " << g.tooth_x_m;
+  }
 }
 
 // modes: auto picks more modes for a softer tooth (slower modes against the contact), never
@@ -368,6 +477,57 @@ TEST(StaticCorrection, AutomaticModeCount) {
   m.teeth[0].n_modes = kAutoModes;
   compileModel(&m);
   EXPECT_EQ(m.teeth[0].n_modes, 4);
+}
+
+// The residual's cut-off (docs/model.md §9b, "When the truncated modes are not fast"): the
+// rubber tooth of hard case 07 at 4 modes leaves out its truncated modes slower than the
+// contact, pi / t_c (at rest), and its residual is the static flexibility minus those m modes;
+// the default nylon tooth at 4 modes, automatic counts and a tooth without correction are not
+// cut.
+TEST(StaticCorrection, ResidualLeavesOutTruncatedModesSlowerThanTheContact) {
+  Model nylon = testutil::defaultSceneModel();
+  compileModel(&nylon);
+  EXPECT_EQ(nylon.teeth[0].residual_modes, 4);
+  Model rubber = testutil::defaultSceneModel();
+  rubber.drum.initial_speed_radps = 157.08;
+  ToothModel& r = rubber.teeth[0];
+  r.diameter_m = 0.006;
+  r.youngs_modulus_Pa = 1.5e6;
+  r.density_kgpm3 = 950.0;
+  r.poisson_ratio = 0.49;
+  Model auto_count = rubber, off = rubber;
+  compileModel(&rubber);
+  const ToothModel& t = rubber.teeth[0];
+  const int m = t.residual_modes;
+  ASSERT_GT(m, t.n_modes);
+  ASSERT_GT(t.residual_contact_time_s, 0.0);
+  // Modes n + 1 .. m below pi / t_c at rest, mode m + 1 above.
+  ToothModel wide = t;
+  wide.n_modes = m + 1;
+  compileTooth(rubber.drum.radius_m, &wide);
+  const double omega_c = kPi / t.residual_contact_time_s;
+  for (int j = t.n_modes; j < m; ++j) EXPECT_LT(std::sqrt(wide.omega0_sq[j]), omega_c) << j;
+  EXPECT_GE(std::sqrt(wide.omega0_sq[m]), omega_c);
+  // The residual is the static flexibility less the m modes' part, where not clamped.
+  wide.n_modes = m;
+  compileTooth(rubber.drum.radius_m, &wide);
+  const double omega = rubber.drum.initial_speed_radps;
+  const StationFlexibility exact =
+      staticFlexibility(t, rubber.drum.radius_m, omega, kResidualPoints);
+  const StationFlexibility modal = modalFlexibility(wide, omega, kResidualPoints);
+  const int tip = kResidualPoints - 1;
+  EXPECT_NEAR(t.residual_ww[tip], exact.ww[tip] - modal.ww[tip], 1e-9 * exact.ww[tip]);
+  // Smaller than the residual of all truncated modes.
+  ToothModel uncut = t;
+  uncut.residual_modes = 0;
+  EXPECT_LT(t.residual_ww[tip],
+            0.5 * residualFlexibility(uncut, rubber.drum.radius_m, omega).ww[tip]);
+  auto_count.teeth[0].n_modes = kAutoModes;
+  compileModel(&auto_count);
+  EXPECT_EQ(auto_count.teeth[0].residual_modes, auto_count.teeth[0].n_modes);
+  off.teeth[0].static_correction = false;
+  compileModel(&off);
+  EXPECT_EQ(off.teeth[0].residual_modes, off.teeth[0].n_modes);
 }
 
 }  // namespace

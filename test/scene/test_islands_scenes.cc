@@ -56,11 +56,11 @@ const Case kCases[] = {
     {"hard/09_drum_command.yaml", ""},
     {"bench/single_strike.yaml", ""},
     {"bench/single_strike_rigid.yaml", ""},
-    // The polyurethane knead without the static correction; with it, a known defect: the
-    // island scheme's force history runs about 1 us behind the global one and its peak normal
-    // force differs by 3e-4 (relative), beyond the global scheme's own error estimate
-    // (docs/architecture.md; checked to 1e-3 below).
+    // The polyurethane knead without and with the static correction (with it, the island
+    // scheme's peaks once ran about 1 us behind the global one: the peak locator's force rate
+    // held the residual fixed; docs/architecture.md).
     {"bench/knead_polyurethane.yaml", "", "teeth.*.static_correction=off"},
+    {"bench/knead_polyurethane.yaml", ""},
     {"bench/stream.yaml", ""},
     {"default_scene.yaml", ""},
     {"scenes/single_strike.yaml", ""},
@@ -135,15 +135,16 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
   }
 }
 
-// The polyurethane knead with the static correction (the known defect above): the peak forces
-// and the exit velocity within 1e-3 (relative) of the global scheme's, the same impacts.
-// At tolerance 1e-7 they agree to 1e-5: the difference follows the tolerance. Measured with
-// the Euler-Bernoulli sections the defect was found with: with the shear-corrected ones the
-// peak normal force itself moves by 1e-4 between tolerances (40.4430, 40.4437, 40.4422,
-// 40.4437 N at 1e-6 to 1e-9, either scheme), above the 1e-5 this checks.
+// The polyurethane knead with the static correction and the Euler-Bernoulli sections the
+// old defect was found with (the island scheme's peak 3e-4 below the global one at tolerance
+// 1e-6, 5.7e-5 at 1e-7 after the energy-consistent correction: the located peaks' force rate
+// held the residual R fixed, so the located peak followed the step sequence). With R' in the
+// rate: the peak forces and the exit velocity within 1e-5 (relative) of the global scheme's
+// at the scene's tolerance and 1e-6 at 1e-7 (measured 8e-8 and 1e-8: peak F_N 31.901024 /
+// 31.901027 N at 1e-6, 31.9017699 / 31.9017702 N at 1e-7), the same impacts.
 TEST_P(IslandScenes, PolyurethaneKneadWithTheStaticCorrectionWithinAKnownBound) {
   for (const auto& [tolerance, bound] :
-       {std::pair<const char*, double>{"", 1e-3}, std::pair<const char*, double>{"1e-7", 1e-5}}) {
+       {std::pair<const char*, double>{"", 1e-5}, std::pair<const char*, double>{"1e-7", 1e-6}}) {
     SCOPED_TRACE(std::string("tolerance ") + tolerance);
     const Case c{"bench/knead_polyurethane.yaml", "",
                  *tolerance ? "integrator.tolerance=1e-7" : ""};
@@ -187,7 +188,11 @@ Outcomes outcomesOf(const SceneRun& r) {
 // to run, so per-kernel counts scatter): the island scheme's total tooth strikes, detached
 // kernels and largest peak tooth force lie within the range the global scheme gives over
 // tolerances 1e-6, 1e-7 and 1e-8, widened by the scatter of a count (2, or a fifth of it) and
-// 5 % of a force.
+// 5 % of a force. The count is a sample: measured on the long run (0.2 s) at twelve
+// tolerances from 3e-6 to 1e-8, the global scheme gives 11 to 19 strikes (mean 13.5) and the
+// island scheme 11 to 19 (mean 13.3); the three tolerances here give the global range 11 to
+// 14, and the island run at 1e-6 gives 16 (17 and 19 with the peak locator's side effects on
+// the trajectory, since removed), at the edge of the range plus its slack.
 struct Totals {
   long strikes = 0;
   int detached = 0;

@@ -111,7 +111,8 @@ StationFlexibility modalFlexibility(const ToothModel& tooth, double omega_radps,
 // Residual flexibility of the truncated modes (static minus modal, clamped so that each
 // point's 2 x 2 block stays positive semidefinite) at drum speed omega_radps, at
 // kResidualPoints points. Zero for a rigid tooth (n_modes = 0 means rigid, not "all modes
-// truncated"). Needs compileTooth.
+// truncated"). With a cut-off (ToothModel::residual_modes > n_modes) the modes up to
+// residual_modes are subtracted: the slow truncated ones are in neither part. Needs compileTooth.
 StationFlexibility residualFlexibility(const ToothModel& tooth, double drum_radius_m,
                                        double omega_radps);
 
@@ -139,6 +140,13 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
 // semidefinite block at the two neighbouring points and blended linearly. Allocation-free.
 void residualAtSpeed(const ToothModel& tooth, double omega_radps, double x_m, double* ww,
                      double* wt, double* tt);
+
+// The entries first .. first + count - 1 of the ww table (w under a force at the same point
+// [m/N], at the points of residualFlexibility) for drum speed omega_radps, read as
+// residualAtSpeed reads them: the compiled table at residual_omega_radps, else each point
+// interpolated in Omega^2 and clamped. Allocation-free.
+void residualWwAtSpeed(const ToothModel& tooth, double omega_radps, int first, int count,
+                       double* ww);
 
 // The barycentric Lagrange basis ell[0..n_nodes) of the Chebyshev-Lobatto nodes
 // x_j = cos(pi j / (n_nodes - 1)) at x in [-1, 1] (sums to 1; exact at the nodes).

@@ -121,6 +121,13 @@ struct ToothModel {
   Vec2 ld_root_T = Vec2::Zero();  // root b in the tooth frame (e1, e2 axes, drum origin) [m]
   bool modes_auto = false;        // n_modes was chosen by compileModel (kAutoModes) [-]
   double contact_time_s = 0;      // Hertz contact time estimate the automatic count used [s]
+  // The residual's cut-off (docs/model.md §9b, "When the truncated modes are not fast"): the
+  // residual below subtracts residual_modes >= n_modes modes; the truncated modes n_modes + 1 ..
+  // residual_modes are slower than the contact (omega < pi / residual_contact_time_s at rest)
+  // and are left out of both the modal part and the series spring. 0: n_modes (no cut-off).
+  int residual_modes = 0;              // [-]
+  double residual_contact_time_s = 0;  // Hertz contact time of the cut-off, tip and kernel
+                                       // speeds added (0 when not estimated) [s]
   // Residual flexibility of the truncated modes (docs/model.md §9b) at kResidualPoints (beam.h)
   // equally spaced points, at drum speed residual_omega_radps; a massless spring in series
   // with the Hertz contact (contact/narrow_phase.cc).

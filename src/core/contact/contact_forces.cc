@@ -3,11 +3,13 @@
 #include "contact_forces.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "../internal.h"
 #include "planar.h"
 #include "stations.h"
+#include "threshing_sim/core/beam.h"
 
 namespace threshing_sim {
 namespace internal {
@@ -100,10 +102,73 @@ Vec2 contactVelocityDrift(const Model& m, const VecX& z, const VecX& u, const Dr
 }
 
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f) {
+  const double fr = residualForceFactor(g, fn);
   for (const BodyJac& s : g.side) {
     if (s.body < 0 || s.w_n.size() == 0) continue;
     f->segment(bodyDofOffset(m, s.body), s.w_n.size()) += fn * s.w_n + ft * s.w_t;
+    if (fr != 0.0 && s.w_r.size() == s.w_n.size())
+      f->segment(bodyDofOffset(m, s.body), s.w_r.size()) += fr * s.w_r;
   }
+}
+
+namespace {
+
+// Fritsch-Butland slope of a monotone cubic Hermite interpolant at a node between the secants
+// d_left and d_right [any unit]: their harmonic mean where they agree in sign, else 0.
+double hermiteNodeSlope(double d_left, double d_right) {
+  if (!(d_left * d_right > 0.0)) return 0.0;
+  return 2.0 * d_left * d_right / (d_left + d_right);
+}
+
+}  // namespace
+
+namespace {
+
+// The monotone cubic Hermite interpolant at position f in [0, 1] of interval s of a table of
+// last + 1 points spaced h_m [m], from the values v[s - 1 .. s + 2] (only those inside the
+// table are read) [m/N]; its derivative in x into *d_dx [1/N].
+double hermiteInInterval(const double* v, int last, int s, double f, double h_m, double* d_dx) {
+  // Secants of the intervals s - 1, s, s + 1 (one-sided at the ends) [m/N per m].
+  const double d_mid = (v[s + 1] - v[s]) / h_m;
+  const double d_left = s > 0 ? (v[s] - v[s - 1]) / h_m : d_mid;
+  const double d_right = s + 1 < last ? (v[s + 2] - v[s + 1]) / h_m : d_mid;
+  const double m0 = s > 0 ? hermiteNodeSlope(d_left, d_mid) : d_mid;
+  const double m1 = s + 1 < last ? hermiteNodeSlope(d_mid, d_right) : d_mid;
+  const double f2 = f * f, f3 = f2 * f;
+  *d_dx = 6.0 * (f - f2) * d_mid + (3.0 * f2 - 4.0 * f + 1.0) * m0 + (3.0 * f2 - 2.0 * f) * m1;
+  return (2.0 * f3 - 3.0 * f2 + 1.0) * v[s] + (f3 - 2.0 * f2 + f) * h_m * m0 +
+         (3.0 * f2 - 2.0 * f3) * v[s + 1] + (f3 - f2) * h_m * m1;
+}
+
+// The interval s of a table of last + 1 equally spaced points on [0, length_m] holding x_m
+// (clamped to the tooth), and the position f in it.
+void tableInterval(int last, double length_m, double x_m, int* s, double* f) {
+  const double u = std::clamp(x_m / length_m, 0.0, 1.0) * last;
+  *s = std::min(static_cast<int>(u), last - 1);
+  *f = u - *s;
+}
+
+}  // namespace
+
+double residualSmoothAt(const VecX& table, double length_m, double x_m, double* d_dx) {
+  const int last = static_cast<int>(table.size()) - 1;
+  int s = 0;
+  double f = 0.0;
+  tableInterval(last, length_m, x_m, &s, &f);
+  return hermiteInInterval(table.data(), last, s, f, length_m / last, d_dx);
+}
+
+double residualSmoothAtSpeed(const ToothModel& tooth, double omega_radps, double x_m,
+                             double* d_dx) {
+  const int last = kResidualPoints - 1;
+  int s = 0;
+  double f = 0.0;
+  tableInterval(last, tooth.length_m, x_m, &s, &f);
+  // Only the points s - 1 .. s + 2 that exist are read at this speed.
+  const int first = std::max(s - 1, 0), end = std::min(s + 2, last);
+  std::array<double, kResidualPoints> table;
+  residualWwAtSpeed(tooth, omega_radps, first, end - first + 1, table.data() + first);
+  return hermiteInInterval(table.data(), last, s, f, tooth.length_m / last, d_dx);
 }
 
 namespace {
@@ -181,18 +246,23 @@ double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mp
 }
 
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
-                                double acc_n_mps2) {
+                                double acc_n_mps2, double r_rate_mpNps) {
   const double delta = -g.gap_m;
   if (delta <= 0.0) return 0.0;
   const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
   const SeriesHertz h{K, chi, std::max(g.residual_mpN, 0.0), -g.vn};
   const double x = h.r > 0.0 ? seriesIndentation(h, delta) : delta;
   double d_x, d_rate;
-  if (h.force(x, &d_x, &d_rate) <= 0.0) return 0.0;
-  // x + r Phi(x, rate) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
-  // delta'', with delta' = -g_N', delta'' = -g_N''.
-  const double x_rate = (h.rate + h.r * d_rate * acc_n_mps2) / (1.0 + h.r * d_x);
-  return d_x * x_rate - d_rate * acc_n_mps2;
+  const double f = h.force(x, &d_x, &d_rate);
+  if (f <= 0.0) return 0.0;
+  // Phi's derivative in r through the damping's split, D = 1 + chi rate / (1 + r s) [N^2/m].
+  const double s = 1.5 * K * std::sqrt(x), split = 1.0 + h.r * s;
+  const double d_r = -K * x * std::sqrt(x) * chi * h.rate * s / (split * split);
+  // x + r Phi(x, rate, r) = delta differentiated in time: x' (1 + r Phi_x) = delta' - r Phi_rate
+  // delta'' - r' (Phi + r Phi_r), with delta' = -g_N', delta'' = -g_N''.
+  const double x_rate =
+      (h.rate + h.r * d_rate * acc_n_mps2 - r_rate_mpNps * (f + h.r * d_r)) / (1.0 + h.r * d_x);
+  return d_x * x_rate - d_rate * acc_n_mps2 + d_r * r_rate_mpNps;
 }
 
 }  // namespace internal

@@ -22,6 +22,29 @@ Vec2 contactVelocityDrift(const Model& m, const VecX& z, const VecX& u, const Dr
 // Adds w * scale to the generalised vector f for each side of the contact.
 void addGeneralised(const Model& m, const ContactGeom& g, double fn, double ft, VecX* f);
 
+// The residual flexibility table (kResidualPoints equally spaced values on [0, length_m], see
+// residualFlexibility) interpolated C^1 in x_m: a monotone cubic Hermite interpolant
+// (Fritsch-Butland slopes: a node between secants of opposite sign, or next to a flat one, has
+// slope 0, so the interpolant keeps the table's sign and monotone stretches) [m/N], with its
+// derivative in x_m into *d_dx [1/N]. The series potential's force along the residual's
+// gradient needs R'(x*) continuous (docs/model.md §9b).
+double residualSmoothAt(const VecX& table, double length_m, double x_m, double* d_dx);
+
+// The same for tooth's ww table at drum speed omega_radps, read as the step reads it
+// (residualWwAtSpeed: the compiled table at the scene's speed, else the interpolation in
+// Omega^2): C^1 in x_m at any fixed speed. Allocation-free.
+double residualSmoothAtSpeed(const ToothModel& tooth, double omega_radps, double x_m, double* d_dx);
+
+// The residual spring's share of a compliant tooth contact's generalised force (docs/model.md
+// §9b, "Energy of the series spring"): the series potential V(delta, R) changes by -F^2/2 per
+// unit of R at a fixed approach, so the full gradient of V(q) adds (F^2/2) w_r to the contact's
+// F w_n. Returns that factor F^2/2 [N] for a normal force fn_N [N] (zero for pairs without a
+// residual gradient and under the rigid law, which has no series spring).
+inline double residualForceFactor(const ContactGeom& g, double fn_N) {
+  const bool has_gradient = g.side[0].w_r.size() > 0 || g.side[1].w_r.size() > 0;
+  return has_gradient && g.params->law == ContactLaw::kCompliant ? 0.5 * fn_N * fn_N : 0.0;
+}
+
 // Compliant normal force (Hertz constant K with Hunt-Crossley damping), >= 0 [N]. For tooth
 // contacts the residual flexibility r = g.residual_mpN is a spring in series: the Hertz law sees
 // the indentation delta_e = delta - r F and its rate delta_e' = delta' / (1 + r dF_e/d delta_e)
@@ -32,10 +55,11 @@ double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, dou
 // event function of a compliant contact's release) [N].
 double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
                                   double v_floor_mps);
-// Its time derivative [N/s] given the normal relative acceleration g_N'' [m/s^2] (implicit
-// differentiation of the relation above).
+// Its time derivative [N/s] given the normal relative acceleration g_N'' [m/s^2] and the rate of
+// the residual flexibility r' [m/(N s)] (the contact point sliding, the normal turning: w_r . u
+// + Omega dR/dtheta) (implicit differentiation of the relation above).
 double compliantNormalForceRate(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps,
-                                double acc_n_mps2);
+                                double acc_n_mps2, double r_rate_mpNps = 0.0);
 
 }  // namespace internal
 }  // namespace threshing_sim

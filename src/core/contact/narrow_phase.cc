@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "../internal.h"
+#include "contact_forces.h"
 #include "planar.h"
 #include "stations.h"
 #include "threshing_sim/core/geometry.h"
@@ -313,10 +314,90 @@ void rodToothSide(const NarrowInput& in, const ToothModel& tm, ContactGeom* g) {
   }
 }
 
+// The closest point's response to a motion of a tooth pair: the implicit function theorem on
+// the narrow phase's condition n . rt_x(x*) = 0 (as in the velocity drift, contact_forces.cc).
+// For the centreline point at x* moving at w relative to the kernel's material point there,
+// the condition's tangent rt_x(x*) changing at rtx_rate at fixed x*, and the kernel turning at
+// om1, the closest point moves at x*' and the normal turns at phi' = om1 - kappa t.(w + r_x x*').
+struct ClosestPointSensitivity {
+  Vec2 n, t;              // contact normal and tangent, world [-]
+  Vec2 r_x;               // d r / dx of the centreline point, world [-]
+  Vec2 rt_x, rt_xx;       // the condition's tangent [-] and its x-derivative [1/m], world
+  double kappa = 0;       // 1 / (rho1 + d): the normal's turn per relative motion [1/m]
+  bool interior = false;  // x* inside (0, L) moves; at an end of the tooth it stays
+  void rates(const Vec2& w, const Vec2& rtx_rate, double om1, double* x_rate,
+             double* phi_rate) const {
+    const double beta0 = om1 - kappa * t.dot(w), beta1 = -kappa * t.dot(r_x);
+    double xr = 0.0;
+    if (interior) {
+      const double den = beta1 * t.dot(rt_x) + n.dot(rt_xx);
+      if (den != 0.0) xr = -(beta0 * t.dot(rt_x) + n.dot(rtx_rate)) / den;
+    }
+    *x_rate = xr;
+    *phi_rate = beta0 + beta1 * xr;
+  }
+};
+
+// What the residual's gradient needs of a modal tooth pair besides the contact frame.
+struct ResidualInputs {
+  double r_ww_mpN = 0;         // residual table at x*, w under a force [m/N]
+  double dr_ww_dx_mpNpm = 0;   // its derivative in x (C^1 interpolant) [1/N]
+  double wc_slope = 0;         // d w_c / dx of the stations' foreshortening at x* [-]
+  const double* hq = nullptr;  // H(x*) q per mode, blended as the narrow phase does [1/sqrt(kg)]
+};
+
+// The residual flexibility along n, R = (e2.n)^2 r_ww(x*) (docs/model.md §9b), differentiated
+// along every coordinate (the sides' w_r) and the drum angle (residual_dtheta_mpNprad): R moves
+// with the normal's direction (dR/dphi = 2 (e2.n)(e2.t) r_ww) and with the closest point
+// (dR/dx* = (e2.n)^2 r_ww'), both given by ClosestPointSensitivity.
+void residualGradient(const NarrowInput& in, const ToothModel& tm, const ResidualInputs& ri,
+                      ContactGeom* g) {
+  Workspace* ws = in.ws;
+  const int n_modes = tm.n_modes;
+  const double x = g->tooth_x_m, r_t = 0.5 * tm.diameter_m;
+  const Rotation2 rot(in.drive.theta_rad);
+  const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
+  evaluateModeCurvatures(tm, x, &ws->centreline.scratch_ddphi);
+  const VecX& phi = ws->centreline.scratch_phi;
+  const VecX& dphi = ws->centreline.scratch_dphi;
+  const auto q = in.z.segment(tm.dof_offset, n_modes);
+  const double w1 = dphi.dot(q), w2 = ws->centreline.scratch_ddphi.dot(q);  // w', w'' [-, 1/m]
+  ClosestPointSensitivity cp;
+  cp.n = g->n;
+  cp.t = g->t;
+  cp.r_x = (1.0 + ri.wc_slope) * e1 + w1 * e2;
+  cp.rt_x = (1.0 - 0.5 * w1 * w1) * e1 + w1 * e2;
+  cp.rt_xx = -w1 * w2 * e1 + w2 * e2;
+  cp.kappa = 1.0 / (g->rho1_m + g->gap_m + r_t);
+  cp.interior = x > 0.0 && x < tm.length_m;
+  const double c = e2.dot(g->n);
+  const double dR_dphi = 2.0 * c * e2.dot(g->t) * ri.r_ww_mpN;  // [m/(N rad)]
+  const double dR_dx = c * c * ri.dr_ww_dx_mpNpm;               // [1/N]
+  const auto rate = [&](const Vec2& w, const Vec2& rtx_rate, double om1) {
+    double x_rate, phi_rate;
+    cp.rates(w, rtx_rate, om1, &x_rate, &phi_rate);
+    return dR_dphi * phi_rate + dR_dx * x_rate;
+  };
+  BodyJac& s0 = g->side[0];
+  s0.w_r.resize(n_modes);
+  for (int i = 0; i < n_modes; ++i)
+    s0.w_r[i] = rate(phi[i] * e2 - ri.hq[i] * e1, dphi[i] * (e2 - w1 * e1), 0.0);
+  // The kernel (body 1): the centreline point moves relative to it against its motion.
+  const Vec2 p_W = g->p0 - r_t * g->n;  // centreline point [m]
+  BodyJac& s1 = g->side[1];
+  s1.w_r.resize(3);
+  s1.w_r[0] = rate(-Vec2::UnitX(), Vec2::Zero(), 0.0);
+  s1.w_r[1] = rate(-Vec2::UnitY(), Vec2::Zero(), 0.0);
+  s1.w_r[2] = rate(-perp(p_W - in.e.center), Vec2::Zero(), 1.0);
+  // The drum turning the tooth (point, tangent and e2) past the kernel.
+  g->residual_dtheta_mpNprad =
+      rate(perp(p_W), perp(cp.rt_x), 0.0) + 2.0 * c * ri.r_ww_mpN * perp(e2).dot(g->n);
+}
+
 // Modal tooth: phi and phi' at x are still in the scratch from the refinement's last
 // evaluation; the surface point turns with the section, psi_i = rotation_factor_i phi_i'; H(x) q
 // is blended from the stations like H(x) itself (from *direct after a warm start). Also the
-// residual flexibility along n in series with the Hertz law.
+// residual flexibility along n in series with the Hertz law, and its gradient.
 void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
                     StationPair* direct, ContactGeom* g) {
   Workspace* ws = in.ws;
@@ -333,18 +414,30 @@ void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
   const Vec2 jr = perp(r_t * g->n);
   const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
   const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
+  double hq[kMaxModes];  // H(x) q [1/sqrt(kg)]
   for (int i = 0; i < n; ++i) {
-    const double hq = from_warm ? (1.0 - t_h) * direct->hq0[i] + t_h * direct->hq1[i]
-                                : (1.0 - t_h) * ws->centreline.station_Hq(i, col_h) +
-                                      t_h * ws->centreline.station_Hq(i, col_h + 1);
+    hq[i] = from_warm ? (1.0 - t_h) * direct->hq0[i] + t_h * direct->hq1[i]
+                      : (1.0 - t_h) * ws->centreline.station_Hq(i, col_h) +
+                            t_h * ws->centreline.station_Hq(i, col_h + 1);
     const double psi = tm.rotation_factor[i] * ws->centreline.scratch_dphi[i];  // section turn
-    s.w_n[i] = -(e2n * ws->centreline.scratch_phi[i] - e1n * hq + jrn * psi);
-    s.w_t[i] = -(e2t * ws->centreline.scratch_phi[i] - e1t * hq + jrt * psi);
+    s.w_n[i] = -(e2n * ws->centreline.scratch_phi[i] - e1n * hq[i] + jrn * psi);
+    s.w_t[i] = -(e2t * ws->centreline.scratch_phi[i] - e1t * hq[i] + jrt * psi);
   }
-  // The truncated modes' compliance along n: the load (e2.n, (J r_t n).n) on (w, w').
-  double r_ww, r_wt, r_tt;
-  residualAtSpeed(in.m.teeth[in.pair.a], in.drive.omega_radps, g->tooth_x_m, &r_ww, &r_wt, &r_tt);
-  g->residual_mpN = e2n * e2n * r_ww + 2 * e2n * jrn * r_wt + jrn * jrn * r_tt;
+  if (!tm.static_correction) return;
+  // The truncated modes' compliance along n: the load e2.n on w (C^1 in x, so that its
+  // gradient, part of the contact force, is continuous).
+  // The table at the drum's current speed (the compiled one, or main's interpolation in
+  // Omega^2), so that the gradient below is that of the R the step uses.
+  ResidualInputs ri;
+  ri.r_ww_mpN = residualSmoothAtSpeed(tm, in.drive.omega_radps, g->tooth_x_m, &ri.dr_ww_dx_mpNpm);
+  g->residual_mpN = e2n * e2n * ri.r_ww_mpN;
+  const double dx_m = tm.station_x_m[s_h + 1] - tm.station_x_m[s_h];
+  ri.wc_slope =
+      from_warm
+          ? (direct->wc1 - direct->wc0) / dx_m
+          : (ws->centreline.station_wc_m[col_h + 1] - ws->centreline.station_wc_m[col_h]) / dx_m;
+  ri.hq = hq;
+  residualGradient(in, tm, ri, g);
 }
 
 // Tooth (body 0) against a kernel: the closest point of the deformed centreline, the tooth's
@@ -550,6 +643,9 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   g->wtilde_n = g->wtilde_t = 0.0;
   g->rho0_m = g->rho1_m = std::numeric_limits<double>::infinity();
   g->residual_mpN = 0.0;
+  g->residual_dtheta_mpNprad = 0.0;
+  g->side[1].w_r.resize(0);
+  g->side[0].w_r.resize(0);
   g->side[0].body = -1;
   g->side[0].w_n.resize(0);
   g->side[0].w_t.resize(0);

@@ -20,6 +20,8 @@ struct BodyJac {
   int body = -1;  // body index, -1 = fixed
   SmallVec w_n;   // d(dg_N/dt)/d(u_body)
   SmallVec w_t;   // d(dg_T/dt)/d(u_body)
+  SmallVec w_r;   // tooth contacts: d(residual_mpN)/dt per unit of u_body, the residual
+                  // flexibility's configuration gradient [m/N per unit coordinate]; else empty
 };
 
 // Everything known about one contact pair at one configuration.
@@ -43,6 +45,8 @@ struct ContactGeom {
   double rho1_m = std::numeric_limits<double>::infinity();
   double residual_mpN = 0;  // tooth contacts: residual flexibility of the truncated modes along
                             // n at the contact point, in series with the Hertz law [m/N]
+  double residual_dtheta_mpNprad = 0;  // its derivative in the drum angle at fixed coordinates
+                                       // (the rheonomic part of its rate / Omega) [m/(N rad)]
   const ContactParams* params = nullptr;
   bool far = false;  // only a lower bound of the gap was computed (no Jacobians)
 };

@@ -31,12 +31,50 @@ double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& 
     if (s.body < 0 || s.w_n.size() == 0) continue;
     acc_mps2 += s.w_n.dot(udot.segment(bodyDofOffset(c.m, s.body), s.w_n.size()));
   }
-  if (g.residual_mpN > 0.0)  // the residual spring in series (static correction)
+  if (g.residual_mpN > 0.0) {  // the residual spring in series (static correction)
+    const Drive drive = driveAtTime(c, t);
+    double r_rate_mpNps = drive.omega_radps * g.residual_dtheta_mpNprad;  // R' [m/(N s)]
+    for (const BodyJac& s : g.side) {
+      if (s.body < 0 || s.w_r.size() == 0) continue;
+      r_rate_mpNps += s.w_r.dot(u.segment(bodyDofOffset(c.m, s.body), s.w_r.size()));
+    }
     return compliantNormalForceRate(g, mem.hertz_K, mem.v_in_mps, c.m.hc_min_impact_speed_mps,
-                                    acc_mps2);
+                                    acc_mps2, r_rate_mpNps);
+  }
   const double sq = std::sqrt(delta_m);
   return mem.hertz_K *
          (1.5 * sq * rate_mps * (1.0 + chi_spm * rate_mps) - delta_m * sq * chi_spm * acc_mps2);
+}
+
+// The probes evaluate the pairs at states inside the step, and each evaluation moves a tooth
+// pair's narrow-phase warm start (its last closest points and their times, PairMemory::warm_*)
+// there. Kept before the probes and restored after them, so that the steps that follow start
+// their closest-point searches where they would have without the probes: the located peaks are
+// a measurement and do not change the trajectory (before, how the probes went -- their
+// number, where the force rate sent them -- moved later closest points within the narrow
+// phase's tolerance and with them the step sequence).
+void saveWarmStarts(Workspace* ws) {
+  std::vector<double>& w = ws->ed.pk_warm;
+  w.resize(4 * ws->candidates.size());
+  for (size_t i = 0; i < ws->candidates.size(); ++i) {
+    const PairMemory& mem = ws->memory[pairKey(ws->candidates[i])];
+    w[4 * i] = mem.warm_x_m;
+    w[4 * i + 1] = mem.warm_t_s;
+    w[4 * i + 2] = mem.warm_x_prev_m;
+    w[4 * i + 3] = mem.warm_t_prev_s;
+  }
+}
+
+void restoreWarmStarts(Workspace* ws) {
+  const std::vector<double>& w = ws->ed.pk_warm;
+  for (size_t i = 0; i < ws->candidates.size() && 4 * i + 3 < w.size(); ++i) {
+    PairMemory& mem = ws->memory[pairKey(ws->candidates[i])];
+    mem.warm_x_m = w[4 * i];
+    mem.warm_t_s = w[4 * i + 1];
+    mem.warm_x_prev_m = w[4 * i + 2];
+    mem.warm_t_prev_s = w[4 * i + 3];
+  }
+  ws->ed.memo.valid = false;  // ws.geoms hold the last probe
 }
 
 // Whether a pair is in compliant contact.
@@ -107,6 +145,7 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
     const bool falling = rb < 0 || (fb <= 0 && fa > 0);
     if (!(rising && falling)) continue;
     if (!saved) {
+      saveWarmStarts(&ws);
       ws.ed.imp_n_saved = ws.ed.imp_n;
       ws.ed.imp_t_saved = ws.ed.imp_t;
       torque_impulse_saved = ws.ed.torque_impulse;
@@ -144,6 +183,7 @@ void locateForcePeaks(const Ctx& c, double t0, double h, const VecX& z0, const V
     }
   }
   if (saved) {
+    restoreWarmStarts(&ws);
     ws.ed.imp_n = ws.ed.imp_n_saved;
     ws.ed.imp_t = ws.ed.imp_t_saved;
     ws.ed.torque_impulse = torque_impulse_saved;

@@ -75,6 +75,9 @@ double finishRhs(const Ctx& c, bool store_forces) {
       const Vec2& p = g.p0;
       torque += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
                 ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
+      // A compliant force's residual spring: -dV/dtheta = (F^2/2) dR/dtheta (docs/model.md §9b).
+      if (!ws.rows[i].normal_unknown)
+        torque += residualForceFactor(g, ws.lambda[2 * i]) * g.residual_dtheta_mpNprad;
     }
     if (store_forces) {
       PairMemory& mem = ws.memory[pairKey(g.pair)];
@@ -122,9 +125,11 @@ void applyKnownForces(const Ctx& c, const std::vector<MatX>* minv) {
     const double ft = row.slip_sign != 0 ? -row.slip_sign * row.mu * fn : 0.0;
     ws.lambda[2 * i] = fn;
     ws.lambda[2 * i + 1] = ft;
+    const double fr = residualForceFactor(g, fn);  // series spring (docs/model.md §9b) [N]
     for (const BodyJac& s : g.side) {
       applyInverseMass(m, minv, s.body, s.w_n, fn, &ws.du);
       applyInverseMass(m, minv, s.body, s.w_t, ft, &ws.du);
+      if (fr != 0.0) applyInverseMass(m, minv, s.body, s.w_r, fr, &ws.du);
     }
   }
 }

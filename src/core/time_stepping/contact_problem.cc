@@ -42,6 +42,21 @@ void freeVelocity(TsStep* s) {
   }
 }
 
+namespace {
+
+// The residual spring's share of a compliant tooth contact's impulse (docs/model.md §9b):
+// h (F^2/2) w_r with F = pn / h, a known impulse, into the free velocity (through the same
+// iteration inverse as the contact impulses).
+void addResidualImpulse(TsStep* s, const ContactGeom& g, double pn_Ns) {
+  const double scale = s->h * residualForceFactor(g, pn_Ns / s->h);  // [N s]
+  if (scale == 0.0) return;
+  for (const BodyJac& side : g.side)
+    applyInverseMass(s->m, &s->ws.ts.iteration_inverse, side.body, side.w_r, scale,
+                     &s->ws.ts.u_free);
+}
+
+}  // namespace
+
 // Stage 4: the active contacts, closed at the midpoint, as rows of the contact problem. Rigid:
 // an unknown normal impulse with Newton's law; compliant: the Hertz-Hunt-Crossley force over
 // the step as a fixed normal impulse. A pressed rigid contact (sticking or slipping at the last
@@ -69,6 +84,7 @@ void assembleContactRows(TsStep* s) {
       const double K = first ? g.hertz_K : mem.hertz_K;
       row.normal_unknown = false;
       row.lambda_n_fixed = s->h * compliantNormalForce(g, K, v_in, m.hc_min_impact_speed_mps);
+      addResidualImpulse(s, g, row.lambda_n_fixed);
     }
     ws.active.push_back(static_cast<int>(c));
     ws.rows.push_back(row);

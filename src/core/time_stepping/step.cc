@@ -124,6 +124,10 @@ void advanceClock(TsStep* s) {
     const Vec2& p = g.p0;
     contact_angular_impulse += -ws.lambda[2 * i] * (p.x() * g.n.y() - p.y() * g.n.x()) -
                                ws.lambda[2 * i + 1] * (p.x() * g.t.y() - p.y() * g.t.x());
+    // A compliant force's residual spring (the impulse assembleContactRows added): h (F^2/2)
+    // dR/dtheta with F = lambda_n_fixed / h.
+    const double pn = ws.rows[i].lambda_n_fixed;
+    contact_angular_impulse += s->h * residualForceFactor(g, pn / s->h) * g.residual_dtheta_mpNprad;
   }
   s->H_after = angularMomentumOf(m, d->z, d->u, s->end.omega_radps);
   d->stats.drive_work_J +=
