@@ -256,7 +256,12 @@ void compileResidual(double drum_radius_m, double omega_radps, double speed_boun
     t.residual_nodes_wt.col(j) = build.nodes[j].col(1);
     t.residual_nodes_tt.col(j) = build.nodes[j].col(2);
   }
-  const StationFlexibility r = clamped(tableAt(build, omega_radps * omega_radps));
+  // The scene's speed from the table where it met its tolerance; else (a table stopped at its
+  // noise floor or depth, e.g. a soft tooth whose residual basis changes fast with Omega^2) the
+  // static solve at that speed.
+  const StationFlexibility r =
+      clamped(build.error <= build.tolerance ? tableAt(build, omega_radps * omega_radps)
+                                             : sample.at(omega_radps));
   t.residual_ww = r.ww;
   t.residual_wt = r.wt;
   t.residual_tt = r.tt;
