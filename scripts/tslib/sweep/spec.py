@@ -988,9 +988,10 @@ def _check_batch(simulate, runs, timeout_s):
 
 def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
     """Resolves every run with `simulate --check-batch` (`jobs` processes, each a share of the
-    runs) and sets each run's scene, base scene (what runs: the base and the run's --set
-    overrides, so that a batch process parses each base once) and key. Raises SweepError naming the first bad run's axis
-    values, its key path and value (the loader's message), and how many runs are bad."""
+    runs) and sets each run's scene, base scene (the scene with its override files: a batch
+    process parses each base once and applies the run's --set values to a copy) and key.
+    Raises SweepError naming the first bad run's axis values, its key path and value (the
+    loader's message), and how many runs are bad."""
     import concurrent.futures
 
     jobs = max(1, min(jobs, len(runs) // 50 + 1))
