@@ -1244,9 +1244,30 @@ void splitAssignment(const std::string& assignment, std::string* key_path,
   if (value_text->empty()) refuseOverride(assignment, *key_path, "empty value");
 }
 
+// Whether YAML reads the text as a plain scalar of that very text: a number-like word (a
+// digit first, or a sign or point and then a digit; letters, digits and "_.+-" after). No such
+// text is a null ("~", "null"), a document marker ("---", "...") or a list item ("- ").
+bool plainNumberLike(const std::string& text) {
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  const bool starts =
+      !text.empty() && (digit(text[0]) || (text.size() > 1 && digit(text[1]) &&
+                                           (text[0] == '-' || text[0] == '+' || text[0] == '.')));
+  return starts && std::all_of(text.begin(), text.end(), [&](char c) {
+           return digit(c) || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' ||
+                  c == '.' || c == '+' || c == '-';
+         });
+}
+
 // The value of an assignment (YAML, so lists and mappings work); refuses one that is not YAML.
+// A number-like word becomes the plain scalar YAML::Load would give (tag "?"), without the
+// parser (a tenth of a scene check went to parsing the --set numbers).
 YAML::Node parseValue(const std::string& assignment, const std::string& key_path,
                       const std::string& value_text) {
+  if (plainNumberLike(value_text)) {
+    YAML::Node scalar(value_text);
+    scalar.SetTag("?");
+    return scalar;
+  }
   try {
     return YAML::Load(value_text);
   } catch (const YAML::ParserException& e) {

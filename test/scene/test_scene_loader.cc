@@ -433,6 +433,52 @@ kernels: [{position: [0.0, 0.245], pedicel: {anchor: [0.0, 0.255]}}, {position: 
   EXPECT_EQ(YAML::Dump(root), before);
 }
 
+// A --set value is the node YAML::Load gives for its text, whether the loader takes the
+// shortcut for number-like words or parses it (same scalar, tag, type and dump).
+TEST(SceneLoader, OverrideValuesAreTheParsedYaml) {
+  const char* const texts[] = {"62.83185307179586",
+                               "0.052",
+                               "-0.01",
+                               "+3",
+                               ".5",
+                               "1e-5",
+                               "2.06E11",
+                               "0x1F",
+                               "1_000",
+                               "7",
+                               "-.inf",
+                               ".nan",
+                               "null",
+                               "~",
+                               "-",
+                               "---",
+                               "...",
+                               "true",
+                               "\"5\"",
+                               "'5'",
+                               "[1, 2]",
+                               "{a: 1}",
+                               "5 # c",
+                               "fast",
+                               "-5-",
+                               "1.2.3",
+                               "- 5"};
+  for (const char* text : texts) {
+    SCOPED_TRACE(text);
+    YAML::Node set = YAML::Load(kBaseScene);
+    YAML::Node loaded = YAML::Load(kBaseScene);
+    applyOverride(&set, std::string("drum.speed=") + text);
+    loaded["drum"]["speed"] = YAML::Load(text);
+    EXPECT_EQ(YAML::Dump(set), YAML::Dump(loaded));
+    const YAML::Node a = set["drum"]["speed"], b = loaded["drum"]["speed"];
+    EXPECT_EQ(a.Type(), b.Type());
+    EXPECT_EQ(a.Tag(), b.Tag());
+    if (a.IsScalar()) {
+      EXPECT_EQ(a.Scalar(), b.Scalar());
+    }
+  }
+}
+
 // The items a "*" sets do not share one value node: a value changed in place afterwards (as
 // --check's restitution does) changes one item only; a missing section is created; the tree
 // changes in place, a copy made before does not.
