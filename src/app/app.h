@@ -82,12 +82,19 @@ using TreeCache = std::map<std::string, YAML::Node>;
 // Throws SceneError.
 YAML::Node sceneWithFiles(const Options& options, TreeCache* cache);
 
-// Loads, overrides, validates and compiles the scene as a run would, and returns the resolved
-// scene as one line of flow-style YAML. Throws SceneError.
-std::string resolvedScene(const Options& options, TreeCache* cache = nullptr);
+// Base scenes (a scene with its override files applied) as one line of flow-style YAML, by the
+// TreeCache's key.
+using BaseTexts = std::map<std::string, std::string>;
 
-// --check-batch: one line of tab-separated arguments per run; prints "ok<TAB>scene" or
-// "error<TAB>message" per line. Returns 0 when every line is valid, else 2.
+// Loads, overrides, validates and compiles the scene as a run would, and returns the resolved
+// scene as one line of flow-style YAML. With bases and base given, *base points to the base
+// scene's text (before the --set overrides; kept in *bases). Throws SceneError.
+std::string resolvedScene(const Options& options, TreeCache* cache = nullptr,
+                          BaseTexts* bases = nullptr, const std::string** base = nullptr);
+
+// --check-batch: one line of tab-separated arguments per run; prints
+// "ok<TAB>resolved scene<TAB>base scene" or "error<TAB>message" per line. Returns 0 when
+// every line is valid, else 2.
 int checkBatch(const std::string& path);
 
 // --batch: one JSON object per line, one run each; prints one JSON line per run as it ends.

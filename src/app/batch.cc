@@ -9,7 +9,8 @@
 // summary and outcomes; also events, forces, trace). Output files named in "args" are written
 // too. Scene trees are parsed once per scene and list of override files (a bounded cache), so
 // that runs differing in their --set values do not re-read the base scene (an inline scene
-// from its second line on).
+// from its second line on, or its first when it has --set values); each run applies its --set
+// values in place to a copy of the cached tree.
 //
 // Output: one JSON line per run, in input order, flushed as the run ends:
 //   {"id": "r1", "status": "ok", "exit": 0, "message": "", "cpu_s": ..., "wall_s": ...,
@@ -186,8 +187,9 @@ YAML::Node parseSceneText(const std::string& text) {
 }
 
 // The line's scene tree with its override files applied (parsed once per scene and files).
-// A scene text is kept from its second line on: the runner's lines each carry a scene of
-// their own, and a copy for the cache would cost a tenth of a short run.
+// A scene text is kept from its second line on (a copy for the cache costs a tenth of a short
+// run, wasted on a resolved scene that no other line carries), or from its first when the line
+// has --set values: then it is a base scene, which the runner sends for many runs.
 YAML::Node baseTree(const BatchLine& line, const Options& options, SceneCache* cache) {
   if (cache->trees.size() >= kMaxCachedTrees) cache->trees.clear();
   if (cache->seen.size() >= kMaxSeenScenes) cache->seen.clear();
@@ -203,7 +205,8 @@ YAML::Node baseTree(const BatchLine& line, const Options& options, SceneCache* c
         applyOverride(&root, assignment);
     }
   }
-  if (!cache->seen.insert(std::hash<std::string>()(key)).second)
+  // A line with --set values names a base scene that other lines share (the runner's lines).
+  if (!options.overrides.empty() || !cache->seen.insert(std::hash<std::string>()(key)).second)
     cache->trees[key] = YAML::Clone(root);
   return root;
 }

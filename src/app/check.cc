@@ -27,6 +27,9 @@ YAML::Node sceneWithFiles(const Options& options, TreeCache* cache) {
 
 namespace {
 
+// Base scene texts kept at most by --check-batch (the map is emptied when full).
+constexpr size_t kMaxBaseTexts = 64;
+
 // The tree as one line of flow-style YAML. Plain scalars made of safe characters are written
 // as they are (yaml-cpp's emitter checks every scalar: a large part of a check's time); any
 // other scalar goes through the emitter.
@@ -90,8 +93,21 @@ void skipRestitutionFit(YAML::Node* root) {
 
 }  // namespace
 
-std::string resolvedScene(const Options& options, TreeCache* cache) {
+std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* bases,
+                          const std::string** base) {
   YAML::Node root = sceneWithFiles(options, cache);
+  if (bases != nullptr && base != nullptr) {
+    std::string key = options.scene_path;
+    for (const std::string& path : options.set_files) key += "\t" + path;
+    auto found = bases->find(key);
+    if (found == bases->end()) {
+      if (bases->size() >= kMaxBaseTexts) bases->clear();
+      std::string text;
+      writeFlow(root, &text);
+      found = bases->emplace(key, std::move(text)).first;
+    }
+    *base = &found->second;
+  }
   for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
   std::string text;
   writeFlow(root, &text);  // before the restitutions are set aside
@@ -106,7 +122,8 @@ std::string resolvedScene(const Options& options, TreeCache* cache) {
 }
 
 // Each line of the file: the arguments of one run (scene, --set, --set-file, ...) separated by
-// tabs.
+// tabs. Each answer "ok" carries the resolved scene and the base scene (the scene with its
+// override files, before the --set overrides), both one line of flow YAML without tabs.
 int checkBatch(const std::string& path) {
   std::ifstream file;
   if (path != "-") {
@@ -116,6 +133,7 @@ int checkBatch(const std::string& path) {
   std::istream& in = path == "-" ? std::cin : file;
   int status = 0;
   TreeCache cache;
+  BaseTexts bases;
   for (std::string line; std::getline(in, line);) {
     std::vector<std::string> args = {"simulate"};
     for (size_t start = 0, tab = 0; tab != std::string::npos; start = tab + 1) {
@@ -125,9 +143,10 @@ int checkBatch(const std::string& path) {
     std::vector<char*> argv;
     for (std::string& arg : args) argv.push_back(arg.data());
     try {
-      const std::string scene =
-          resolvedScene(parseOptions(static_cast<int>(argv.size()), argv.data()), &cache);
-      std::cout << "ok\t" << scene << "\n";
+      const std::string* base = nullptr;
+      const std::string scene = resolvedScene(
+          parseOptions(static_cast<int>(argv.size()), argv.data()), &cache, &bases, &base);
+      std::cout << "ok\t" << scene << "\t" << *base << "\n";
     } catch (const std::exception& e) {
       std::string message = e.what();
       std::replace(message.begin(), message.end(), '\n', ' ');

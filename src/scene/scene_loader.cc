@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <random>
 #include <utility>
 
@@ -507,14 +508,19 @@ const char* const kPairKeys[3] = {"tooth_kernel", "kernel_kernel", "kernel_obsta
 
 // The schema entry for a pattern such as "teeth.*.length", or nullptr.
 const KeySpec* findKey(const std::string& pattern) {
-  for (const KeySpec& spec : kSchema) {
-    if (pattern == spec.path) return &spec;
-  }
-  return nullptr;
+  // By path, made once (the first entry of a path, as the scan of the schema found it).
+  static const std::map<std::string, const KeySpec*> table = [] {
+    std::map<std::string, const KeySpec*> t;
+    for (const KeySpec& spec : kSchema) t.emplace(spec.path, &spec);
+    return t;
+  }();
+  const auto found = table.find(pattern);
+  return found != table.end() ? found->second : nullptr;
 }
 
-// The key names directly below a pattern ("" is the top level), in schema order.
-std::vector<std::string> childKeys(const std::string& pattern) {
+// The key names directly below a pattern ("" is the top level), in schema order, found by a
+// scan of the schema.
+std::vector<std::string> scanChildKeys(const std::string& pattern) {
   const std::string prefix = pattern.empty() ? "" : pattern + ".";
   std::vector<std::string> keys;
   for (const KeySpec& spec : kSchema) {
@@ -524,6 +530,34 @@ std::vector<std::string> childKeys(const std::string& pattern) {
     if (rest.find('.') == std::string::npos) keys.push_back(rest);
   }
   return keys;
+}
+
+// scanChildKeys of "" and of every schema path and its prefixes, made once: the scan was a
+// sixth of a scene check, as every section of every scene asks for its keys.
+const std::map<std::string, std::vector<std::string>>& childKeyTable() {
+  static const std::map<std::string, std::vector<std::string>> table = [] {
+    std::map<std::string, std::vector<std::string>> t;
+    t[""] = scanChildKeys("");
+    for (const KeySpec& spec : kSchema) {
+      const std::string path = spec.path;
+      for (size_t dot = 0; dot != std::string::npos;) {
+        dot = path.find('.', dot == 0 ? 0 : dot + 1);
+        const std::string prefix = path.substr(0, dot);
+        if (t.count(prefix) == 0) t[prefix] = scanChildKeys(prefix);
+      }
+    }
+    return t;
+  }();
+  return table;
+}
+
+// The key names directly below a pattern ("" is the top level), in schema order. A pattern
+// missing from the table is no prefix of a schema path, so it has no keys below it.
+const std::vector<std::string>& childKeys(const std::string& pattern) {
+  static const std::vector<std::string> kNone;
+  const auto& table = childKeyTable();
+  const auto found = table.find(pattern);
+  return found != table.end() ? found->second : kNone;
 }
 
 // The schema pattern of a written path: list indices become "*" ("teeth.3.length" ->
@@ -1198,35 +1232,60 @@ YAML::Node loadSceneYaml(const std::string& path) {
   }
 }
 
-// Walks the path from the root on a copy of the tree: list components must be in range, map
-// components must be schema keys; a missing section is created, a missing list item or optional
-// section is not. The copy replaces the tree only when the whole assignment succeeded.
-// The key path and the value of an assignment "key.path=value" (the value is YAML, so lists
-// and mappings work); refuses a missing '=', an empty side or a value that is not YAML.
-YAML::Node parseAssignment(const std::string& assignment, std::string* key_path,
-                           std::string* value_text) {
+// The key path and the value's text of an assignment "key.path=value"; refuses a missing '='
+// or an empty side.
+void splitAssignment(const std::string& assignment, std::string* key_path,
+                     std::string* value_text) {
   const size_t equals = assignment.find('=');
   if (equals == std::string::npos) refuseOverride(assignment, "", "expected key.path=value");
   *key_path = trim(assignment.substr(0, equals));
   *value_text = trim(assignment.substr(equals + 1));
   if (key_path->empty()) refuseOverride(assignment, "", "empty key path");
   if (value_text->empty()) refuseOverride(assignment, *key_path, "empty value");
+}
+
+// Whether YAML reads the text as a plain scalar of that very text: a number-like word (a
+// digit first, or a sign or point and then a digit; letters, digits and "_.+-" after). No such
+// text is a null ("~", "null"), a document marker ("---", "...") or a list item ("- ").
+bool plainNumberLike(const std::string& text) {
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  const bool starts =
+      !text.empty() && (digit(text[0]) || (text.size() > 1 && digit(text[1]) &&
+                                           (text[0] == '-' || text[0] == '+' || text[0] == '.')));
+  return starts && std::all_of(text.begin(), text.end(), [&](char c) {
+           return digit(c) || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' ||
+                  c == '.' || c == '+' || c == '-';
+         });
+}
+
+// The value of an assignment (YAML, so lists and mappings work); refuses one that is not YAML.
+// A number-like word becomes the plain scalar YAML::Load would give (tag "?"), without the
+// parser (a tenth of a scene check went to parsing the --set numbers).
+YAML::Node parseValue(const std::string& assignment, const std::string& key_path,
+                      const std::string& value_text) {
+  if (plainNumberLike(value_text)) {
+    YAML::Node scalar(value_text);
+    scalar.SetTag("?");
+    return scalar;
+  }
   try {
-    return YAML::Load(*value_text);
+    return YAML::Load(value_text);
   } catch (const YAML::ParserException& e) {
-    refuseOverride(assignment, *key_path, "value is not valid YAML (" + e.msg + ")");
+    refuseOverride(assignment, key_path, "value is not valid YAML (" + e.msg + ")");
   }
   return YAML::Node();
 }
 
 // Descends from a mapping into its section `part` (at `path`, of schema kind spec.kind) on the
-// way to `next_part`: a missing section is created, other missing containers are refused.
+// way to `next_part`: a missing section is created (when checking only, a fresh empty mapping
+// stands for it and the tree is left alone), other missing containers are refused.
 void descendIntoSection(const std::string& assignment, const KeySpec& spec, const std::string& path,
-                        const std::string& part, const std::string& next_part, YAML::Node* node) {
+                        const std::string& part, const std::string& next_part, bool apply,
+                        YAML::Node* node) {
   const auto refuse = [&](const std::string& at, const std::string& what) {
     refuseOverride(assignment, at, what);
   };
-  const YAML::Node& current = *node;
+  const YAML::Node& current = *node;  // a const lookup adds no key
   const YAML::Node child = current[part];
   const bool absent = !child.IsDefined() || child.IsNull();
   if (spec.kind == KeyKind::kValue) refuse(path, "is a value, not a section");
@@ -1237,22 +1296,35 @@ void descendIntoSection(const std::string& assignment, const KeySpec& spec, cons
     refuse(path,
            "is absent; set the whole " + part + " first (e.g. " + path + "={anchor: [x, y]})");
   }
-  if (absent) (*node)[part] = YAML::Node(YAML::NodeType::Map);
-  node->reset((*node)[part]);
+  if (!absent) {
+    node->reset(child);
+  } else if (apply) {
+    (*node)[part] = YAML::Node(YAML::NodeType::Map);
+    node->reset((*node)[part]);
+  } else {
+    node->reset(YAML::Node(YAML::NodeType::Map));
+  }
 }
 
-void applyOverride(YAML::Node* root, const std::string& assignment) {
+// One pass of applyOverride over the tree: with apply false it only walks the path and throws
+// what the assignment would throw, leaving the tree alone; with apply true it sets the value.
+// `given` is the value when it was parsed already (by the first pass), else it is parsed here
+// (into *parsed when not null); each item of a "*" gets a node of its own, as two items
+// sharing one node would change together. Only the nodes on the path are visited: the rest of
+// the tree is neither copied nor read.
+void overridePass(YAML::Node* root, const std::string& assignment, bool apply,
+                  const YAML::Node* given, YAML::Node* parsed) {
   const auto refuse = [&](const std::string& path, const std::string& what) {
     refuseOverride(assignment, path, what);
   };
   std::string key_path, value_text;
-  const YAML::Node value = parseAssignment(assignment, &key_path, &value_text);
-
-  // Walk the copy.
+  splitAssignment(assignment, &key_path, &value_text);
+  const YAML::Node value = given != nullptr ? *given : parseValue(assignment, key_path, value_text);
+  if (parsed != nullptr) parsed->reset(value);
   const std::vector<std::string> parts = splitKeyPath(assignment, key_path);
-  YAML::Node tree =
-      (root->IsDefined() && !root->IsNull()) ? YAML::Clone(*root) : YAML::Node(YAML::NodeType::Map);
-  YAML::Node node = tree;
+  const bool empty_root = !root->IsDefined() || root->IsNull();
+  if (empty_root && apply) root->reset(YAML::Node(YAML::NodeType::Map));
+  YAML::Node node = empty_root && !apply ? YAML::Node(YAML::NodeType::Map) : *root;
   std::string path;     // as written, e.g. "teeth.0"
   std::string pattern;  // schema form, e.g. "teeth.*"
   for (size_t i = 0; i < parts.size(); ++i) {
@@ -1261,7 +1333,8 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
     const std::string parent = path;
     path = joinPath(path, part);
 
-    // A list item: the index must exist; "*" sets every item.
+    // A list item: the index must exist; "*" sets every item (each its own assignment, with
+    // its own copy of the value).
     if (node.IsSequence()) {
       if (part == "*") {
         const size_t n_items = node.size();
@@ -1270,9 +1343,11 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
         for (size_t j = i + 1; j < parts.size(); ++j) rest = joinPath(rest, parts[j]);
         for (size_t index = 0; index < n_items; ++index) {
           const std::string item = joinPath(parent, std::to_string(index));
-          applyOverride(&tree, (rest.empty() ? item : item + "." + rest) + "=" + value_text);
+          // Checking needs no node of its own; setting does, except for the first item.
+          const YAML::Node* item_value = (!apply || index == 0) ? &value : nullptr;
+          overridePass(root, (rest.empty() ? item : item + "." + rest) + "=" + value_text, apply,
+                       item_value, nullptr);
         }
-        root->reset(tree);
         return;
       }
       if (!isIndex(part)) refuse(parent, "is a list; expected an index, got '" + part + "'");
@@ -1282,9 +1357,10 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
       }
       pattern += ".*";
       if (last) {
-        node[index] = value;
+        if (apply) node[index] = value;
       } else {
-        node.reset(node[index]);
+        const YAML::Node& list = node;
+        node.reset(list[index]);
       }
       continue;
     }
@@ -1296,13 +1372,20 @@ void applyOverride(YAML::Node* root, const std::string& assignment) {
     if (spec == nullptr) refuse(path, unknownKey(part, childKeys(pattern), ""));
     pattern = key_pattern;
     if (last) {
-      node[part] = value;
+      if (apply) node[part] = value;
       continue;
     }
 
-    descendIntoSection(assignment, *spec, path, part, parts[i + 1], &node);
+    descendIntoSection(assignment, *spec, path, part, parts[i + 1], apply, &node);
   }
-  root->reset(tree);
+}
+
+// Checks the whole assignment first (every item of a "*" included), then applies it: a
+// refused assignment leaves the tree as it was, and no copy of the tree is made.
+void applyOverride(YAML::Node* root, const std::string& assignment) {
+  YAML::Node value;
+  overridePass(root, assignment, false, nullptr, &value);
+  overridePass(root, assignment, true, &value, nullptr);
 }
 
 std::vector<std::string> overridesFromFile(const std::string& path) {

@@ -407,6 +407,105 @@ TEST(SceneLoader, FailedOverrideLeavesTreeUnchanged) {
   EXPECT_EQ(YAML::Dump(root), before);
 }
 
+// applyOverride works in place (no copy of the tree): a "*" whose last item is refused must
+// leave the items before it unchanged too, and the message names that item.
+TEST(SceneLoader, FailedStarOverrideLeavesEveryItemUnchanged) {
+  YAML::Node root = YAML::Load(R"(
+drum: {radius: 0.20, speed: 83.78}
+teeth: [{mount_angle: 0.0, length: 0.06}]
+kernels: [{position: [0.0, 0.245], pedicel: {anchor: [0.0, 0.255]}}, {position: [0.0, 0.3]}]
+)");
+  const std::string before = YAML::Dump(root);
+  try {
+    applyOverride(&root, "kernels.*.pedicel.anchor=[0.0, 0.26]");
+    ADD_FAILURE() << "accepted a pedicel anchor on a kernel without pedicel";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("kernels.1.pedicel: is absent"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("override 'kernels.1.pedicel.anchor=[0.0, 0.26]'"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(YAML::Dump(root), before);
+  // Nor does a refused list index or unknown key below a section that would be created.
+  EXPECT_THROW(applyOverride(&root, "kernels.2.mass=1"), SceneError);
+  EXPECT_THROW(applyOverride(&root, "integrator.bogus=1"), SceneError);
+  EXPECT_EQ(YAML::Dump(root), before);
+}
+
+// A --set value is the node YAML::Load gives for its text, whether the loader takes the
+// shortcut for number-like words or parses it (same scalar, tag, type and dump).
+TEST(SceneLoader, OverrideValuesAreTheParsedYaml) {
+  const char* const texts[] = {"62.83185307179586",
+                               "0.052",
+                               "-0.01",
+                               "+3",
+                               ".5",
+                               "1e-5",
+                               "2.06E11",
+                               "0x1F",
+                               "1_000",
+                               "7",
+                               "-.inf",
+                               ".nan",
+                               "null",
+                               "~",
+                               "-",
+                               "---",
+                               "...",
+                               "true",
+                               "\"5\"",
+                               "'5'",
+                               "[1, 2]",
+                               "{a: 1}",
+                               "5 # c",
+                               "fast",
+                               "-5-",
+                               "1.2.3",
+                               "- 5"};
+  for (const char* text : texts) {
+    SCOPED_TRACE(text);
+    YAML::Node set = YAML::Load(kBaseScene);
+    YAML::Node loaded = YAML::Load(kBaseScene);
+    applyOverride(&set, std::string("drum.speed=") + text);
+    loaded["drum"]["speed"] = YAML::Load(text);
+    EXPECT_EQ(YAML::Dump(set), YAML::Dump(loaded));
+    const YAML::Node a = set["drum"]["speed"], b = loaded["drum"]["speed"];
+    EXPECT_EQ(a.Type(), b.Type());
+    EXPECT_EQ(a.Tag(), b.Tag());
+    if (a.IsScalar()) {
+      EXPECT_EQ(a.Scalar(), b.Scalar());
+    }
+  }
+}
+
+// The items a "*" sets do not share one value node: a value changed in place afterwards (as
+// --check's restitution does) changes one item only; a missing section is created; the tree
+// changes in place, a copy made before does not.
+TEST(SceneLoader, OverridesInPlaceKeepItemsApart) {
+  YAML::Node root = YAML::Load(R"(
+drum: {radius: 0.20, speed: 83.78}
+teeth: [{mount_angle: 0.0, length: 0.06}, {mount_angle: 3.14, length: 0.06}]
+kernels: [{position: [0.0, 0.245]}]
+)");
+  const YAML::Node copy = YAML::Clone(root);
+  applyOverride(&root, "teeth.*.length=0.05");
+  root["teeth"][0]["length"] = 0.07;
+  EXPECT_EQ(root["teeth"][0]["length"].as<double>(), 0.07);
+  EXPECT_EQ(root["teeth"][1]["length"].as<double>(), 0.05);
+  applyOverride(&root, "teeth.1.length=0.055");
+  EXPECT_EQ(root["teeth"][1]["length"].as<double>(), 0.055);
+  EXPECT_EQ(root["teeth"][0]["length"].as<double>(), 0.07);
+  applyOverride(&root, "integrator.type=event_driven");
+  EXPECT_EQ(root["integrator"]["type"].as<std::string>(), "event_driven");
+  EXPECT_EQ(copy["teeth"][0]["length"].as<double>(), 0.06);
+  EXPECT_FALSE(copy["integrator"].IsDefined());
+  // An empty tree becomes a mapping.
+  YAML::Node empty;
+  applyOverride(&empty, "drum.speed=80");
+  EXPECT_EQ(YAML::Dump(empty), "drum:\n  speed: 80");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Files.
 

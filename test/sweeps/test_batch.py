@@ -8,7 +8,9 @@ then run as its own simulate process (the run's arguments: scene, --set-file, --
 compared with:
 
 - simulate --batch with the same arguments as lines (scene trees parsed once, overrides per run);
-- simulate --batch with the resolved scenes as text (the runner's lines);
+- simulate --batch with the resolved scenes as text;
+- simulate --batch with each run's base scene as text and its --set overrides (the runner's
+  lines: one parse per base scene, the overrides applied to a copy of its tree);
 - scripts/sweep run locally (threads feeding simulate --batch processes), its table and kept
   files;
 - scripts/sweep run on a dask-scheduler with two dask-workers on 127.0.0.1.
@@ -155,6 +157,27 @@ class BatchTest(unittest.TestCase):
         for run, result in zip(reversed(self.runs), results):
             self.assertEqual(result["id"], run.key)
             self.assert_same_outputs(run, result, "batch of resolved scenes")
+
+    def test_batch_of_base_scenes_and_overrides(self):
+        # The runner's lines: each run's base scene (scene and override files, from
+        # --check-batch) and its --set overrides, applied in the batch process to a copy of the
+        # base's tree, parsed once per base; in reverse order and then in sweep order.
+        scenes = [runner._scene_of(r) for r in self.runs]
+        self.assertTrue(all(s["scene"] == r.base for s, r in zip(scenes, self.runs)))
+        self.assertTrue(all(s["args"] and s["args"][::2] == ["--set"] * (len(s["args"]) // 2)
+                            for s in scenes))
+        self.assertLess(len(set(r.base for r in self.runs)), len(self.runs) // 2)
+        order = list(reversed(self.runs)) + list(self.runs)
+        lines = [{"id": r.key, "scene_yaml": scenes[r.index]["scene"],
+                  "args": scenes[r.index]["args"], "return": ["summary", "outcomes", *r.keep]}
+                 for r in order]
+        results, code = batch(self.simulate, lines)
+        self.assertEqual(code, 0)
+        self.assertEqual(len(results), len(order))
+        for run, result in zip(order, results):
+            self.assertEqual(result["id"], run.key)
+            self.assertEqual(result["status"], "ok", result["message"])
+            self.assert_same_outputs(run, result, "batch of base scenes and overrides")
 
     def test_bad_lines_are_reported_and_the_batch_goes_on(self):
         # Run 0 keeps its forces: --forces samples near contacts, so the line asks for them.

@@ -28,7 +28,9 @@ YAML::Node loadSceneYaml(const std::string& path);
 // Applies one "key.path=value" override in place (e.g. "teeth.0.modes=0",
 // "drum.speed=120", "kernels.1.position=[0.01, 0.25]"). The path must name an existing key or
 // a known optional key; "*" in place of a list index sets every item of a non-empty list
-// ("teeth.*.modes=0"). Throws SceneError naming the path; the tree is unchanged then.
+// ("teeth.*.modes=0"). Throws SceneError naming the path; the tree is unchanged then. The
+// tree is changed in place: only the nodes on the path are visited (no copy of the tree), so
+// other handles to the same tree see the change (apply to a YAML::Clone to keep the original).
 void applyOverride(YAML::Node* root, const std::string& assignment);
 
 // The overrides of an override file: a YAML mapping of key paths to values, e.g.

@@ -226,6 +226,20 @@ def _connect(scheduler, workers):
     return Client(cluster), cluster
 
 
+def _scene_of(run):
+    """What a batch line runs: the run's base scene (its scene with the override files) and
+    its --set overrides, so that a simulate --batch process parses each base once and applies
+    the overrides to a copy of the tree; the resolved scene when no base is known."""
+    if run.base is None:
+        return {"scene": run.scene, "args": []}
+    flags = run.arguments[1::2] if len(run.arguments) % 2 else []
+    values = run.arguments[2::2] if len(run.arguments) % 2 else []
+    if not flags or any(f not in ("--set", "--set-file") for f in flags):
+        return {"scene": run.scene, "args": []}
+    return {"scene": run.base,
+            "args": [a for f, v in zip(flags, values) if f == "--set" for a in (f, v)]}
+
+
 def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=None,
               processes=False, batch=None, progress_stream=sys.stderr, log=print):
     """Runs every run not in the cache; returns the table (rows in sweep order) and stats.
@@ -251,7 +265,7 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
              "processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
     started = time.monotonic()
     if todo:
-        payload = {key: {"key": key, "scene": by_key[key][0].scene, "simulate": str(simulate),
+        payload = {key: {"key": key, **_scene_of(by_key[key][0]), "simulate": str(simulate),
                          "sha": binary_sha, "timeout_s": sweep.timeout_s,
                          "keep": by_key[key][0].keep}
                    for key in todo}

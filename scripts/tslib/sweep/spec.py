@@ -687,6 +687,7 @@ class Run:
         self.arguments = arguments  # simulate arguments: scene, --set-file, --set
         self.keep = []              # extra outputs kept (events, forces)
         self.scene = None           # resolved scene (one line of YAML), after validation
+        self.base = None            # its scene with the override files, before the --set ones
         self.key = None             # hash of the resolved scene, the binary and the outputs
 
 
@@ -987,8 +988,10 @@ def _check_batch(simulate, runs, timeout_s):
 
 def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
     """Resolves every run with `simulate --check-batch` (`jobs` processes, each a share of the
-    runs) and sets each run's scene and key. Raises SweepError naming the first bad run's axis
-    values, its key path and value (the loader's message), and how many runs are bad."""
+    runs) and sets each run's scene, base scene (the scene with its override files: a batch
+    process parses each base once and applies the run's --set values to a copy) and key.
+    Raises SweepError naming the first bad run's axis values, its key path and value (the
+    loader's message), and how many runs are bad."""
     import concurrent.futures
 
     jobs = max(1, min(jobs, len(runs) // 50 + 1))
@@ -999,14 +1002,16 @@ def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
     for i, answer in enumerate(answers):
         lines[i::jobs] = answer
     bad = []
+    bases = {}
     for run, line in zip(runs, lines):
         verdict, _, rest = line.partition("\t")
         if verdict != "ok":
             bad.append((run, rest))
             continue
-        run.scene = rest
+        run.scene, _, base = rest.partition("\t")
+        run.base = bases.setdefault(base, base) if base else None  # one string per base
         outputs = ",".join(run.keep)
-        run.key = hashlib.sha256(f"{binary_sha}\n{outputs}\n{rest}".encode()).hexdigest()[:32]
+        run.key = hashlib.sha256(f"{binary_sha}\n{outputs}\n{run.scene}".encode()).hexdigest()[:32]
     if bad:
         run, message = bad[0]
         axes = ", ".join(f"{k}={v}" for k, v in run.labels.items())

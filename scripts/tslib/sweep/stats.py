@@ -283,9 +283,9 @@ def _runs_for(sweep, seeds_of, settings, validated, simulate, sha):
         spec_module.validate(sweep, new, simulate, sha)
         for r, i in zip(runs, ident):
             if i not in validated and r.key is not None:
-                validated[i] = (r.scene, r.key)
+                validated[i] = (r.scene, r.key, r.base)
     for r, i in zip(runs, ident):
-        r.scene, r.key = validated[i]
+        r.scene, r.key, r.base = validated[i]
     return runs
 
 

@@ -101,7 +101,7 @@ EXIT_WAIT_S = 10.0
 
 
 def _batch_line(task):
-    return json.dumps({"id": task["key"], "scene_yaml": task["scene"], "args": [],
+    return json.dumps({"id": task["key"], "scene_yaml": task["scene"], "args": task["args"],
                        "return": ["summary", "outcomes", *task["keep"]]}) + "\n"
 
 
