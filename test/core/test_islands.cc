@@ -64,6 +64,47 @@ AsyncState gridState(int n, double cell_m) {
   return as;
 }
 
+// gridQueryAnnulus: gridQuery's list, in its order, less only circles clear of the annulus
+// (whole cells out of it are dropped; some are, over these queries).
+TEST(Calendar, AnnulusQueryDropsOnlyCirclesClearOfTheAnnulus) {
+  const int n = 400;
+  AsyncState as = gridState(n, 0.02);
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> u(-0.3, 0.3), r(0.001, 0.01), w(0.0, 0.1);
+  for (int i = 0; i < n; ++i) {
+    as.kernels[i].bound_c_W = Vec2(u(rng), u(rng));
+    as.kernels[i].bound_r_m = r(rng);
+    internal::gridInsert(&as, i);
+  }
+  for (int i = 0; i < n; i += 5) internal::gridRemove(&as, i);
+  long dropped = 0, kept = 0;
+  for (int q = 0; q < 300; ++q) {
+    const Vec2 lo(u(rng), u(rng));
+    const Vec2 hi = lo + Vec2(w(rng), w(rng));
+    const double r_lo = 0.2 + 0.5 * u(rng), r_hi = r_lo + w(rng);
+    internal::gridQuery(&as, lo, hi);
+    const std::vector<int> all = as.found;
+    internal::gridQueryAnnulus(&as, lo, hi, r_lo, r_hi);
+    const std::vector<int> some = as.found;
+    size_t p = 0;
+    for (int j : all) {
+      if (p < some.size() && some[p] == j) {
+        ++p;
+        ++kept;
+        continue;
+      }
+      const internal::KernelClock& k = as.kernels[j];
+      const double rho = k.bound_c_W.norm();
+      EXPECT_TRUE(rho - k.bound_r_m > r_hi || rho + k.bound_r_m < r_lo)
+          << "kernel " << j << " query " << q;
+      ++dropped;
+    }
+    EXPECT_EQ(p, some.size()) << "query " << q;  // nothing else, in gridQuery's order
+  }
+  EXPECT_GT(dropped, 100);
+  EXPECT_GT(kept, 100);
+}
+
 TEST(Calendar, HeapPopsByWakeTimeThenIndex) {
   AsyncState as = gridState(200, 0.01);
   std::mt19937 rng(3);
@@ -416,6 +457,89 @@ TEST(BodyMotion, KernelsAtRestAreListedAsleepWithoutPrediction) {
   EXPECT_GT((a.z.segment<3>(last) - z0.segment<3>(last)).norm(), 1e-5);
   EXPECT_LT((a.z.head(last) - g.z.head(last)).norm(), 1e-12);
   EXPECT_LT((a.z - g.z).norm(), 1e-6);
+}
+
+// restsOnPedicel (set-up's inline at-rest test on the state arrays) decides as lazyAtRestAt,
+// over states from at rest to swinging hard (both outcomes).
+TEST(BodyMotion, BulkAtRestTestDecidesAsThePedicelRates) {
+  const Model m = hangingField(true);
+  Data d;
+  resetData(m, &d);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), decade(-14.0, -2.0);
+  int rest = 0, moving = 0;
+  for (int n = 0; n < 4000; ++n) {
+    const int i = n % 40;
+    const KernelModel& k = m.kernels[i];
+    Data& p = d;  // perturbed, then restored
+    const Eigen::Vector3d z0 = d.z.segment<3>(k.dof_offset), u0 = d.u.segment<3>(k.dof_offset);
+    const double scale = std::pow(10.0, decade(rng));
+    for (int j = 0; j < 3; ++j) {
+      p.z[k.dof_offset + j] += (n % 3 == 0 ? 0.0 : scale) * unit(rng);
+      p.u[k.dof_offset + j] = (n % 3 == 1 ? 0.0 : scale) * unit(rng);
+    }
+    const double psi = p.z[k.dof_offset + 2], horizon = std::pow(10.0, 0.25 * decade(rng));
+    const bool bulk = internal::restsOnPedicel(k, m.gravity_mps2, m.integrator.tolerance,
+                                               p.z.data() + k.dof_offset, p.u.data() + k.dof_offset,
+                                               std::cos(psi), std::sin(psi), horizon);
+    const bool rates = internal::lazyAtRestAt(m, p, i, horizon, std::cos(psi), std::sin(psi));
+    EXPECT_EQ(bulk, rates) << "sample " << n;
+    d.z.segment<3>(k.dof_offset) = z0;
+    d.u.segment<3>(k.dof_offset) = u0;
+    (rates ? rest : moving) += 1;
+  }
+  EXPECT_GT(rest, 100);
+  EXPECT_GT(moving, 100);
+}
+
+// A field at rest out of the tooth's reach is never looked at kernel by kernel while the tooth
+// sweeps past window after window: no prediction, no kernel in the sweeps' lists (whole grid
+// cells are skipped), and it stays put bit for bit. A lazy kernel in the tooth's path is.
+TEST(BodyMotion, AFieldAtRestOutOfReachIsNotLookedAtPerWindow) {
+  for (const IntegratorType type : {IntegratorType::kEventDriven, IntegratorType::kTimeStepping}) {
+    Model m = testutil::defaultSceneModel(type);
+    m.integrator.islands = true;
+    const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
+    m.kernels.clear();
+    for (int row = 0; row < 4; ++row) {
+      for (int col = 0; col < 25; ++col) {
+        // Centres on arcs 15 mm apart from 0.305 m (the tooth reaches 0.26 m), 12 mm apart
+        // along them, over the angles the tooth sweeps and beyond: beside its path, not in it.
+        const double rho = 0.305 + 0.015 * row, phi = -0.05 + 0.012 * col / rho;
+        const Vec2 centre(rho * std::cos(phi), rho * std::sin(phi));
+        const Vec2 anchor = centre + Vec2(0.0, rest + mass * testutil::kG / k_Npm + a);
+        KernelModel k = testutil::makeKernel(a, 1.3e-3, centre, Vec2::Zero(), kPi / 2, mass);
+        k.pedicel.present = true;
+        k.pedicel.p_WA_W = anchor;
+        k.pedicel.p_KP_K = Vec2(a, 0.0);
+        k.pedicel.stiffness_Npm = k_Npm;
+        k.pedicel.damping_Nspm = 0.002;
+        k.pedicel.rest_length_m = rest;
+        k.pedicel.detachment_force_N = 1.6;
+        m.kernels.push_back(k);
+      }
+    }
+    compileModel(&m);
+    Data d;
+    resetData(m, &d);
+    const VecX z0 = d.z.tail(3 * 100), u0 = d.u.tail(3 * 100);
+    ASSERT_EQ(advanceTo(m, &d, 0.002), StepStatus::kOk);
+    const SchedulerStats& s = d.stats.scheduler;
+    EXPECT_GE(s.windows, 10);
+    EXPECT_EQ(s.asleep, 100);
+    EXPECT_EQ(s.predictions, 0);
+    EXPECT_EQ(d.ws->async->swept_kernels, 0);
+    EXPECT_TRUE(testutil::sameBits(d.z.tail(3 * 100), z0));
+    EXPECT_TRUE(testutil::sameBits(d.u.tail(3 * 100), u0));
+    // The default scene's free kernel, lazy until the tooth reaches it, is looked at.
+    Model strike = testutil::defaultSceneModel(type);
+    strike.integrator.islands = true;
+    compileModel(&strike);
+    Data ds;
+    resetData(strike, &ds);
+    ASSERT_EQ(advanceTo(strike, &ds, 0.002), StepStatus::kOk);
+    EXPECT_GT(ds.ws->async->swept_kernels, 0);
+  }
 }
 
 TEST(BodyMotion, LazySpeedBoundHoldsAlongThePedicelTrajectory) {

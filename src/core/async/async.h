@@ -38,30 +38,29 @@ enum class KernelMotion : std::uint8_t {
   kIsland = 2,   // member of an island: integrated with the island's bodies
 };
 
-// Per-kernel clock and calendar entry.
+// Per-kernel clock and calendar entry (the doubles first, then the small fields: 128 bytes).
 struct KernelClock {
-  double t_s = 0;  // time the kernel's entries of Data::z, u refer to [s]
-  KernelMotion motion = KernelMotion::kFree;
-  int island = -1;                     // island slot while motion == kIsland
-  double wake_s = 0;                   // the kernel stays inside its bound circle until then [s]
-  Vec2 bound_c_W = Vec2::Zero();       // bound circle centre, world [m]
-  double bound_r_m = 0;                // bound circle radius [m]
-  double speed_bound_mps = 0;          // speed bound of its points until wake_s [m/s]
-  double h_s = 0;                      // pedicel clock: next step proposal [s]
-  int heap_pos = -1;                   // position in the calendar heap; -1 = not in it
-  std::int64_t cell = 0;               // grid cell of bound_c_W while listed
-  int cell_next = -1, cell_prev = -1;  // neighbours in the cell's list (-1 = none)
-  bool in_grid = false;                // listed in the grid
+  Vec2 bound_c_W = Vec2::Zero();  // bound circle centre, world [m]
+  double t_s = 0;                 // time the kernel's entries of Data::z, u refer to [s]
+  double wake_s = 0;              // the kernel stays inside its bound circle until then [s]
+  double bound_r_m = 0;           // bound circle radius [m]
+  double speed_bound_mps = 0;     // speed bound of its points until wake_s [m/s]
+  double h_s = 0;                 // pedicel clock: next step proposal [s]
+  std::int64_t cell = 0;          // grid cell of bound_c_W while listed
+  // At rest on its pedicel (atRest held at its prediction over the longest horizon) until
+  // then: its clock jumps without another check; cleared when it leaves the calendar [s].
+  double rest_until_s = -std::numeric_limits<double>::infinity();
   // Cached a-axis of the kernel at angle axis_psi_rad (see orientedKernel): the bounds need
   // cos psi and sin psi, which change only when the kernel's angle does.
   mutable double axis_psi_rad = std::numeric_limits<double>::quiet_NaN();  // [rad]
   mutable Vec2 axis_W = Vec2::UnitX();  // (cos, sin) of axis_psi_rad, world [-]
-
+  int island = -1;                      // island slot while motion == kIsland
+  int heap_pos = -1;                    // position in the calendar heap; -1 = not in it
+  int cell_next = -1, cell_prev = -1;   // neighbours in the cell's list (-1 = none)
   // Its closed form in AsyncState::pedicel_classes; -1 none, -2 not looked up yet [-].
   int pedicel_class = -2;
-  // At rest on its pedicel (atRest held at its prediction over the longest horizon) until
-  // then: its clock jumps without another check; cleared when it leaves the calendar [s].
-  double rest_until_s = -std::numeric_limits<double>::infinity();
+  KernelMotion motion = KernelMotion::kFree;
+  bool in_grid = false;  // listed in the grid
 };
 
 // An ellipse with its a-axis as a unit vector: the bounds below need no trigonometry.
@@ -128,6 +127,7 @@ struct AsyncState {
   // Uniform grid of lazy kernels' bound circles: open-addressing table cell -> first kernel.
   double cell_m = 0;                            // cell size [m]
   double r_cap_m = 0;                           // largest bound radius a lazy kernel is given [m]
+  double r_listed_m = 0;                        // radii listed since set-up are at most this [m]
   double max_horizon_s = 1.0;                   // longest horizon of a prediction [s]
   std::vector<std::int64_t> cell_key;           // table keys (kEmptyCell = empty)
   std::vector<int> cell_head;                   // first kernel of the cell, -1 = none
@@ -158,6 +158,9 @@ struct AsyncState {
   std::vector<PedicelPropagator> pedicel_classes;
   // Closed-form advances of pedicel kernels since the scheduler was created [-].
   long pedicel_closed_forms = 0;
+  // Lazy kernels the teeth's sweeps looked at one by one since set-up (a grid cell wholly out of
+  // a tooth's reach is skipped without them): a field out of reach costs nothing per window [-].
+  long swept_kernels = 0;
 };
 
 constexpr std::int64_t kEmptyCell = kEmptyCellKey;
@@ -188,22 +191,70 @@ void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s
 double toothDeflectionBound(const Model& m, const Data& d, const AsyncState& as, int k);
 
 // --- calendar.cc: the wake-time heap and the grid of bound circles ------------------------
+// Cell coordinate floor(q) of q = x / cell (|q| < 2^62), as
+// static_cast<std::int64_t>(std::floor(q)) without the library call.
+inline std::int64_t cellFloor(double q) {
+  const std::int64_t t = static_cast<std::int64_t>(q);
+  return q < static_cast<double>(t) ? t - 1 : t;
+}
+// Table key of grid cell (cx, cy) (the lazy grid's and the island grid's cells): the row in the
+// high 32 bits, the column in the low ones (in unsigned arithmetic: a negative row must not be
+// shifted as a signed value).
+inline std::int64_t gridCellKey(std::int64_t cx, std::int64_t cy) {
+  return static_cast<std::int64_t>((static_cast<std::uint64_t>(cy) << 32) ^
+                                   (static_cast<std::uint64_t>(cx) & 0xffffffffULL));
+}
+// Whether a kernel on its pedicel, with its state z (pose x, y, psi) and u (their rates) and the
+// cosine and sine of psi given, is at rest over dt_s: lazyAtRestAt on the state arrays, with the
+// arithmetic of pedicelRates and ratesAtRest (body_motion.cc) in the same order, so that it
+// decides as they do bit for bit; inline, for set-up's loop over a whole field.
+inline bool restsOnPedicel(const KernelModel& k, const Vec2& g, double tol, const double* z,
+                           const double* u, double cos_psi, double sin_psi, double dt_s) {
+  const PedicelModel& p = k.pedicel;
+  const double rx = cos_psi * p.p_KP_K.x() - sin_psi * p.p_KP_K.y();
+  const double ry = sin_psi * p.p_KP_K.x() + cos_psi * p.p_KP_K.y();
+  const double dx = z[0] + rx - p.p_WA_W.x(), dy = z[1] + ry - p.p_WA_W.y();
+  const double len = std::sqrt(dx * dx + dy * dy);
+  double fx = 0.0, fy = 0.0, moment = 0.0;
+  if (!(len <= 0.0)) {
+    const double vx = u[0] + u[2] * -ry, vy = u[1] + u[2] * rx;
+    const double ex = dx / len, ey = dy / len;
+    const double tension =
+        p.stiffness_Npm * (len - p.rest_length_m) + p.damping_Nspm * (ex * vx + ey * vy);
+    fx = -tension * ex;
+    fy = -tension * ey;
+    moment = rx * fy - ry * fx;
+  }
+  const double ax = g.x() + fx / k.mass_kg, ay = g.y() + fy / k.mass_kg;
+  const double alpha = moment / k.inertia_kgm2;
+  const double a = k.semi_axis_a_m;
+  const double v = std::sqrt(u[0] * u[0] + u[1] * u[1]) + a * std::abs(u[2]);
+  const double acc = std::sqrt(ax * ax + ay * ay) + a * std::abs(alpha);
+  return v * dt_s + 0.5 * acc * dt_s * dt_s <= tol * 1e-2 && acc * dt_s <= tol;
+}
+
 void heapPush(AsyncState* as, int i);
 void heapRemove(AsyncState* as, int i);
 int heapTop(const AsyncState& as);  // -1 if empty
 void gridInsert(AsyncState* as, int i);
-// Set-up's bulk listing: kernel i asleep (bound circle set) at the end of the calendar and in
-// the grid, remembering the last cell (*memo) so that neighbours in one cell share its lookup.
-// Only while every kernel in the calendar wakes at the same time as i (set-up, before any
-// prediction): the heap needs no sifting then.
-struct CellMemo {
-  std::int64_t key = kEmptyCellKey;
-  size_t slot = 0;
-};
-void listAsleepAtSetUp(AsyncState* as, int i, CellMemo* memo);
+// Set-up's bulk listing, one loop over the kernels in index order (as->kernels rebuilt, the
+// calendar emptied): each gets a fresh clock, its motion and ungrown circle and is listed in the
+// grid (sized here for every kernel: no rebuild), at the head of its cell's list as gridInsert
+// lists it; a kernel at rest on its pedicel over the longest horizon is listed asleep at once, as
+// predictKernel would list it (circle grown by the error scale, awake after that horizon), at
+// the end of the calendar (all of them wake together: no sifting). Kernels of a field share
+// the cosine and sine of their angle and their cell's table lookup with the kernel before.
+// Returns the number of kernels not listed asleep (to be predicted).
+int listKernelsAtSetUp(const Model& m, const Data& d, AsyncState* as);
 void gridRemove(AsyncState* as, int i);
 // Listed kernels whose circles may meet the box [lo, hi], into as->found (callers test exactly).
 void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi);
+// The same, without the cells whose every circle (radius at most as->r_listed_m) lies beyond
+// the annulus r_lo_m <= |p| <= r_hi_m about the drum axis (a whole cell out of a tooth's reach
+// is skipped without looking at its kernels): as->found is gridQuery's list less kernels whose
+// circles the annulus does not meet, in the same order. Counts the kernels it lists
+// (AsyncState::swept_kernels).
+void gridQueryAnnulus(AsyncState* as, const Vec2& lo, const Vec2& hi, double r_lo_m, double r_hi_m);
 // Gives lazy kernel i (at time t_s) a new bound circle and wake time and lists it, or, when
 // it cannot stay lazy past t_window_end_s, adds joins (with a neighbour, or itself alone).
 // Its growth (bound radius minus a) is at most grow_cap_m. Returns true if it stays lazy.
@@ -212,8 +263,6 @@ bool predictKernel(const Model& m, const Data& d, AsyncState* as, int i, double 
                    double grow_cap_m = std::numeric_limits<double>::infinity());
 // Distance from point c to obstacle o's surface [m] (negative inside).
 double obstacleClearance(const ObstacleModel& o, const Vec2& c);
-// Table key of grid cell (cx, cy) (the lazy grid's and the island grid's cells).
-std::int64_t gridCellKey(std::int64_t cx, std::int64_t cy);
 // Supporting-line lower bound of the gap between two ellipses along their centres' line [m]:
 // never above their signed distance; no trigonometry.
 double ellipseGapBound(const OrientedEllipse& e1, const OrientedEllipse& e2);

@@ -273,7 +273,6 @@ void flushWindowEvents(Data* d, AsyncState* as) {
 
 void setUp(const Model& m, Data* d, AsyncState* as) {
   const int K = static_cast<int>(m.kernels.size()), T = static_cast<int>(m.teeth.size());
-  as->kernels.assign(K, KernelClock());
   as->tooth_island.assign(T, -1);
   for (Island& isl : as->islands) {
     isl.alive = false;
@@ -285,25 +284,20 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
     sys->in_use = false;
     sys->teeth_of = nullptr;
   }
-  as->stored_memory.clear();
-  as->stored_memory.reserve(static_cast<size_t>(K) * (T + 8) + 64);
-  as->heap.clear();
-  as->heap.reserve(K);
+  // The pair memory of pairs outside islands: reserved by the first island (buildIsland), so
+  // that a field that never forms one does not pay for a table sized for every pair.
+  if (as->stored_memory.size() > 0) as->stored_memory.clear();
   double a_max = 1e-6;
   for (const KernelModel& k : m.kernels) a_max = std::max(a_max, k.semi_axis_a_m);
   as->r_cap_m = a_max + 4.0 * m.broadphase_margin_m;
   as->cell_m = 2.0 * as->r_cap_m;
   as->max_horizon_s = 1.0;
-  size_t slots = 64;
-  while (slots < 4 * static_cast<size_t>(K) + 64) slots *= 2;
-  as->cell_key.assign(slots, kEmptyCell);
-  as->cell_head.assign(slots, -1);
-  as->cells_used = 0;
   as->entity_slot.assign(T + K, -1);
   as->prop.resize(T);
   as->tooth_bound.assign(T, ToothBound());
   for (ToothPropagator& p : as->prop) p.n_modes = -1;
   as->counters = SchedulerStats();
+  as->swept_kernels = 0;
   // Every kernel listed first, so that each prediction sees all its neighbours (and leaves
   // them their half of each gap). A kernel at rest on its pedicel over the longest horizon is
   // listed asleep at once, as predictKernel would list it (its circle grown by the error scale,
@@ -312,42 +306,12 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   // checked where the scene is read), and every kernel that moves or wakes checks its own
   // circle against theirs in the grid (predictKernel, lazyNeighbours, sweepTeeth). The others
   // are listed with their ungrown circle, then predicted.
-  const double horizon = as->max_horizon_s;
-  const double rest_speed = m.integrator.tolerance * 1e-2 / horizon;
-  double psi_rad = 0.0, cos_psi = 1.0, sin_psi = 0.0;  // the last angle's cosine and sine
-  CellMemo cell;
-  for (int i = 0; i < K; ++i) {
-    KernelClock& kc = as->kernels[i];
-    const KernelModel& k = m.kernels[i];
-    kc.t_s = d->t_s;
-    kc.motion = k.pedicel.present && d->kernel_attached[i] ? KernelMotion::kPedicel
-                                                           : KernelMotion::kFree;
-    kc.bound_c_W = d->z.segment<2>(k.dof_offset);
-    kc.bound_r_m = k.semi_axis_a_m;
-    if (kc.motion == KernelMotion::kPedicel) {
-      const double psi = d->z[k.dof_offset + 2];
-      if (!(psi == psi_rad)) {
-        psi_rad = psi;
-        cos_psi = std::cos(psi);
-        sin_psi = std::sin(psi);
-      }
-      if (lazyAtRestAt(m, *d, i, horizon, cos_psi, sin_psi)) {
-        ++as->counters.asleep;
-        kc.rest_until_s = kc.t_s + horizon;
-        kc.speed_bound_mps = rest_speed;
-        kc.bound_r_m = k.semi_axis_a_m + rest_speed * horizon;
-        kc.wake_s = kc.t_s + horizon;
-        listAsleepAtSetUp(as, i, &cell);
-        continue;
-      }
+  if (listKernelsAtSetUp(m, *d, as) > 0) {
+    for (int i = 0; i < K; ++i) {
+      if (as->kernels[i].heap_pos >= 0) continue;  // asleep
+      gridRemove(as, i);
+      predictKernel(m, *d, as, i, d->t_s, d->t_s);
     }
-    gridInsert(as, i);
-    cell = CellMemo();  // (the insertion may have rebuilt the table)
-  }
-  for (int i = 0; i < K; ++i) {
-    if (as->kernels[i].heap_pos >= 0) continue;  // asleep
-    gridRemove(as, i);
-    predictKernel(m, *d, as, i, d->t_s, d->t_s);
   }
   as->ready = true;
 }
@@ -355,20 +319,23 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
 // Brings every lazy kernel to the data's time (the caller reads the whole state).
 bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
   const double t_s = d->t_s;
-  for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i) {
-    // A kernel asleep on its pedicel until past t_s: its clock jumps (advanceLazyKernel's first
-    // case, without its call).
-    KernelClock& kc = as->kernels[i];
-    if (kc.motion == KernelMotion::kPedicel && t_s <= kc.rest_until_s) {
-      if (t_s > kc.t_s) {
-        ++as->counters.sleeps;
-        kc.t_s = t_s;
+  const int K = static_cast<int>(m.kernels.size());
+  long jumps = 0;  // (counted here, added once)
+  bool ok = true;
+  for (int i = 0; i < K && ok; ++i) {
+    // A run of kernels asleep on their pedicels until past t_s: their clocks jump
+    // (advanceLazyKernel's first case, without its call), in a loop that calls nothing.
+    KernelClock* kcs = as->kernels.data();
+    for (; i < K && kcs[i].motion == KernelMotion::kPedicel && t_s <= kcs[i].rest_until_s; ++i) {
+      if (t_s > kcs[i].t_s) {
+        ++jumps;
+        kcs[i].t_s = t_s;
       }
-      continue;
     }
-    if (!advanceLazyKernel(m, d, as, i, t_s)) return false;
+    if (i < K) ok = advanceLazyKernel(m, d, as, i, t_s);
   }
-  return true;
+  as->counters.sleeps += jumps;
+  return ok;
 }
 
 void publishContacts(Data* d, const AsyncState& as) {

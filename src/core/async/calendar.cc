@@ -50,14 +50,15 @@ void siftDown(AsyncState* as, int pos) {
 std::int64_t cellKey(std::int64_t cx, std::int64_t cy) { return gridCellKey(cx, cy); }
 
 std::int64_t cellOf(const AsyncState& as, const Vec2& p) {
-  const std::int64_t cx = static_cast<std::int64_t>(std::floor(p.x() / as.cell_m));
-  const std::int64_t cy = static_cast<std::int64_t>(std::floor(p.y() / as.cell_m));
-  return cellKey(cx, cy);
+  return cellKey(cellFloor(p.x() / as.cell_m), cellFloor(p.y() / as.cell_m));
 }
 
+// Bits 40 and up of the product: the row sits in the key's high 32 bits, which reach only the
+// product's high half (bits below 32 would give every cell of a column one slot: long probe
+// runs through a field of kernels). Tables of up to 2^24 slots.
 size_t slotHash(std::int64_t key, size_t n_slots) {
-  std::uint64_t h = static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL;
-  return static_cast<size_t>(h >> 17) & (n_slots - 1);
+  const std::uint64_t h = static_cast<std::uint64_t>(key) * 0x9E3779B97F4A7C15ULL;
+  return static_cast<size_t>(h >> 40) & (n_slots - 1);
 }
 
 // Table slot of a cell key: its slot, or the empty slot where it would go.
@@ -83,6 +84,7 @@ void listInCell(AsyncState* as, int i) {
   if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
   as->cell_head[s] = i;
   kc.in_grid = true;
+  as->r_listed_m = std::max(as->r_listed_m, kc.bound_r_m);
 }
 
 // Rebuilds the table from the listed kernels once half its slots hold keys (cells that emptied
@@ -100,13 +102,6 @@ void compactGrid(AsyncState* as) {
 }
 
 }  // namespace
-
-// Table key of grid cell (cx, cy): the row in the high 32 bits, the column in the low ones
-// (in unsigned arithmetic: a negative row must not be shifted as a signed value).
-std::int64_t gridCellKey(std::int64_t cx, std::int64_t cy) {
-  return static_cast<std::int64_t>((static_cast<std::uint64_t>(cy) << 32) ^
-                                   (static_cast<std::uint64_t>(cx) & 0xffffffffULL));
-}
 
 double ellipseGapBound(const OrientedEllipse& e1, const OrientedEllipse& e2) {
   const Vec2 d_W = e2.center_W - e1.center_W;
@@ -173,30 +168,77 @@ void gridInsert(AsyncState* as, int i) {
   listInCell(as, i);
 }
 
-void listAsleepAtSetUp(AsyncState* as, int i, CellMemo* memo) {
-  KernelClock& kc = as->kernels[i];
-  kc.heap_pos = static_cast<int>(as->heap.size());
-  as->heap.push_back(i);
-  if (2 * (as->cells_used + 1) > as->cell_key.size()) {
-    compactGrid(as);
-    memo->key = kEmptyCell;
-  }
-  kc.cell = cellOf(*as, kc.bound_c_W);
-  if (kc.cell != memo->key) {
-    memo->key = kc.cell;
-    memo->slot = findSlot(*as, kc.cell);
-    if (as->cell_key[memo->slot] == kEmptyCell) {
-      as->cell_key[memo->slot] = kc.cell;
-      as->cell_head[memo->slot] = -1;
-      ++as->cells_used;
+int listKernelsAtSetUp(const Model& m, const Data& d, AsyncState* as) {
+  const int K = static_cast<int>(m.kernels.size());
+  size_t slots = 64;
+  while (slots < 4 * static_cast<size_t>(K) + 64) slots *= 2;  // K keys at most: no rebuild
+  as->cell_key.assign(slots, kEmptyCell);
+  std::int64_t* cell_key = as->cell_key.data();
+  as->cell_head.assign(slots, -1);
+  int* cell_head = as->cell_head.data();
+  as->cells_used = 0;
+  as->heap.clear();
+  as->heap.reserve(K);
+  as->kernels.assign(K, KernelClock());
+  KernelClock* clocks = as->kernels.data();
+  const double t_s = d.t_s, horizon = as->max_horizon_s, tol = m.integrator.tolerance;
+  const double rest_speed = tol * 1e-2 / horizon;
+  const double cell_m = as->cell_m;
+  double a_max = 0.0;
+  for (const KernelModel& k : m.kernels) a_max = std::max(a_max, k.semi_axis_a_m);
+  const Vec2 g = m.gravity_mps2;
+  const double* z = d.z.data();
+  const double* u = d.u.data();
+  const std::uint8_t* attached = d.kernel_attached.data();
+  double psi_rad = 0.0, cos_psi = 1.0, sin_psi = 0.0;  // the last angle's cosine and sine
+  std::int64_t memo_key = kEmptyCell;                  // the last cell and its slot
+  size_t memo_slot = 0;
+  size_t cells_used = 0;
+  for (int i = 0; i < K; ++i) {
+    KernelClock& kc = clocks[i];
+    const KernelModel& k = m.kernels[i];
+    const double* zi = z + k.dof_offset;
+    kc.t_s = t_s;
+    kc.bound_c_W = Vec2(zi[0], zi[1]);
+    kc.bound_r_m = k.semi_axis_a_m;
+    if (k.pedicel.present && attached[i]) {
+      kc.motion = KernelMotion::kPedicel;
+      if (!(zi[2] == psi_rad)) {
+        psi_rad = zi[2];
+        cos_psi = std::cos(psi_rad);
+        sin_psi = std::sin(psi_rad);
+      }
+      if (restsOnPedicel(k, g, tol, zi, u + k.dof_offset, cos_psi, sin_psi, horizon)) {
+        kc.rest_until_s = t_s + horizon;
+        kc.speed_bound_mps = rest_speed;
+        kc.bound_r_m = k.semi_axis_a_m + rest_speed * horizon;
+        kc.wake_s = t_s + horizon;
+        kc.heap_pos = static_cast<int>(as->heap.size());
+        as->heap.push_back(i);
+      }
     }
+    kc.cell = cellKey(cellFloor(zi[0] / cell_m), cellFloor(zi[1] / cell_m));
+    if (kc.cell != memo_key) {
+      memo_key = kc.cell;
+      memo_slot = slotHash(kc.cell, slots);
+      while (cell_key[memo_slot] != kc.cell && cell_key[memo_slot] != kEmptyCell)
+        memo_slot = (memo_slot + 1) & (slots - 1);  // (findSlot, the table's size known)
+      if (cell_key[memo_slot] == kEmptyCell) {
+        cell_key[memo_slot] = kc.cell;
+        ++cells_used;
+      }
+    }
+    kc.cell_next = cell_head[memo_slot];
+    if (kc.cell_next >= 0) clocks[kc.cell_next].cell_prev = i;
+    cell_head[memo_slot] = i;
+    kc.in_grid = true;
   }
-  const size_t s = memo->slot;
-  kc.cell_prev = -1;
-  kc.cell_next = as->cell_head[s];
-  if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
-  as->cell_head[s] = i;
-  kc.in_grid = true;
+  const int asleep = static_cast<int>(as->heap.size());
+  as->cells_used = cells_used;
+  // Every circle listed here is a semi-axis a grown by at most the error scale.
+  as->r_listed_m = a_max + rest_speed * horizon;
+  as->counters.asleep += asleep;
+  return K - asleep;
 }
 
 void gridRemove(AsyncState* as, int i) {
@@ -215,10 +257,10 @@ void gridRemove(AsyncState* as, int i) {
 void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
   as->found.clear();
   const double pad = as->r_cap_m;
-  const std::int64_t x0 = static_cast<std::int64_t>(std::floor((lo.x() - pad) / as->cell_m));
-  const std::int64_t x1 = static_cast<std::int64_t>(std::floor((hi.x() + pad) / as->cell_m));
-  const std::int64_t y0 = static_cast<std::int64_t>(std::floor((lo.y() - pad) / as->cell_m));
-  const std::int64_t y1 = static_cast<std::int64_t>(std::floor((hi.y() + pad) / as->cell_m));
+  const std::int64_t x0 = cellFloor((lo.x() - pad) / as->cell_m);
+  const std::int64_t x1 = cellFloor((hi.x() + pad) / as->cell_m);
+  const std::int64_t y0 = cellFloor((lo.y() - pad) / as->cell_m);
+  const std::int64_t y1 = cellFloor((hi.y() + pad) / as->cell_m);
   if ((x1 - x0 + 1) * (y1 - y0 + 1) > static_cast<std::int64_t>(as->cell_key.size())) {
     // A box larger than the table: every listed kernel is a candidate.
     for (size_t i = 0; i < as->kernels.size(); ++i)
@@ -230,6 +272,47 @@ void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
       const size_t s = findSlot(*as, cellKey(cx, cy));
       if (as->cell_key[s] == kEmptyCell) continue;
       for (int j = as->cell_head[s]; j >= 0; j = as->kernels[j].cell_next) as->found.push_back(j);
+    }
+  }
+}
+
+void gridQueryAnnulus(AsyncState* as, const Vec2& lo, const Vec2& hi, double r_lo_m,
+                      double r_hi_m) {
+  as->found.clear();
+  const double pad = as->r_cap_m, c = as->cell_m;
+  const std::int64_t x0 = cellFloor((lo.x() - pad) / c), x1 = cellFloor((hi.x() + pad) / c);
+  const std::int64_t y0 = cellFloor((lo.y() - pad) / c), y1 = cellFloor((hi.y() + pad) / c);
+  if ((x1 - x0 + 1) * (y1 - y0 + 1) > static_cast<std::int64_t>(as->cell_key.size())) {
+    gridQuery(as, lo, hi);  // every listed kernel
+    as->swept_kernels += static_cast<long>(as->found.size());
+    return;
+  }
+  // A centre listed in cell (cx, cy) lies in [cx c, (cx + 1) c] x [cy c, (cy + 1) c] up to the
+  // rounding of its division, far below the slack; its circle's radius is at most r_listed_m.
+  // The cell's box, grown by the slack, bounds |p| of its centres from below (near) and above
+  // (far): a circle there with rho - r > r_hi or rho + r < r_lo is clear of the annulus.
+  const double slack = 1e-6 * c;
+  const double reach = as->r_listed_m + slack;
+  auto nearFar = [c, slack](std::int64_t k, double* near, double* far) {
+    const double a = static_cast<double>(k) * c - slack, b = static_cast<double>(k + 1) * c + slack;
+    *near = a > 0.0 ? a : (b < 0.0 ? -b : 0.0);
+    *far = std::max(std::abs(a), std::abs(b));
+  };
+  for (std::int64_t cy = y0; cy <= y1; ++cy) {
+    double ny = 0.0, fy = 0.0;
+    nearFar(cy, &ny, &fy);
+    for (std::int64_t cx = x0; cx <= x1; ++cx) {
+      const size_t s = findSlot(*as, cellKey(cx, cy));
+      if (as->cell_key[s] == kEmptyCell || as->cell_head[s] < 0) continue;
+      double nx = 0.0, fx = 0.0;
+      nearFar(cx, &nx, &fx);
+      if (std::sqrt(nx * nx + ny * ny) - reach > r_hi_m ||
+          std::sqrt(fx * fx + fy * fy) + reach < r_lo_m)
+        continue;  // the whole cell is out of reach
+      for (int j = as->cell_head[s]; j >= 0; j = as->kernels[j].cell_next) {
+        as->found.push_back(j);
+        ++as->swept_kernels;
+      }
     }
   }
 }

@@ -212,6 +212,9 @@ void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vect
   isl.alive = true;
   isl.teeth = teeth;
   isl.kernels = kernels;
+  // The pair memory outside islands (kept when an island dissolves) is sized at the first
+  // island for every pair of the model: later islands find it reserved (no allocation).
+  as->stored_memory.reserve(m.kernels.size() * (m.teeth.size() + 8) + 64);
   IslandSystem* sys = takeSystem(as, teeth, kernels.size());
   isl.sys = sys;
   const Model& sm = sys->model;

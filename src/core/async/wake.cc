@@ -44,9 +44,7 @@ double toothPad(const Model& m, const Data& d, const AsyncState& as, int k) {
 void joinOnce(AsyncState* as, int a, int b) { as->joins.emplace_back(a, b); }
 
 // Cell coordinate of x [m] in the grids' cells.
-std::int64_t cellCoord(const AsyncState& as, double x_m) {
-  return static_cast<std::int64_t>(std::floor(x_m / as.cell_m));
-}
+std::int64_t cellCoord(const AsyncState& as, double x_m) { return cellFloor(x_m / as.cell_m); }
 
 }  // namespace
 
@@ -185,7 +183,9 @@ void sweepTeeth(const Model& m, Data* d, AsyncState* as, double t0, double t1) {
         sweptSector(th_lo + tm.mount_angle_rad, th_hi + tm.mount_angle_rad, r_in, r_out);
     Vec2 lo, hi;
     sectorBox(sec.phi0_rad, sec.phi1_rad, r_in, r_out, &lo, &hi);
-    gridQuery(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad));
+    // Whole cells beyond the padded annulus [r_in, r_out] are skipped (the test below would
+    // skip each of their kernels).
+    gridQueryAnnulus(as, lo - Vec2(pad, pad), hi + Vec2(pad, pad), r_in - pad, r_out + pad);
     as->found_copy = as->found;  // tryShrink queries the grid again
     for (int j : as->found_copy) {
       const KernelClock& kj = as->kernels[j];
