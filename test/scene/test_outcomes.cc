@@ -184,9 +184,12 @@ Model defaultScene(std::vector<std::string> overrides = {}) {
 
 // Per step: the peaks are at least every published tooth force, and under time stepping
 // (forces once per step) exactly the largest of them, at the step it occurred.
+// The global scheme's steps (integrator.islands: false): a step of the island scheme is a whole
+// scheduling window, whose end need not fall inside the contact.
 TEST(ToothPeaks, AreTheLargestForceOfEveryAcceptedStep) {
   for (const char* integrator : {"event_driven", "time_stepping"}) {
-    const Model m = defaultScene({std::string("integrator.type=") + integrator, "duration=4e-4"});
+    const Model m = defaultScene({std::string("integrator.type=") + integrator, "duration=4e-4",
+                                  "integrator.islands=false"});
     Data d;
     resetData(m, &d);
     KernelToothPeaks seen;  // largest published tooth forces and when
@@ -415,16 +418,19 @@ std::pair<double, double> forcesAroundDetachment(const Model& m) {
   return {before_N, pedicelForce(m, d, 0)};
 }
 
+// Steps of the global scheme (integrator.islands: false): the island scheme's step is a whole
+// scheduling window, past the located break inside it.
 TEST(ThreshingScenes, DetachmentExactlyWhenPedicelForcePassesThreshold) {
   // Event-driven: the crossing is located, so the force at detachment is the threshold.
-  const Model ed = scene("single_strike", "nylon");
+  const Model ed = scene("single_strike", "nylon", {"integrator.islands=false"});
   const double threshold_N = ed.kernels[0].pedicel.detachment_force_N;
   const auto [ed_before_N, ed_at_N] = forcesAroundDetachment(ed);
   EXPECT_LT(ed_before_N, threshold_N);
   EXPECT_NEAR(ed_at_N, threshold_N, 1e-3 * threshold_N);
 
   // Time stepping: the first step whose end state passes the threshold breaks it.
-  const Model ts = scene("single_strike", "nylon", {"integrator.type=time_stepping"});
+  const Model ts = scene("single_strike", "nylon",
+                         {"integrator.type=time_stepping", "integrator.islands=false"});
   const auto [ts_before_N, ts_at_N] = forcesAroundDetachment(ts);
   EXPECT_LE(ts_before_N, threshold_N);
   EXPECT_GT(ts_at_N, threshold_N);

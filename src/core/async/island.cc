@@ -101,13 +101,27 @@ PairId localToGlobal(const Island& isl, const PairId& p) {
   }
 }
 
-// Stored pair memory of the island's pairs, into its workspace under local keys.
+// Energy minus drive work of an island's sub-system [J]: what an episode's energy_before_J is
+// measured against (beginEpisode, endEpisode). It depends on the sub-system's bodies and on
+// the drive work since its reset, so a stored episode keeps its energy relative to it.
+double islandNetEnergy(const Island& isl) {
+  return mechanicalEnergy(isl.model(), isl.data()) - isl.data().stats.drive_work_J;
+}
+
+// Stored pair memory of the island's pairs, into its workspace under local keys. An episode's
+// energy at its start was stored relative to the net energy of the island it began in
+// (dissolveIsland): it is measured against this island's from here, so that the energy an
+// impact reports lost is the change over the episode whichever islands it spanned.
 void loadPairMemory(const Model& m, AsyncState* as, Island* isl) {
   PairTable& local = isl->data().ws->memory;
   const int T = static_cast<int>(isl->teeth.size()), K = static_cast<int>(isl->kernels.size());
+  const double e_net = islandNetEnergy(*isl);
   auto load = [&](const PairId& p_local) {
     const PairMemory* mem = as->stored_memory.find(pairKey(localToGlobal(*isl, p_local)));
-    if (mem != nullptr) local[pairKey(p_local)] = *mem;
+    if (mem == nullptr) return;
+    PairMemory& l = local[pairKey(p_local)];
+    l = *mem;
+    l.energy_before_J += e_net;
   };
   for (int b = 0; b < K; ++b) {
     for (int a = 0; a < T; ++a) load(PairId{PairKind::kToothKernel, a, b});
@@ -290,9 +304,13 @@ void storeIslandState(const Model& m, Data* d, const AsyncState& as, int s) {
 void dissolveIsland(const Model& m, Data* d, AsyncState* as, int s) {
   Island& isl = as->islands[s];
   storeIslandState(m, d, *as, s);
+  // Episodes keep their start energy relative to this island's net energy (see loadPairMemory).
+  const double e_net = islandNetEnergy(isl);
   for (auto& entry : isl.data().ws->memory) {
     if (!worthKeeping(entry.second)) continue;
-    as->stored_memory[pairKey(localToGlobal(isl, pairOfKey(entry.first)))] = entry.second;
+    PairMemory& stored = as->stored_memory[pairKey(localToGlobal(isl, pairOfKey(entry.first)))];
+    stored = entry.second;
+    stored.energy_before_J -= e_net;
   }
   for (int k : isl.teeth) as->tooth_island[k] = -1;
   for (int i : isl.kernels) {

@@ -26,6 +26,18 @@ struct Ctx {
 
 inline bool isActive(const PairMemory& mem) { return mem.state != ContactState::kSeparated; }
 
+// Whether a rigid pair's contact, closed since before t, ended at time t [s] (its normal force
+// released it, or an impact elsewhere made it bounce). At t its gap is the round-off of the
+// constraint it held and its normal velocity that constraint's drift (integration error, of the
+// order of the tolerance): neither is an approach, and which side of zero they land on differs
+// between two runs that took different steps (the island scheme's sub-systems, another
+// tolerance). Over the step from t the pair closes again only when its gap falls below minus
+// the position error scale (eventValues), as a graze counts; it is not opened at t.
+inline bool releasedAt(const PairMemory& mem, const ContactParams& p, double t) {
+  return !isActive(mem) && p.law == ContactLaw::kRigid && mem.last_contact_end_s == t &&
+         mem.episode_start_s < t;
+}
+
 // Drum state at absolute time t (the target is fixed within a step).
 inline Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 

@@ -32,8 +32,10 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
     const PairMemory& mem = ws.memory[pairKey(g.pair)];
     double* v = &(*vals)[4 * i];
     if (!isActive(mem)) {
-      // Separated: the gap closes.
-      v[0] = g.gap_m;
+      // Separated: the gap closes (a rigid contact released at the step start: below the
+      // position error scale; see releasedAt).
+      v[0] =
+          releasedAt(mem, *g.params, c.d.t_s) ? g.gap_m + m.integrator.tolerance * 1e-2 : g.gap_m;
       if (rates && !g.far) (*rates)[4 * i] = g.vn;
       continue;
     }

@@ -150,6 +150,7 @@ void openTouchingContacts(const Ctx& c) {
     const ContactGeom& g = ws.geoms[i];
     PairMemory& mem = ws.memory[pairKey(g.pair)];
     if (isActive(mem) || g.far || g.gap_m > 0.0 || g.vn > 0.0) continue;
+    if (releasedAt(mem, *g.params, d->t_s)) continue;  // no approach (see releasedAt)
     any_touch = true;
     if (g.params->law == ContactLaw::kRigid) {
       rigid_touch = true;
