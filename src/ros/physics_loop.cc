@@ -477,12 +477,28 @@ void PhysicsLoop::adjustPace() {
   counters_.target_rtf = rtf;
 }
 
-void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
-  // The island scheme leaves lone kernels on their own clocks between snapshots.
-  if (syncBodies(*model_, &data_) == StepStatus::kFailed) flags_.failed = true;
+// The fields a boundary's snapshot and a strike's frame share: the model, the step, the
+// kernels' attachment and per-kernel statistics, the drum's target, the demo's loops and the pace.
+Snapshot PhysicsLoop::runFields() const {
   Snapshot s;
   s.model = model_;
   s.step = flags_.step;
+  s.kernel_attached = data_.kernel_attached;
+  s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
+  s.kernel_impacts = data_.stats.kernel_impacts;
+  s.omega_target_radps = data_.omega_target_radps;
+  s.alpha_radps2 = data_.alpha_radps2;
+  s.loops = demo_.loops();
+  s.target_rtf = counters_.target_rtf;
+  s.requested_rtf = counters_.requested_rtf;
+  s.measured_rtf = counters_.measured_rtf;
+  return s;
+}
+
+void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
+  // The island scheme leaves lone kernels on their own clocks between snapshots.
+  if (syncBodies(*model_, &data_) == StepStatus::kFailed) flags_.failed = true;
+  Snapshot s = runFields();
   // After a failure the state is the last good one, inside the failed physics step (the time
   // /diagnostics reports too).
   s.t_s = flags_.failed ? data_.t_s : s.step * timing_.dt_s;
@@ -491,17 +507,8 @@ void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   s.omega_radps = data_.omega_radps;
   s.z = data_.z;
   s.u = data_.u;
-  s.kernel_attached = data_.kernel_attached;
   s.contacts = data_.contacts;
-  s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
-  s.kernel_impacts = data_.stats.kernel_impacts;
   s.streams = streams;
-  s.omega_target_radps = data_.omega_target_radps;
-  s.alpha_radps2 = data_.alpha_radps2;
-  s.loops = demo_.loops();
-  s.target_rtf = counters_.target_rtf;
-  s.requested_rtf = counters_.requested_rtf;
-  s.measured_rtf = counters_.measured_rtf;
   log_.fill(*model_, data_, &s);
   s.reset = std::exchange(pending_reset_, false);
   s.frames = std::exchange(frames_pending_, {});
@@ -516,27 +523,16 @@ void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
 // time, kept for the boundary's snapshot (which the frames put on the marker stream). Only
 // markers: impacts, strikes and commands go with the boundary as without frames.
 void PhysicsLoop::takeFrame(const FrameState& f) {
-  Snapshot s;
-  s.model = model_;
-  s.step = flags_.step;
+  Snapshot s = runFields();
   s.t_s = f.t_s;
   s.stamp = ros::Time().fromNSec(f.t_ns);
   s.theta_rad = f.theta_rad;
   s.omega_radps = f.omega_radps;
   s.z = f.z;
   s.u = f.u;
-  s.kernel_attached = data_.kernel_attached;
   s.contacts = f.contacts;
-  s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
-  s.kernel_impacts = data_.stats.kernel_impacts;
   s.streams = kMarkerStream;
   s.frame = true;
-  s.omega_target_radps = data_.omega_target_radps;
-  s.alpha_radps2 = data_.alpha_radps2;
-  s.loops = demo_.loops();
-  s.target_rtf = counters_.target_rtf;
-  s.requested_rtf = counters_.requested_rtf;
-  s.measured_rtf = counters_.measured_rtf;
   // A previous episode's peak arrow is hidden while its pair touches again (its live arrow
   // shows then), as at a boundary; the other peak arrows stay as the last full message drew
   // them (in a stream they were a third of the frames' bytes).

@@ -140,6 +140,7 @@ class PhysicsLoop {
   void adjustPace();
   void takeSnapshot(unsigned streams, bool frame_only = false);
   void takeFrame(const FrameState& frame);
+  Snapshot runFields() const;  // the fields snapshots and frames share
   void publishCounters();
 
   struct ResetRequest {
