@@ -17,11 +17,13 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "threshing_sim/core/simulator.h"
+#include "threshing_sim/scene/number_text.h"
 #include "threshing_sim/scene/report.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -51,32 +53,20 @@ class UsageError : public std::runtime_error {
 };
 
 int parseInt(const std::string& option, const std::string& text, int lo) {
-  size_t used = 0;
-  int value = 0;
-  try {
-    value = std::stoi(text, &used);
-  } catch (const std::logic_error&) {
-    used = 0;
-  }
-  if (used != text.size() || value < lo) {
+  const std::optional<int> value = intFromText(text);
+  if (!value || *value < lo) {
     throw UsageError(option + " expects an integer >= " + std::to_string(lo) + " (got '" + text +
                      "')");
   }
-  return value;
+  return *value;
 }
 
 double parseSeconds(const std::string& option, const std::string& text) {
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::logic_error&) {
-    used = 0;
-  }
-  if (used != text.size() || !(value > 0) || !std::isfinite(value)) {
+  const std::optional<double> value = doubleFromText(text);
+  if (!value || !(*value > 0)) {
     throw UsageError(option + " expects a number > 0 in seconds (got '" + text + "')");
   }
-  return value;
+  return *value;
 }
 
 Options parseOptions(int argc, char** argv) {

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "app.h"
+#include "threshing_sim/scene/number_text.h"
 #include "threshing_sim/scene/scene_loader.h"
 
 namespace threshing_sim {
@@ -21,30 +22,18 @@ namespace {
 
 // --sample-interval: a number > 0 [s].
 double parseSampleInterval(const std::string& text) {
-  size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::logic_error&) {
-    used = 0;
-  }
-  if (text.empty() || used != text.size() || !(value > 0) || !std::isfinite(value))
+  const std::optional<double> value = doubleFromText(text);
+  if (!value || !(*value > 0))
     throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
-  return value;
+  return *value;
 }
 
 // --trace-every: an integer >= 1.
 int parseTraceEvery(const std::string& text) {
-  size_t used = 0;
-  int value = 0;
-  try {
-    value = std::stoi(text, &used);
-  } catch (const std::logic_error&) {
-    used = 0;
-  }
-  if (text.empty() || used != text.size() || value < 1)
+  const std::optional<int> value = intFromText(text);
+  if (!value || *value < 1)
     throw UsageError("--trace-every expects an integer >= 1 (got '" + text + "')");
-  return value;
+  return *value;
 }
 
 // The sugar options, turned into overrides after every --set.

@@ -19,23 +19,21 @@ Summaries must be equal apart from the wall_time_s line; outcomes, events and fo
 byte. A bad line gives an error line naming the bad value and the batch continues. Every wait
 has a timeout; the cluster started here is stopped at the end. Writes JUnit XML (--xml).
 """
-import argparse
 import csv
 import json
 import os
 import pathlib
 import shutil
-import signal
 import subprocess
 import sys
 import unittest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from sweep_test_util import ROOT, load, parser, run_suite  # noqa: E402
+
 sys.path.insert(0, str(ROOT / "scripts"))
-sys.path.insert(0, str(ROOT / "test/sweeps"))
 from tslib.sweep import runner, spec  # noqa: E402
 from tslib.sweep.cluster import LoopbackCluster  # noqa: E402
-from test_sweep import JUnitResult, write_junit  # noqa: E402
 
 ARGS = None
 SCENES = ROOT / "config/scenes"
@@ -257,19 +255,9 @@ class BatchTest(unittest.TestCase):
 
 def main():
     global ARGS
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--simulate", default=str(
-        ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
-    parser.add_argument("--out", default=str(ROOT / ".build/batch_test"))
-    parser.add_argument("--xml", help="JUnit XML result file")
-    ARGS = parser.parse_args()
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
+    ARGS = parser(__doc__, out="batch_test").parse_args()
     os.environ.pop("THRESHING_SIM_SIMULATE", None)
-    suite = unittest.defaultTestLoader.loadTestsFromTestCase(BatchTest)
-    result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
-    if ARGS.xml:
-        write_junit(ARGS.xml, result, "test_batch")
-    return 0 if result.wasSuccessful() else 1
+    return run_suite(load(BatchTest), ARGS.xml, "test_batch")[0]
 
 
 if __name__ == "__main__":

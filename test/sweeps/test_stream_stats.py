@@ -9,33 +9,23 @@ in rounds) on a local cluster of one worker: it stops on the standard error (a l
 on the budget (a budget of a few core-seconds) and on max_rounds, and `scripts/sweep run
 --report` writes the report's stream statistics section. Writes a JUnit XML file (--xml).
 """
-import argparse
 import copy
 import json
 import math
 import pathlib
 import shutil
-import signal
 import statistics
-import subprocess
 import sys
 import unittest
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "scripts"))
-sys.path.insert(0, str(ROOT / "test/sweeps"))
-from tslib.sweep import runner, spec, stats  # noqa: E402
-from test_sweep import JUnitResult, write_junit  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from sweep_test_util import ROOT, load, parser, run_suite, sweep  # noqa: E402
 
-SWEEP = ROOT / "scripts/sweep"
+sys.path.insert(0, str(ROOT / "scripts"))
+from tslib.sweep import runner, spec, stats  # noqa: E402
+
 TINY = ROOT / "test/sweeps/stream_stats_tiny.yaml"
 ARGS = None  # command line (simulate, out)
-
-
-def sweep(*args, timeout=120):
-    """Runs scripts/sweep; returns the completed process (output captured)."""
-    return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
-                          text=True, timeout=timeout)
 
 
 class EstimatorTest(unittest.TestCase):
@@ -179,22 +169,12 @@ class StopRuleTest(unittest.TestCase):
 
 def main():
     global ARGS
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--simulate", default=str(
-        ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
-    parser.add_argument("--out", default=str(ROOT / ".build/stream_stats_test"))
-    parser.add_argument("--xml", help="JUnit XML result file")
-    parser.add_argument("--only-estimators", action="store_true",
-                        help="only the estimator tests (no simulate)")
-    ARGS = parser.parse_args()
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
-    suite = unittest.defaultTestLoader.loadTestsFromTestCase(EstimatorTest)
-    if not ARGS.only_estimators:
-        suite.addTests(unittest.defaultTestLoader.loadTestsFromTestCase(StopRuleTest))
-    result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
-    if ARGS.xml:
-        write_junit(ARGS.xml, result)
-    return 0 if result.wasSuccessful() else 1
+    p = parser(__doc__, out="stream_stats_test")
+    p.add_argument("--only-estimators", action="store_true",
+                   help="only the estimator tests (no simulate)")
+    ARGS = p.parse_args()
+    cases = (EstimatorTest,) if ARGS.only_estimators else (EstimatorTest, StopRuleTest)
+    return run_suite(load(*cases), ARGS.xml, "test_stream_stats")[0]
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ cache, and that failures (crash, timeout) are recorded without stopping the swee
 bad axis is refused before anything runs. Every wait has a timeout; every process started here
 is killed at the end. Writes a JUnit XML file (--xml) for scripts/test.sh's count.
 """
-import argparse
 import csv
 import math
 import os
@@ -18,15 +17,14 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import unittest
-import xml.etree.ElementTree as ET
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from sweep_test_util import ROOT, SWEEP, load, parser, run_suite, sweep  # noqa: E402
+
 sys.path.insert(0, str(ROOT / "scripts"))
 from tslib.sweep.cluster import LoopbackCluster, wait_for  # noqa: E402
 
-SWEEP = ROOT / "scripts/sweep"
 SMALL = ROOT / "config/sweeps/small.yaml"
 ARGS = None  # command line (simulate, out)
 
@@ -34,12 +32,6 @@ ARGS = None  # command line (simulate, out)
 def rows(path):
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
-
-
-def sweep(*args, timeout=120):
-    """Runs scripts/sweep; returns the completed process (output captured)."""
-    return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
-                          text=True, timeout=timeout)
 
 
 class SweepTest(unittest.TestCase):
@@ -331,69 +323,14 @@ class BinaryLookupTest(unittest.TestCase):
         self.assertIn("CMAKE_PREFIX_PATH", str(caught.exception))
 
 
-class JUnitResult(unittest.TextTestResult):
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.cases = []
-        self.started = {}
-
-    def startTest(self, test):
-        self.started[test.id()] = time.monotonic()
-        super().startTest(test)
-
-    def _record(self, test, kind=None, text=""):
-        elapsed = time.monotonic() - self.started.get(test.id(), time.monotonic())
-        self.cases.append((test.id(), kind, text, elapsed))
-
-    def addSuccess(self, test):
-        super().addSuccess(test)
-        self._record(test)
-
-    def addFailure(self, test, err):
-        super().addFailure(test, err)
-        self._record(test, "failure", self._exc_info_to_string(err, test))
-
-    def addError(self, test, err):
-        super().addError(test, err)
-        self._record(test, "error", self._exc_info_to_string(err, test))
-
-
-def write_junit(path, result, name="test_sweep"):
-    suite = ET.Element("testsuite", name=name, tests=str(len(result.cases)),
-                       failures=str(len(result.failures)), errors=str(len(result.errors)))
-    for name, kind, text, elapsed in result.cases:
-        classname, _, method = name.rpartition(".")
-        case = ET.SubElement(suite, "testcase", classname=classname, name=method,
-                             time=f"{elapsed:.3f}")
-        if kind:
-            ET.SubElement(case, kind, message=text.splitlines()[-1] if text else "").text = text
-    if not result.cases:  # setUpClass failed: one failing case says so
-        case = ET.SubElement(suite, "testcase", classname=name, name="setUpClass")
-        ET.SubElement(case, "error", message="set-up failed").text = \
-            "\n".join(t for _, t in result.errors)
-    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
-    ET.ElementTree(suite).write(path, encoding="utf-8", xml_declaration=True)
-
-
 def main():
     global ARGS
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--simulate", default=str(
-        ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
-    parser.add_argument("--out", default=str(ROOT / ".build/sweep_test"))
-    parser.add_argument("--xml", help="JUnit XML result file")
-    parser.add_argument("--only-lookup", action="store_true",
-                        help="only the binary lookup tests (no cluster)")
-    ARGS = parser.parse_args()
-    # SIGTERM ends like Ctrl-C, so that the cluster started here is stopped.
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
-    suite = unittest.defaultTestLoader.loadTestsFromTestCase(BinaryLookupTest)
-    if not ARGS.only_lookup:
-        suite.addTests(unittest.defaultTestLoader.loadTestsFromTestCase(SweepTest))
-    result = unittest.TextTestRunner(resultclass=JUnitResult, verbosity=2).run(suite)
-    if ARGS.xml:
-        write_junit(ARGS.xml, result)
-    return 0 if result.wasSuccessful() else 1
+    p = parser(__doc__, out="sweep_test")
+    p.add_argument("--only-lookup", action="store_true",
+                   help="only the binary lookup tests (no cluster)")
+    ARGS = p.parse_args()
+    cases = (BinaryLookupTest,) if ARGS.only_lookup else (BinaryLookupTest, SweepTest)
+    return run_suite(load(*cases), ARGS.xml, "test_sweep")[0]
 
 
 if __name__ == "__main__":

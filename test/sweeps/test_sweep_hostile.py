@@ -15,7 +15,6 @@ Writes a JUnit XML file (--xml) for scripts/test.sh's count.
   test/sweeps/test_sweep_hostile.py [--simulate PATH] [--xml FILE] [--scripts DIR] [TEST...]
   (--scripts: the tslib.sweep to test, e.g. another checkout's scripts/ folder)
 """
-import argparse
 import math
 import os
 import pathlib
@@ -27,9 +26,10 @@ import sys
 import tempfile
 import time
 import unittest
-import xml.etree.ElementTree as ET
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from sweep_test_util import ROOT, parser, run_suite  # noqa: E402
+
 SCENE = ROOT / "config/scenes/single_strike.yaml"
 ARGS = None
 TIMES = []  # (test, CPU seconds) of each refusal
@@ -382,51 +382,16 @@ class CommandTest(unittest.TestCase):
 
 # ------------------------------------------------------------------------------------------
 
-def write_junit(path, result, cases):
-    suite = ET.Element("testsuite", name="test_sweep_hostile", tests=str(len(cases)),
-                       failures=str(len(result.failures)), errors=str(len(result.errors)))
-    bad = {t.id(): (kind, text) for kind, items in (("failure", result.failures),
-                                                    ("error", result.errors))
-           for t, text in items}
-    for test_id, elapsed in cases:
-        classname, _, method = test_id.rpartition(".")
-        case = ET.SubElement(suite, "testcase", classname=classname, name=method,
-                             time=f"{elapsed:.3f}")
-        if test_id in bad:
-            kind, text = bad[test_id]
-            ET.SubElement(case, kind, message=text.splitlines()[-1] if text else "").text = text
-    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
-    ET.ElementTree(suite).write(path, encoding="utf-8", xml_declaration=True)
-
-
-class TimedResult(unittest.TextTestResult):
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.cases, self.started = [], {}
-
-    def startTest(self, test):
-        self.started[test.id()] = time.monotonic()
-        super().startTest(test)
-
-    def stopTest(self, test):
-        self.cases.append((test.id(), time.monotonic() - self.started[test.id()]))
-        super().stopTest(test)
-
-
 def main():
     global ARGS, spec
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--simulate", default=str(
-        ROOT / ".build/ws/devel/lib/threshing_sim/simulate"))
-    parser.add_argument("--scripts", default=str(ROOT / "scripts"),
-                        help="folder holding the tslib package (tslib.sweep) to test")
-    parser.add_argument("--xml", help="JUnit XML result file")
-    parser.add_argument("tests", nargs="*", help="only these tests, e.g. "
-                        "HostileTest.test_seeds_count")
-    parser.add_argument("--write-doc", action="store_true",
-                        help="write spec.limits_markdown() into docs/sweeps.md and exit")
-    ARGS = parser.parse_args()
+    p = parser(__doc__)
+    p.add_argument("--scripts", default=str(ROOT / "scripts"),
+                   help="folder holding the tslib package (tslib.sweep) to test")
+    p.add_argument("tests", nargs="*", help="only these tests, e.g. "
+                   "HostileTest.test_seeds_count")
+    p.add_argument("--write-doc", action="store_true",
+                   help="write spec.limits_markdown() into docs/sweeps.md and exit")
+    ARGS = p.parse_args()
     sys.path.insert(0, ARGS.scripts)
     from tslib.sweep import spec as module
     spec = module
@@ -446,14 +411,12 @@ def main():
             ARGS.tests, sys.modules[__name__]))
     for case in () if ARGS.tests else (HostileTest, CommandTest):
         suite.addTests(unittest.defaultTestLoader.loadTestsFromTestCase(case))
-    result = unittest.TextTestRunner(resultclass=TimedResult, verbosity=2).run(suite)
+    status, _ = run_suite(suite, ARGS.xml, "test_sweep_hostile")
     if TIMES:
         slowest = max(TIMES, key=lambda t: t[1])
         print(f"{len(TIMES)} refusals, the slowest {slowest[1] * 1e3:.1f} ms of CPU "
               f"({slowest[0]})", file=sys.stderr)
-    if ARGS.xml:
-        write_junit(ARGS.xml, result, result.cases)
-    return 0 if result.wasSuccessful() else 1
+    return status
 
 
 if __name__ == "__main__":
