@@ -179,7 +179,7 @@ struct AsyncState {
   // whose cells may hold one of their centres (the field's ring), before one of them leaves the
   // grid and before the table could need rebuilding; a tooth's sweep whose annulus misses the
   // ring passes them over (each would be dropped by its circle). All or none are unlisted.
-  int field_unlisted = 0;                         // kernels of the field not in a cell's list
+  int field_unlisted = 0;                         // its kernels not in a cell's list yet [-]
   double field_t_s = 0;                           // their clocks' time [s]
   double field_rho_lo_m = 0, field_rho_hi_m = 0;  // least and largest |centre| among them [m]
 

@@ -274,7 +274,8 @@ int heapTop(const AsyncState& as) { return as.heap.empty() ? -1 : as.heap[0]; }
 void gridInsert(AsyncState* as, int i) {
   KernelClock& kc = as->kernels[i];
   if (kc.in_grid) return;
-  // The field's cells count as set-up counted them: written first where they might tip it.
+  // The keys include the field's cells (listing it at set-up would have added them): where
+  // those might bring the keys to half the table, the field is written first, its cells counted.
   if (as->field_unlisted > 0 &&
       2 * (as->cells_used + static_cast<size_t>(as->field_unlisted) + 1) > as->cell_key.size())
     listField(as);
