@@ -3,7 +3,9 @@
 // models built in code. Scene-file agreement: test/scene/test_islands_scenes.cc.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
 
 #include "../../src/core/async/async.h"
@@ -155,6 +157,136 @@ TEST(Calendar, GridQueryFindsEveryCircleMeetingTheBox) {
       }
     }
   }
+}
+
+// n kernels on pedicels over a patch of 12 columns 4 mm apart and rows 15.6 mm apart (several to
+// a grid cell): those with i % 4 == 1 hang 2 mm aside (they swing), the others at rest.
+Model pedicelPatch(int n) {
+  Model m = testutil::bareModel(IntegratorType::kEventDriven);
+  m.integrator.islands = true;
+  m.integrator.tolerance = 1e-6;
+  const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
+  for (int i = 0; i < n; ++i) {
+    const Vec2 anchor(0.004 * (i % 12), -0.015625 * (i / 12));
+    const double hang_m = rest + mass * testutil::kG / k_Npm + a;
+    const Vec2 centre = anchor - Vec2(i % 4 == 1 ? 2e-3 : 0.0, hang_m);
+    KernelModel k = testutil::makeKernel(a, 1.3e-3, centre, Vec2::Zero(), kPi / 2, mass);
+    k.pedicel.present = true;
+    k.pedicel.p_WA_W = anchor;
+    k.pedicel.p_KP_K = Vec2(a, 0.0);
+    k.pedicel.stiffness_Npm = k_Npm;
+    k.pedicel.damping_Nspm = 0.002;
+    k.pedicel.rest_length_m = rest;
+    k.pedicel.detachment_force_N = 1.6;
+    m.kernels.push_back(k);
+  }
+  compileModel(&m);
+  return m;
+}
+
+// The grid as set-up lists it, kept alongside: every kernel listed at set-up in index order,
+// each at its cell's head; removals and insertions as gridRemove and gridInsert make them; a
+// query lists cell after cell (rows, then columns), each cell's list from its head.
+struct ReferenceGrid {
+  const AsyncState* as = nullptr;
+  std::map<std::int64_t, std::vector<int>> cells;  // cell key -> its kernels, head first
+  std::vector<std::int64_t> cell_of;               // per kernel: its cell while listed
+  std::int64_t cellAt(const Vec2& c) const {
+    return internal::gridCellKey(internal::cellFloor(c.x() / as->cell_m),
+                                 internal::cellFloor(c.y() / as->cell_m));
+  }
+  void insert(int i) {
+    cell_of[i] = cellAt(as->kernels[i].bound_c_W);
+    std::vector<int>& l = cells[cell_of[i]];
+    l.insert(l.begin(), i);
+  }
+  void remove(int i) {
+    std::vector<int>& l = cells[cell_of[i]];
+    l.erase(std::find(l.begin(), l.end(), i));
+  }
+  std::vector<int> query(const Vec2& lo, const Vec2& hi) const {
+    std::vector<int> out;
+    const double pad = as->r_cap_m, c = as->cell_m;
+    const std::int64_t x0 = internal::cellFloor((lo.x() - pad) / c);
+    const std::int64_t x1 = internal::cellFloor((hi.x() + pad) / c);
+    const std::int64_t y0 = internal::cellFloor((lo.y() - pad) / c);
+    const std::int64_t y1 = internal::cellFloor((hi.y() + pad) / c);
+    if ((x1 - x0 + 1) * (y1 - y0 + 1) > static_cast<std::int64_t>(as->cell_key.size())) {
+      for (size_t i = 0; i < as->kernels.size(); ++i)
+        if (as->kernels[i].in_grid) out.push_back(static_cast<int>(i));
+      return out;
+    }
+    for (std::int64_t cy = y0; cy <= y1; ++cy) {
+      for (std::int64_t cx = x0; cx <= x1; ++cx) {
+        const auto it = cells.find(internal::gridCellKey(cx, cy));
+        if (it != cells.end()) out.insert(out.end(), it->second.begin(), it->second.end());
+      }
+    }
+    return out;
+  }
+};
+
+// The sleeping field (kernels asleep at set-up, their cells not written) is written into the
+// grid only when a query may reach it, and then where set-up would have listed it: every query
+// lists the same kernels in the same order as a grid that listed every kernel at set-up, through
+// removals and insertions of swinging kernels before and of any kernel after; a sweep's annulus
+// clear of the field passes it over without writing it.
+TEST(Calendar, TheSleepingFieldIsListedWhereSetUpListsIt) {
+  const int n = 96;
+  const Model m = pedicelPatch(n);
+  Data d;
+  resetData(m, &d);
+  AsyncState as;
+  ASSERT_EQ(internal::listKernelsAtSetUp(m, d, &as), n / 4);  // the swinging ones
+  ASSERT_EQ(as.field_unlisted, n - n / 4);
+  ReferenceGrid ref;
+  ref.as = &as;
+  ref.cell_of.assign(n, 0);
+  for (int i = 0; i < n; ++i) ref.insert(i);
+  std::mt19937 rng(29);
+  std::uniform_real_distribution<double> ux(-0.02, 0.07), uy(-0.15, 0.01), w(0.0, 0.03);
+  auto moveAndInsert = [&](int i) {
+    as.kernels[i].bound_c_W = Vec2(ux(rng), uy(rng));
+    internal::gridInsert(&as, i);
+    ref.insert(i);
+  };
+  // Before the field is written: swinging kernels leave the grid, some come back elsewhere;
+  // queries away from the field and a sweep clear of it do not write it.
+  for (int i = 1; i < n; i += 8) {
+    internal::gridRemove(&as, i);
+    ref.remove(i);
+    if (i % 16 == 1) moveAndInsert(i);
+  }
+  internal::gridQuery(&as, Vec2(0.5, 0.5), Vec2(0.52, 0.52));
+  EXPECT_TRUE(as.found.empty());
+  const Vec2 lo(-0.02, -0.15), hi(0.07, 0.01);
+  internal::gridQueryAnnulus(&as, lo, hi, 0.3, 0.35);  // beyond every centre (|c| < 0.16 m)
+  EXPECT_EQ(as.field_unlisted, n - n / 4);
+  for (int j : as.found) EXPECT_NE(as.kernels[j].listing, internal::GridListing::kUnlisted);
+  // The first query that may reach it writes it, where set-up would have.
+  internal::gridQuery(&as, Vec2(0.01, -0.05), Vec2(0.02, -0.04));
+  EXPECT_EQ(as.field_unlisted, 0);
+  EXPECT_EQ(as.found, ref.query(Vec2(0.01, -0.05), Vec2(0.02, -0.04)));
+  // Then any kernel leaves and comes back, between queries.
+  std::uniform_int_distribution<int> pick(0, n - 1), op(0, 3);
+  int compared = 0;
+  for (int q = 0; q < 600; ++q) {
+    const int i = pick(rng);
+    if (op(rng) == 0) {
+      if (as.kernels[i].in_grid) {
+        internal::gridRemove(&as, i);
+        ref.remove(i);
+      } else {
+        moveAndInsert(i);
+      }
+      continue;
+    }
+    const Vec2 a(ux(rng), uy(rng)), b = a + Vec2(w(rng), w(rng));
+    internal::gridQuery(&as, a, b);
+    ASSERT_EQ(as.found, ref.query(a, b)) << "query " << q;
+    compared += static_cast<int>(as.found.size());
+  }
+  EXPECT_GT(compared, 1000);
 }
 
 // --- calendar.cc / wake.cc: bounds without trigonometry ---------------------------------------
@@ -529,6 +661,7 @@ TEST(BodyMotion, AFieldAtRestOutOfReachIsNotLookedAtPerWindow) {
     EXPECT_EQ(s.asleep, 100);
     EXPECT_EQ(s.predictions, 0);
     EXPECT_EQ(d.ws->async->swept_kernels, 0);
+    EXPECT_EQ(d.ws->async->field_unlisted, 100);  // not even written into the grid
     EXPECT_TRUE(testutil::sameBits(d.z.tail(3 * 100), z0));
     EXPECT_TRUE(testutil::sameBits(d.u.tail(3 * 100), u0));
     // The default scene's free kernel, lazy until the tooth reaches it, is looked at.

@@ -19,6 +19,8 @@
 #pragma once
 
 #include <memory>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "../internal.h"
@@ -26,6 +28,30 @@
 
 namespace threshing_sim {
 namespace internal {
+
+// An allocator whose construction without a value leaves a trivial element uninitialised: a
+// vector resized only to be written whole at once (the grid's table and the calendar at set-up)
+// is written once, not zeroed first.
+template <typename T>
+struct UninitAllocator : std::allocator<T> {
+  template <typename U>
+  struct rebind {
+    using other = UninitAllocator<U>;
+  };
+  UninitAllocator() = default;
+  template <typename U>
+  UninitAllocator(const UninitAllocator<U>&) noexcept {}  // NOLINT: a converting allocator
+  template <typename U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible<U>::value) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <typename U, typename... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+template <typename T>
+using UninitVector = std::vector<T, UninitAllocator<T>>;
 
 // Key of an empty slot of the grid's table.
 constexpr std::int64_t kEmptyCellKey = std::numeric_limits<std::int64_t>::min();
@@ -36,6 +62,16 @@ enum class KernelMotion : std::uint8_t {
   kPedicel = 1,  // on its pedicel: the closed form about its hanging equilibrium where that is
                  // within tolerance, else its own adaptive Dormand-Prince clock over its 3 dofs
   kIsland = 2,   // member of an island: integrated with the island's bodies
+};
+
+// How a kernel in the grid (KernelClock::in_grid) sits in it. A cell's list holds the kernels
+// listed since set-up first (each at the head when listed), then those listed at set-up and
+// never removed since, by descending index (set-up listed in index order, each at the head).
+enum class GridListing : std::uint8_t {
+  kSince = 0,     // in its cell's list, listed after set-up (or not in the grid)
+  kAtSetUp = 1,   // in its cell's list since set-up
+  kUnlisted = 2,  // asleep since set-up and not in a cell's list yet: the sleeping field (see
+                  // AsyncState::field_unlisted); its place is in the set-up part of its cell
 };
 
 // Per-kernel clock and calendar entry (the doubles first, then the small fields: 128 bytes).
@@ -60,7 +96,8 @@ struct KernelClock {
   // Its closed form in AsyncState::pedicel_classes; -1 none, -2 not looked up yet [-].
   int pedicel_class = -2;
   KernelMotion motion = KernelMotion::kFree;
-  bool in_grid = false;  // listed in the grid
+  bool in_grid = false;                       // listed in the grid
+  GridListing listing = GridListing::kSince;  // where in the grid, while in_grid
 };
 
 // An ellipse with its a-axis as a unit vector: the bounds below need no trigonometry.
@@ -123,17 +160,29 @@ struct AsyncState {
   // Sub-systems of islands, by shape (see IslandSystem): kept while the state lives.
   std::vector<std::unique_ptr<IslandSystem>> systems;
   PairTable stored_memory;  // pair memory (global keys) of pairs outside islands
-  std::vector<int> heap;    // calendar: kernels by wake time (binary min-heap)
+  UninitVector<int> heap;   // calendar: kernels by wake time (binary min-heap)
   // Uniform grid of lazy kernels' bound circles: open-addressing table cell -> first kernel.
   double cell_m = 0;                            // cell size [m]
   double r_cap_m = 0;                           // largest bound radius a lazy kernel is given [m]
   double r_listed_m = 0;                        // radii listed since set-up are at most this [m]
   double max_horizon_s = 1.0;                   // longest horizon of a prediction [s]
-  std::vector<std::int64_t> cell_key;           // table keys (kEmptyCell = empty)
-  std::vector<int> cell_head;                   // first kernel of the cell, -1 = none
+  UninitVector<std::int64_t> cell_key;          // table keys (kEmptyCell = empty)
+  UninitVector<int> cell_head;                  // first kernel of the cell, -1 = none
   size_t cells_used = 0;                        // keys in the table
   std::vector<ToothPropagator> prop;            // free teeth at constant drum speed
   mutable std::vector<ToothBound> tooth_bound;  // per tooth: its deflection bound's data
+
+  // The sleeping field: the kernels listed asleep at set-up, while their cells are not written
+  // (GridListing::kUnlisted; in_grid, in the calendar). Their clocks are the field's one clock
+  // (field_t_s: a sync jumps it, not theirs). They are written into their cells' lists where
+  // set-up would have put them, their clocks set to the field's (listField), before a query
+  // whose cells may hold one of their centres (the field's ring), before one of them leaves the
+  // grid and before the table could need rebuilding; a tooth's sweep whose annulus misses the
+  // ring passes them over (each would be dropped by its circle). All or none are unlisted.
+  int field_unlisted = 0;                         // its kernels not in a cell's list yet [-]
+  double field_t_s = 0;                           // their clocks' time [s]
+  double field_rho_lo_m = 0, field_rho_hi_m = 0;  // least and largest |centre| among them [m]
+
   // Per-window scratch (grow-only).
   std::vector<int> uf_parent;              // union-find over entity slots of this window
   std::vector<int> entities;               // entity ids: tooth k -> k, kernel i -> T + i
@@ -237,14 +286,15 @@ void heapPush(AsyncState* as, int i);
 void heapRemove(AsyncState* as, int i);
 int heapTop(const AsyncState& as);  // -1 if empty
 void gridInsert(AsyncState* as, int i);
-// Set-up's bulk listing, one loop over the kernels in index order (as->kernels rebuilt, the
-// calendar emptied): each gets a fresh clock, its motion and ungrown circle and is listed in the
-// grid (sized here for every kernel: no rebuild), at the head of its cell's list as gridInsert
-// lists it; a kernel at rest on its pedicel over the longest horizon is listed asleep at once, as
-// predictKernel would list it (circle grown by the error scale, awake after that horizon), at
-// the end of the calendar (all of them wake together: no sifting). Kernels of a field share
-// the cosine and sine of their angle and their cell's table lookup with the kernel before.
-// Returns the number of kernels not listed asleep (to be predicted).
+// Set-up's bulk listing, in index order (as->kernels rebuilt, the calendar emptied; the grid's
+// cell size set from the largest semi-axis a, its table sized here for every kernel: no
+// rebuild). A kernel at rest on its pedicel over the longest horizon is listed asleep at once, as
+// predictKernel would list it (circle grown by the error scale, awake after that horizon), at the
+// end of the calendar (all of them wake together: no sifting), in the sleeping field (its cell
+// not written: AsyncState::field_unlisted). Any other gets a fresh clock, its motion and ungrown
+// circle and is listed in its cell, at the head of the cell's list as gridInsert lists it.
+// Kernels of a field share the cosine and sine of their angle with the kernel before. Returns
+// the number of kernels not asleep (to be predicted).
 int listKernelsAtSetUp(const Model& m, const Data& d, AsyncState* as);
 void gridRemove(AsyncState* as, int i);
 // Listed kernels whose circles may meet the box [lo, hi], into as->found (callers test exactly).

@@ -287,10 +287,6 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   // The pair memory of pairs outside islands: reserved by the first island (buildIsland), so
   // that a field that never forms one does not pay for a table sized for every pair.
   if (as->stored_memory.size() > 0) as->stored_memory.clear();
-  double a_max = 1e-6;
-  for (const KernelModel& k : m.kernels) a_max = std::max(a_max, k.semi_axis_a_m);
-  as->r_cap_m = a_max + 4.0 * m.broadphase_margin_m;
-  as->cell_m = 2.0 * as->r_cap_m;
   as->max_horizon_s = 1.0;
   as->entity_slot.assign(T + K, -1);
   as->prop.resize(T);
@@ -304,8 +300,10 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   // awake again after the longest horizon), without a prediction: two sleeping kernels do not
   // move, so they cannot approach each other or an obstacle (the start poses overlap nothing:
   // checked where the scene is read), and every kernel that moves or wakes checks its own
-  // circle against theirs in the grid (predictKernel, lazyNeighbours, sweepTeeth). The others
-  // are listed with their ungrown circle, then predicted.
+  // circle against theirs in the grid (predictKernel, lazyNeighbours, sweepTeeth). They form
+  // the sleeping field, whose cells are written only when something comes near it (listField
+  // in calendar.cc, where set-up would have listed them). The others are listed with their
+  // ungrown circle, then predicted.
   if (listKernelsAtSetUp(m, *d, as) > 0) {
     for (int i = 0; i < K; ++i) {
       if (as->kernels[i].heap_pos >= 0) continue;  // asleep
@@ -321,13 +319,19 @@ bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
   const double t_s = d->t_s;
   const int K = static_cast<int>(m.kernels.size());
   long jumps = 0;  // (counted here, added once)
+  // The sleeping field: asleep until past t_s (each would have woken in the window that reached
+  // its wake time), its kernels share one clock, which jumps (advanceLazyKernel's first case).
+  if (as->field_unlisted > 0 && t_s > as->field_t_s) {
+    jumps += as->field_unlisted;
+    as->field_t_s = t_s;
+  }
   bool ok = true;
-  for (int i = 0; i < K && ok; ++i) {
-    // A run of kernels asleep on their pedicels until past t_s: their clocks jump
-    // (advanceLazyKernel's first case, without its call), in a loop that calls nothing.
+  for (int i = as->field_unlisted == K ? K : 0; i < K && ok; ++i) {
+    // A run of kernels asleep on their pedicels until past t_s: their clocks jump (the same
+    // case, without its call), in a loop that calls nothing; the field's are passed over.
     KernelClock* kcs = as->kernels.data();
     for (; i < K && kcs[i].motion == KernelMotion::kPedicel && t_s <= kcs[i].rest_until_s; ++i) {
-      if (t_s > kcs[i].t_s) {
+      if (kcs[i].listing != GridListing::kUnlisted && t_s > kcs[i].t_s) {
         ++jumps;
         kcs[i].t_s = t_s;
       }

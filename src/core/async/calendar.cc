@@ -69,36 +69,146 @@ size_t findSlot(const AsyncState& as, std::int64_t key) {
   return s;
 }
 
-// Lists kernel i in the cell of its bound circle's centre (the table has room).
-void listInCell(AsyncState* as, int i) {
-  KernelClock& kc = as->kernels[i];
-  kc.cell = cellOf(*as, kc.bound_c_W);
-  const size_t s = findSlot(*as, kc.cell);
+// Table slot of kernel i's cell (kc.cell set from its circle's centre), the key added if new.
+size_t cellSlot(AsyncState* as, KernelClock* kc) {
+  kc->cell = cellOf(*as, kc->bound_c_W);
+  const size_t s = findSlot(*as, kc->cell);
   if (as->cell_key[s] == kEmptyCell) {
-    as->cell_key[s] = kc.cell;
+    as->cell_key[s] = kc->cell;
     as->cell_head[s] = -1;
     ++as->cells_used;
   }
+  return s;
+}
+
+// Lists kernel i in the cell of its bound circle's centre (the table has room).
+void listInCell(AsyncState* as, int i) {
+  KernelClock& kc = as->kernels[i];
+  const size_t s = cellSlot(as, &kc);
   kc.cell_prev = -1;
   kc.cell_next = as->cell_head[s];
   if (kc.cell_next >= 0) as->kernels[kc.cell_next].cell_prev = i;
   as->cell_head[s] = i;
   kc.in_grid = true;
+  kc.listing = GridListing::kSince;
   as->r_listed_m = std::max(as->r_listed_m, kc.bound_r_m);
 }
 
+// Writes the sleeping field into the grid: each of its kernels where set-up would have listed
+// it, in its cell's set-up part by descending index (after the kernels listed since set-up).
+void listField(AsyncState* as) {
+  KernelClock* kcs = as->kernels.data();
+  const int K = static_cast<int>(as->kernels.size());
+  for (int i = 0; i < K && as->field_unlisted > 0; ++i) {
+    KernelClock& kc = kcs[i];
+    if (kc.listing != GridListing::kUnlisted) continue;
+    kc.t_s = as->field_t_s;  // the field's clock
+    const size_t s = cellSlot(as, &kc);
+    int prev = -1, next = as->cell_head[s];
+    while (next >= 0 && (kcs[next].listing != GridListing::kAtSetUp || next > i)) {
+      prev = next;
+      next = kcs[next].cell_next;
+    }
+    kc.cell_prev = prev;
+    kc.cell_next = next;
+    (prev >= 0 ? kcs[prev].cell_next : as->cell_head[s]) = i;
+    if (next >= 0) kcs[next].cell_prev = i;
+    kc.listing = GridListing::kAtSetUp;
+    --as->field_unlisted;
+  }
+}
+
+// Distances from the drum axis of the points of cells k0..k1 along one axis [m]: the nearest
+// and the farthest, each by slack_m beyond (a centre listed in a cell lies in it up to the
+// rounding of its division, far below the slack).
+void cellSpan(std::int64_t k0, std::int64_t k1, double cell_m, double slack_m, double* near_m,
+              double* far_m) {
+  const double a = static_cast<double>(k0) * cell_m - slack_m;
+  const double b = static_cast<double>(k1 + 1) * cell_m + slack_m;
+  *near_m = a > 0.0 ? a : (b < 0.0 ? -b : 0.0);
+  *far_m = std::max(std::abs(a), std::abs(b));
+}
+
+// Whether a centre of the sleeping field may lie in the cells [x0, x1] x [y0, y1]: their
+// distances from the drum axis meet the field's ring of centres (no field: false).
+bool meetsField(const AsyncState& as, std::int64_t x0, std::int64_t x1, std::int64_t y0,
+                std::int64_t y1) {
+  if (as.field_unlisted == 0) return false;
+  const double slack = 1e-6 * as.cell_m;
+  double nx = 0.0, fx = 0.0, ny = 0.0, fy = 0.0;
+  cellSpan(x0, x1, as.cell_m, slack, &nx, &fx);
+  cellSpan(y0, y1, as.cell_m, slack, &ny, &fy);
+  return !(std::sqrt(nx * nx + ny * ny) > as.field_rho_hi_m) &&
+         !(std::sqrt(fx * fx + fy * fy) < as.field_rho_lo_m);
+}
+
+// Sets p[0..n) to v, eight stores a round (which the compiler writes as vector stores: a table
+// of thousands of slots is emptied at every set-up), then the rest one by one.
+template <typename T>
+void fillByEights(T* p, size_t n, T v) {
+  size_t b = 0;
+  for (; b + 8 <= n; b += 8)
+    for (size_t j = 0; j < 8; ++j) p[b + j] = v;
+  for (; b < n; ++b) p[b] = v;
+}
+
+// Empties the table, at `slots` slots (a power of two).
+void clearTable(AsyncState* as, size_t slots) {
+  as->cell_key.resize(slots);
+  as->cell_head.resize(slots);
+  fillByEights(as->cell_key.data(), slots, kEmptyCell);
+  fillByEights(as->cell_head.data(), slots, -1);
+}
+
+// Set-up's listing of the kernels not asleep, in index order, each at the head of its cell's
+// list (the set-up part). Kernels in a run in one cell share its table lookup.
+void listAwakeAtSetUp(AsyncState* as) {
+  KernelClock* clocks = as->kernels.data();
+  const int K = static_cast<int>(as->kernels.size());
+  std::int64_t* cell_key = as->cell_key.data();
+  int* cell_head = as->cell_head.data();
+  const size_t slots = as->cell_key.size();
+  const double cell_m = as->cell_m;
+  std::int64_t memo_key = kEmptyCell;  // the last cell and its slot
+  size_t memo_slot = 0;
+  size_t cells_used = 0;
+  for (int i = 0; i < K; ++i) {
+    KernelClock& kc = clocks[i];
+    if (kc.listing != GridListing::kAtSetUp) continue;
+    kc.cell = cellKey(cellFloor(kc.bound_c_W.x() / cell_m), cellFloor(kc.bound_c_W.y() / cell_m));
+    if (kc.cell != memo_key) {
+      memo_key = kc.cell;
+      memo_slot = slotHash(kc.cell, slots);
+      while (cell_key[memo_slot] != kc.cell && cell_key[memo_slot] != kEmptyCell)
+        memo_slot = (memo_slot + 1) & (slots - 1);  // (findSlot, the table's size known)
+      if (cell_key[memo_slot] == kEmptyCell) {
+        cell_key[memo_slot] = kc.cell;
+        ++cells_used;
+      }
+    }
+    kc.cell_next = cell_head[memo_slot];
+    if (kc.cell_next >= 0) clocks[kc.cell_next].cell_prev = i;
+    cell_head[memo_slot] = i;
+  }
+  as->cells_used += cells_used;
+}
+
 // Rebuilds the table from the listed kernels once half its slots hold keys (cells that emptied
-// keep their keys until then); it doubles while the listed kernels alone would fill half.
+// keep their keys until then); it doubles while the listed kernels alone would fill half. The
+// sleeping field is listed with the others.
 void compactGrid(AsyncState* as) {
   size_t listed = 0;
   for (const KernelClock& kc : as->kernels) listed += kc.in_grid ? 1 : 0;
   size_t slots = std::max<size_t>(as->cell_key.size(), 16);
   while (4 * (listed + 1) > slots) slots *= 2;
-  as->cell_key.assign(slots, kEmptyCell);
-  as->cell_head.assign(slots, -1);
+  clearTable(as, slots);
   as->cells_used = 0;
-  for (size_t i = 0; i < as->kernels.size(); ++i)
-    if (as->kernels[i].in_grid) listInCell(as, static_cast<int>(i));
+  for (size_t i = 0; i < as->kernels.size(); ++i) {
+    KernelClock& kc = as->kernels[i];
+    if (kc.listing == GridListing::kUnlisted) kc.t_s = as->field_t_s;  // the field's clock
+    if (kc.in_grid) listInCell(as, static_cast<int>(i));
+  }
+  as->field_unlisted = 0;
 }
 
 }  // namespace
@@ -164,86 +274,100 @@ int heapTop(const AsyncState& as) { return as.heap.empty() ? -1 : as.heap[0]; }
 void gridInsert(AsyncState* as, int i) {
   KernelClock& kc = as->kernels[i];
   if (kc.in_grid) return;
+  // The keys include the field's cells (listing it at set-up would have added them): where
+  // those might bring the keys to half the table, the field is written first, its cells counted.
+  if (as->field_unlisted > 0 &&
+      2 * (as->cells_used + static_cast<size_t>(as->field_unlisted) + 1) > as->cell_key.size())
+    listField(as);
   if (2 * (as->cells_used + 1) > as->cell_key.size()) compactGrid(as);
   listInCell(as, i);
 }
 
 int listKernelsAtSetUp(const Model& m, const Data& d, AsyncState* as) {
   const int K = static_cast<int>(m.kernels.size());
-  size_t slots = 64;
-  while (slots < 4 * static_cast<size_t>(K) + 64) slots *= 2;  // K keys at most: no rebuild
-  as->cell_key.assign(slots, kEmptyCell);
-  std::int64_t* cell_key = as->cell_key.data();
-  as->cell_head.assign(slots, -1);
-  int* cell_head = as->cell_head.data();
-  as->cells_used = 0;
-  as->heap.clear();
-  as->heap.reserve(K);
-  as->kernels.assign(K, KernelClock());
-  KernelClock* clocks = as->kernels.data();
   const double t_s = d.t_s, horizon = as->max_horizon_s, tol = m.integrator.tolerance;
-  const double rest_speed = tol * 1e-2 / horizon;
-  const double cell_m = as->cell_m;
-  double a_max = 0.0;
-  for (const KernelModel& k : m.kernels) a_max = std::max(a_max, k.semi_axis_a_m);
+  const double rest_speed = tol * 1e-2 / horizon, grow_m = rest_speed * horizon;
+  // Every clock starts as a sleeping field kernel's (the common case): a kernel asleep gets its
+  // circle and calendar position, any other a fresh clock.
+  KernelClock asleep_clock;
+  asleep_clock.t_s = t_s;
+  asleep_clock.rest_until_s = t_s + horizon;
+  asleep_clock.wake_s = t_s + horizon;
+  asleep_clock.speed_bound_mps = rest_speed;
+  asleep_clock.motion = KernelMotion::kPedicel;
+  asleep_clock.in_grid = true;
+  asleep_clock.listing = GridListing::kUnlisted;
+  as->kernels.assign(K, asleep_clock);
+  KernelClock* clocks = as->kernels.data();
+  as->heap.resize(K);  // (the asleep, in index order: a heap of equal wake times)
+  int* heap = as->heap.data();
+  int asleep = 0;
   const Vec2 g = m.gravity_mps2;
+  const KernelModel* kms = m.kernels.data();
   const double* z = d.z.data();
   const double* u = d.u.data();
   const std::uint8_t* attached = d.kernel_attached.data();
   double psi_rad = 0.0, cos_psi = 1.0, sin_psi = 0.0;  // the last angle's cosine and sine
-  std::int64_t memo_key = kEmptyCell;                  // the last cell and its slot
-  size_t memo_slot = 0;
-  size_t cells_used = 0;
+  double a_max = 0.0;                                  // the largest semi-axis a [m]
+  // The sleeping field's ring: the least and largest |c|^2 of its centres.
+  double rr_lo = std::numeric_limits<double>::infinity(), rr_hi = 0.0;
   for (int i = 0; i < K; ++i) {
     KernelClock& kc = clocks[i];
-    const KernelModel& k = m.kernels[i];
+    const KernelModel& k = kms[i];
     const double* zi = z + k.dof_offset;
-    kc.t_s = t_s;
-    kc.bound_c_W = Vec2(zi[0], zi[1]);
-    kc.bound_r_m = k.semi_axis_a_m;
+    const double x = zi[0], y = zi[1];
+    a_max = std::max(a_max, k.semi_axis_a_m);
+    kc.bound_c_W = Vec2(x, y);
     if (k.pedicel.present && attached[i]) {
-      kc.motion = KernelMotion::kPedicel;
       if (!(zi[2] == psi_rad)) {
         psi_rad = zi[2];
         cos_psi = std::cos(psi_rad);
         sin_psi = std::sin(psi_rad);
       }
       if (restsOnPedicel(k, g, tol, zi, u + k.dof_offset, cos_psi, sin_psi, horizon)) {
-        kc.rest_until_s = t_s + horizon;
-        kc.speed_bound_mps = rest_speed;
-        kc.bound_r_m = k.semi_axis_a_m + rest_speed * horizon;
-        kc.wake_s = t_s + horizon;
-        kc.heap_pos = static_cast<int>(as->heap.size());
-        as->heap.push_back(i);
+        // Asleep, in the sleeping field: its cell is written when something comes near.
+        kc.bound_r_m = k.semi_axis_a_m + grow_m;
+        kc.heap_pos = asleep;
+        heap[asleep++] = i;
+        const double rr = x * x + y * y;
+        rr_lo = std::min(rr_lo, rr);
+        rr_hi = std::max(rr_hi, rr);
+        continue;
       }
     }
-    kc.cell = cellKey(cellFloor(zi[0] / cell_m), cellFloor(zi[1] / cell_m));
-    if (kc.cell != memo_key) {
-      memo_key = kc.cell;
-      memo_slot = slotHash(kc.cell, slots);
-      while (cell_key[memo_slot] != kc.cell && cell_key[memo_slot] != kEmptyCell)
-        memo_slot = (memo_slot + 1) & (slots - 1);  // (findSlot, the table's size known)
-      if (cell_key[memo_slot] == kEmptyCell) {
-        cell_key[memo_slot] = kc.cell;
-        ++cells_used;
-      }
-    }
-    kc.cell_next = cell_head[memo_slot];
-    if (kc.cell_next >= 0) clocks[kc.cell_next].cell_prev = i;
-    cell_head[memo_slot] = i;
+    // Not asleep: listed with its ungrown circle below (and predicted by the caller).
+    kc = KernelClock();
+    kc.t_s = t_s;
+    kc.bound_c_W = Vec2(x, y);
+    kc.bound_r_m = k.semi_axis_a_m;
+    kc.motion = k.pedicel.present && attached[i] ? KernelMotion::kPedicel : KernelMotion::kFree;
     kc.in_grid = true;
+    kc.listing = GridListing::kAtSetUp;
   }
-  const int asleep = static_cast<int>(as->heap.size());
-  as->cells_used = cells_used;
-  // Every circle listed here is a semi-axis a grown by at most the error scale.
-  as->r_listed_m = a_max + rest_speed * horizon;
+  as->heap.resize(asleep);
+  as->field_unlisted = asleep;
+  as->field_t_s = t_s;
+  as->field_rho_lo_m = std::sqrt(rr_lo);
+  as->field_rho_hi_m = std::sqrt(rr_hi);
   as->counters.asleep += asleep;
+  // The grid: cells twice the largest bound radius; every circle listed here is a semi-axis a
+  // grown by at most the error scale.
+  as->r_cap_m = std::max(a_max, 1e-6) + 4.0 * m.broadphase_margin_m;
+  as->cell_m = 2.0 * as->r_cap_m;
+  as->r_listed_m = a_max + grow_m;
+  size_t slots = 64;
+  while (slots < 4 * static_cast<size_t>(K) + 64) slots *= 2;  // K keys at most: no rebuild
+  clearTable(as, slots);
+  as->cells_used = 0;
+  if (asleep < K) listAwakeAtSetUp(as);
   return K - asleep;
 }
 
 void gridRemove(AsyncState* as, int i) {
   KernelClock& kc = as->kernels[i];
   if (!kc.in_grid) return;
+  if (kc.listing == GridListing::kUnlisted) listField(as);
+  kc.listing = GridListing::kSince;
   if (kc.cell_prev >= 0) {
     as->kernels[kc.cell_prev].cell_next = kc.cell_next;
   } else {
@@ -267,6 +391,7 @@ void gridQuery(AsyncState* as, const Vec2& lo, const Vec2& hi) {
       if (as->kernels[i].in_grid) as->found.push_back(static_cast<int>(i));
     return;
   }
+  if (meetsField(*as, x0, x1, y0, y1)) listField(as);
   for (std::int64_t cy = y0; cy <= y1; ++cy) {
     for (std::int64_t cx = x0; cx <= x1; ++cx) {
       const size_t s = findSlot(*as, cellKey(cx, cy));
@@ -293,10 +418,13 @@ void gridQueryAnnulus(AsyncState* as, const Vec2& lo, const Vec2& hi, double r_l
   // (far): a circle there with rho - r > r_hi or rho + r < r_lo is clear of the annulus.
   const double slack = 1e-6 * c;
   const double reach = as->r_listed_m + slack;
+  // The sleeping field, where the box meets its cells: passed over whole when its ring of
+  // centres, grown by the listed radii, misses the annulus (each circle would), else listed.
+  if (as->field_unlisted > 0 && !(as->field_rho_lo_m - reach > r_hi_m) &&
+      !(as->field_rho_hi_m + reach < r_lo_m) && meetsField(*as, x0, x1, y0, y1))
+    listField(as);
   auto nearFar = [c, slack](std::int64_t k, double* near, double* far) {
-    const double a = static_cast<double>(k) * c - slack, b = static_cast<double>(k + 1) * c + slack;
-    *near = a > 0.0 ? a : (b < 0.0 ? -b : 0.0);
-    *far = std::max(std::abs(a), std::abs(b));
+    cellSpan(k, k, c, slack, near, far);
   };
   for (std::int64_t cy = y0; cy <= y1; ++cy) {
     double ny = 0.0, fy = 0.0;
