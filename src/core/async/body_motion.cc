@@ -34,14 +34,11 @@ double pedicelDopri(const KernelModel& k, const Vec2& g, double tol, const Vec6&
                     double h, Vec6* y1, Vec6* f1) {
   Vec6 stage[7];
   stage[0] = f0;
-  const double cos0 = std::cos(y0[2]), sin0 = std::sin(y0[2]);
   for (int s = 1; s < 7; ++s) {
     Vec6 y = y0;
     for (int j = 0; j < s; ++j)
       if (kA[s][j] != 0.0) y += h * kA[s][j] * stage[j];
-    double cos_psi = 0.0, sin_psi = 0.0;
-    cosSinNear(cos0, sin0, y0[2], y[2], &cos_psi, &sin_psi);
-    stage[s] = pedicelRates(k, g, y, cos_psi, sin_psi);
+    stage[s] = pedicelRhs(k, g, y);
     if (s == 6) *y1 = y;
   }
   *f1 = stage[6];

@@ -112,37 +112,10 @@ inline Vec2 pedicelStemForce(const KernelModel& k, const PedicelVec& y, double* 
   return pedicelStemForce(k, y, std::cos(y[2]), std::sin(y[2]), moment_Nm);
 }
 
-// The cosine and sine of an angle psi from those of a nearby angle psi0 (the pedicel clock's
-// stages from their step's start: a stage turns the kernel by delta = psi - psi0, small). For
-// |delta| <= 0.1 rad, cos psi = cos0 cos delta - sin0 sin delta with the Taylor series of
-// cos delta to delta^10 and sin delta to delta^9 (remainders below 3e-18 relative, under the
-// rounding); else the library's. The pedicel clock pays one library sine and cosine per step
-// instead of one per stage.
-inline void cosSinNear(double cos0, double sin0, double psi0_rad, double psi_rad, double* cos_psi,
-                       double* sin_psi) {
-  const double d = psi_rad - psi0_rad;
-  if (!(std::abs(d) <= 0.1)) {
-    *cos_psi = std::cos(psi_rad);
-    *sin_psi = std::sin(psi_rad);
-    return;
-  }
-  const double d2 = d * d;
-  const double sin_d =
-      d *
-      (1.0 - d2 * (1.0 / 6.0) *
-                 (1.0 - d2 * (1.0 / 20.0) * (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
-  const double one_minus_cos_d =
-      d2 * (1.0 / 2.0) *
-      (1.0 - d2 * (1.0 / 12.0) *
-                 (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0)))));
-  *cos_psi = cos0 - (cos0 * one_minus_cos_d + sin0 * sin_d);
-  *sin_psi = sin0 - (sin0 * one_minus_cos_d - cos0 * sin_d);
-}
-
 // f(y): the kernel's rates on its pedicel under gravity g, with the cosine and sine of its
 // angle y[2] given.
-inline PedicelVec pedicelRates(const KernelModel& k, const Vec2& gravity_mps2, const PedicelVec& y,
-                               double cos_psi, double sin_psi) {
+inline PedicelVec pedicelRates(const KernelModel& k, const Vec2& gravity_mps2,
+                               const PedicelVec& y, double cos_psi, double sin_psi) {
   double moment = 0.0;
   const Vec2 F = pedicelStemForce(k, y, cos_psi, sin_psi, &moment);
   PedicelVec f;
