@@ -228,6 +228,26 @@ bool lazyAtRestAt(const Model& m, const Data& d, int i, double horizon_s, double
                   double sin_psi);
 // Bound on the speed of any point of lazy kernel i over the next horizon_s [m/s].
 double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i, double horizon_s);
+// The parts of lazySpeedBound that do not depend on the horizon, computed once for a search
+// over horizons (horizonFor): lazySpeedBoundAt(lazySpeedTerms(...), H) is lazySpeedBound(..., H)
+// bit for bit.
+struct LazySpeedTerms {
+  bool pedicel = false;     // on its pedicel (else free flight)
+  double g_mps2 = 0;        // |g| [m/s^2]
+  double speed_mps = 0;     // free: centre speed |v| [m/s]
+  double spin_mps = 0;      // free: |omega| a [m/s]
+  double weight_N = 0;      // pedicel: m |g| [N]
+  double kappa_pkg = 0;     // pedicel: 1/m + a^2/J [1/kg]
+  double two_kappa_e0 = 0;  // pedicel: 2 kappa E0 [m^2/s^2]
+  double v_long_mps = 0;    // pedicel: the bound from the stem's reach [m/s]
+};
+LazySpeedTerms lazySpeedTerms(const Model& m, const Data& d, const AsyncState& as, int i);
+inline double lazySpeedBoundAt(const LazySpeedTerms& t, double horizon_s) {
+  if (!t.pedicel) return t.speed_mps + t.g_mps2 * horizon_s + t.spin_mps;
+  const double pull = t.weight_N * horizon_s * t.kappa_pkg;
+  const double v_short = pull + std::sqrt(pull * pull + t.two_kappa_e0);
+  return std::min(v_short, t.v_long_mps) + t.g_mps2 * horizon_s;
+}
 // Where lazy kernel i (on its pedicel, closed form valid from its state over horizon_s)
 // stays until something reaches it: its ellipse now, grown by *growth_m [m], contains it at all
 // later times. Returns false when the closed form does not hold. The kernel's class is built on

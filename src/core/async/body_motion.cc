@@ -27,17 +27,21 @@ inline Vec6 pedicelRhs(const KernelModel& k, const Vec2& g, const Vec6& y) {
   return pedicelRates(k, g, y);
 }
 
-// One Dormand-Prince step of length h; returns the scaled RMS error (the global norm).
-double pedicelDopri(const KernelModel& k, const Vec2& g, double tol, const Vec6& y0, double h,
-                    Vec6* y1) {
+// One Dormand-Prince step of length h from y0 with f0 = f(y0) given; returns the scaled RMS
+// error (the global norm) and f1 = f(y1), the last stage (first same as last: the next step's
+// f0, the same numbers as evaluating it again).
+double pedicelDopri(const KernelModel& k, const Vec2& g, double tol, const Vec6& y0, const Vec6& f0,
+                    double h, Vec6* y1, Vec6* f1) {
   Vec6 stage[7];
-  for (int s = 0; s < 7; ++s) {
+  stage[0] = f0;
+  for (int s = 1; s < 7; ++s) {
     Vec6 y = y0;
     for (int j = 0; j < s; ++j)
       if (kA[s][j] != 0.0) y += h * kA[s][j] * stage[j];
     stage[s] = pedicelRhs(k, g, y);
     if (s == 6) *y1 = y;
   }
+  *f1 = stage[6];
   double e2 = 0.0;
   for (int i = 0; i < 6; ++i) {
     double ei = 0.0;
@@ -164,10 +168,11 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
     setKernelState(d, k, y);
     return y.allFinite();
   }
+  Vec6 f0 = pedicelRhs(k, m.gravity_mps2, y), f1;
   for (long n = 0; kc.t_s < t_s; ++n) {
     if (n > 10000000) return false;  // the work bound: no lone kernel takes 1e7 steps
     const double h_try = std::min({h, m.integrator.max_step_s, t_s - kc.t_s});
-    const double err = pedicelDopri(k, m.gravity_mps2, tol, y, h_try, &y1);
+    const double err = pedicelDopri(k, m.gravity_mps2, tol, y, f0, h_try, &y1, &f1);
     if (!(err <= 1.0)) {
       ++as->counters.pedicel_rejected;
       h = h_try * std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
@@ -176,6 +181,7 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
     }
     ++as->counters.pedicel_steps;
     y = y1;
+    f0 = f1;
     kc.t_s = (h_try == t_s - kc.t_s) ? t_s : kc.t_s + h_try;
     if (h_try == h || h_try < h)
       h = std::max(h, h_try * std::min(5.0, 0.9 * std::pow(std::max(err, 1e-10), -0.2)));
@@ -244,14 +250,18 @@ bool lazyAtRestAt(const Model& m, const Data& d, int i, double horizon_s, double
                      horizon_s);
 }
 
-double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i,
-                      double horizon_s) {
+LazySpeedTerms lazySpeedTerms(const Model& m, const Data& d, const AsyncState& as, int i) {
   const KernelModel& k = m.kernels[i];
   const auto z = d.z.segment<3>(k.dof_offset);
   const auto u = d.u.segment<3>(k.dof_offset);
-  const double g = m.gravity_mps2.norm();
-  if (as.kernels[i].motion != KernelMotion::kPedicel)
-    return u.head<2>().norm() + g * horizon_s + std::abs(u[2]) * k.semi_axis_a_m;
+  LazySpeedTerms t;
+  t.g_mps2 = m.gravity_mps2.norm();
+  t.pedicel = as.kernels[i].motion == KernelMotion::kPedicel;
+  if (!t.pedicel) {
+    t.speed_mps = u.head<2>().norm();
+    t.spin_mps = std::abs(u[2]) * k.semi_axis_a_m;
+    return t;
+  }
   // On the pedicel: energy. Only gravity does positive work, so over a horizon H the kinetic
   // plus spring energy stays below today's plus m g times the drop, and the drop is at most
   // H times the largest centre speed. With the speed of any point |v| + a |omega| <=
@@ -260,6 +270,7 @@ double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i
   // force, so the centre also cannot drop below the anchor by more than the stem reaches: the
   // smaller of the two bounds holds. Past a break, gravity adds g t.
   const PedicelModel& p = k.pedicel;
+  const double g = t.g_mps2;
   const Vec2 r = rotated(z[2], p.p_KP_K);
   const double stretch_m = (z.head<2>() + r - p.p_WA_W).norm() - p.rest_length_m;
   const double a = k.semi_axis_a_m;
@@ -267,14 +278,20 @@ double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i
   const double e0_J = 0.5 * k.mass_kg * u.head<2>().squaredNorm() +
                       0.5 * k.inertia_kgm2 * u[2] * u[2] +
                       0.5 * p.stiffness_Npm * stretch_m * stretch_m;
-  const double pull = k.mass_kg * g * horizon_s * kappa;
-  const double v_short = pull + std::sqrt(pull * pull + 2.0 * kappa * e0_J);
+  t.weight_N = k.mass_kg * g;
+  t.kappa_pkg = kappa;
+  t.two_kappa_e0 = 2.0 * kappa * e0_J;
   const double reach_m =
       p.rest_length_m + 2.0 * p.detachment_force_N / p.stiffness_Npm + p.p_KP_K.norm();
   const Vec2 down = g > 0 ? Vec2(m.gravity_mps2 / g) : Vec2::Zero();
   const double drop_m = std::max(0.0, reach_m - down.dot(z.head<2>() - p.p_WA_W));
-  const double v_long = std::sqrt(2.0 * kappa * (e0_J + k.mass_kg * g * drop_m));
-  return std::min(v_short, v_long) + g * horizon_s;
+  t.v_long_mps = std::sqrt(2.0 * kappa * (e0_J + k.mass_kg * g * drop_m));
+  return t;
+}
+
+double lazySpeedBound(const Model& m, const Data& d, const AsyncState& as, int i,
+                      double horizon_s) {
+  return lazySpeedBoundAt(lazySpeedTerms(m, d, as, i), horizon_s);
 }
 
 void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s) {

@@ -451,14 +451,15 @@ namespace {
 double horizonFor(const Model& m, const Data& d, const AsyncState& as, int i, double grow_cap_m,
                   double max_s, double* v_mps) {
   double lo = 0.0, hi = max_s;
-  if (lazySpeedBound(m, d, as, i, hi) * hi > grow_cap_m) {
+  const LazySpeedTerms terms = lazySpeedTerms(m, d, as, i);  // once: the bisection needs only H
+  if (lazySpeedBoundAt(terms, hi) * hi > grow_cap_m) {
     for (int it = 0; it < 40; ++it) {
       const double mid = 0.5 * (lo + hi);
-      (lazySpeedBound(m, d, as, i, mid) * mid > grow_cap_m ? hi : lo) = mid;
+      (lazySpeedBoundAt(terms, mid) * mid > grow_cap_m ? hi : lo) = mid;
     }
     hi = lo;
   }
-  *v_mps = std::max(lazySpeedBound(m, d, as, i, hi), 1e-12);
+  *v_mps = std::max(lazySpeedBoundAt(terms, hi), 1e-12);
   return hi;
 }
 }  // namespace
