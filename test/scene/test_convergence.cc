@@ -267,10 +267,10 @@ void expectTimeSteppingPeaksMatchEventDriven(const std::string& scene) {
   const PeakForces ed =
       runPeaks(scene, {"integrator.type=event_driven", "integrator.tolerance=1e-8"});
   const PeakForces ts = runPeaks(scene, {"integrator.type=time_stepping"});
-  RecordProperty("peaks_N", scene + ": time stepping " + std::to_string(ts.normal_N) + " " +
-                                std::to_string(ts.tangential_N) + ", event-driven " +
-                                std::to_string(ed.normal_N) + " " +
-                                std::to_string(ed.tangential_N));
+  ::testing::Test::RecordProperty(
+      "peaks_N", scene + ": time stepping " + std::to_string(ts.normal_N) + " " +
+                     std::to_string(ts.tangential_N) + ", event-driven " +
+                     std::to_string(ed.normal_N) + " " + std::to_string(ed.tangential_N));
   EXPECT_GT(ed.tangential_N, 1.0);  // a real friction force
   EXPECT_NEAR(ts.normal_N, ed.normal_N, 0.02 * ed.normal_N);
   EXPECT_NEAR(ts.tangential_N, ed.tangential_N, 0.02 * ed.tangential_N);

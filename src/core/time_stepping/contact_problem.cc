@@ -77,15 +77,15 @@ double expectedFrictionRatio(TsStep* s, size_t c) {
   return std::clamp(mem.tangential_force_N / mem.normal_force_N, -mu, mu);
 }
 
-// Adds a compliant row's normal impulse dpn with its expected friction (r dpn) to u; returns
-// (when rate is given) the row's end gap rate per unit of dpn, w_n . W^-1 (w_n + r w_t).
+// Adds a compliant row's normal impulse dpn with its expected friction (r dpn) to u (if given);
+// returns (when rate is given) the row's end gap rate per unit of dpn, w_n . W^-1 (w_n + r w_t).
 void addCompliantImpulse(const TsStep& s, const ContactGeom& g, double dpn, double r, VecX* u,
                          double* rate = nullptr) {
   if (rate) *rate = 0.0;
   for (const BodyJac& side : g.side) {
     if (side.body < 0 || side.w_n.size() == 0) continue;
     const SmallVec w = side.w_n + r * side.w_t;
-    applyInverseMass(s.m, &s.ws.ts.iteration_inverse, side.body, w, dpn, u);
+    if (u) applyInverseMass(s.m, &s.ws.ts.iteration_inverse, side.body, w, dpn, u);
     if (rate) *rate += weightedDot(s.m, &s.ws.ts.iteration_inverse, side.body, side.w_n, w);
   }
 }
@@ -132,8 +132,10 @@ double implicitCompliantForce(const Model& m, const ContactGeom& g, double K, do
 // and friction at its expected ratio r): u_end = u_free + W^-1 sum_j h F_j (w_n + r_j w_t).
 // The start's rate alone lags the damping by half a step (+3 % on the default strike's peak at
 // 1e-6 s) and, explicit, amplifies a stiff squeeze. Each row is solved implicitly in its own
-// impulse (implicitCompliantForce), the rows in Gauss-Seidel sweeps (a symmetric positive
-// definite coupling: they converge) until no force moves by 1e-12 of itself, at most 8.
+// impulse (implicitCompliantForce), from the row's first guess (its last step's force, else
+// the explicit law); several rows in Gauss-Seidel sweeps (a symmetric positive definite
+// coupling: they converge) until no force moves by 1e-9 of itself, at most 8. A lone row needs
+// one solve and no u_end: its own impulse is all that acts beside the free velocity.
 void midpointCompliantForces(TsStep* s) {
   const Model& m = s->m;
   Workspace& ws = s->ws;
@@ -141,19 +143,21 @@ void midpointCompliantForces(TsStep* s) {
   int compliant = 0;
   for (int i = 0; i < k; ++i) compliant += ws.rows[i].normal_unknown ? 0 : 1;
   if (compliant == 0) return;
-  // The start's explicit forces as the first guess, in u_end; each row's friction ratio and
-  // self rate.
+  const bool coupled = compliant > 1;
+  // Each row's friction ratio and self rate; the first guesses' impulses in u_end.
   VecX& u_end = ws.ts.u_end_guess;
-  u_end = ws.ts.u_free;
+  if (coupled) u_end = ws.ts.u_free;
   growTo(&ws.ts.compliant_ratio, k);
   growTo(&ws.ts.compliant_rate, k);
   for (int i = 0; i < k; ++i) {
     if (ws.rows[i].normal_unknown) continue;
     ws.ts.compliant_ratio[i] = expectedFrictionRatio(s, ws.active[i]);
-    addCompliantImpulse(*s, ws.geoms[ws.active[i]], ws.rows[i].lambda_n_fixed,
-                        ws.ts.compliant_ratio[i], &u_end, &ws.ts.compliant_rate[i]);
+    addCompliantImpulse(*s, ws.geoms[ws.active[i]], coupled ? ws.rows[i].lambda_n_fixed : 0.0,
+                        ws.ts.compliant_ratio[i], coupled ? &u_end : nullptr,
+                        &ws.ts.compliant_rate[i]);
     ws.ts.compliant_rate[i] = std::max(ws.ts.compliant_rate[i], 0.0);
   }
+  const VecX& u = coupled ? u_end : ws.ts.u_free;
   for (int sweep = 0; sweep < 8; ++sweep) {
     bool moved = false;
     for (int i = 0; i < k; ++i) {
@@ -162,18 +166,18 @@ void midpointCompliantForces(TsStep* s) {
       double vn_end = g.wtilde_n;
       for (const BodyJac& side : g.side) {
         if (side.body < 0 || side.w_n.size() == 0) continue;
-        vn_end += side.w_n.dot(u_end.segment(bodyDofOffset(m, side.body), side.w_n.size()));
+        vn_end += side.w_n.dot(u.segment(bodyDofOffset(m, side.body), side.w_n.size()));
       }
       const double a = ws.ts.compliant_rate[i], pn_old = ws.rows[i].lambda_n_fixed;
+      const double v0 = vn_end - (coupled ? a * pn_old : 0.0);  // without the row's impulse
       double K, v_in;
       compliantLawOf(s, ws.active[i], &K, &v_in);
-      const double pn = s->h * implicitCompliantForce(m, g, K, v_in, vn_end - a * pn_old, a * s->h,
-                                                      pn_old / s->h);
+      const double pn = s->h * implicitCompliantForce(m, g, K, v_in, v0, a * s->h, pn_old / s->h);
       ws.rows[i].lambda_n_fixed = pn;
-      addCompliantImpulse(*s, g, pn - pn_old, ws.ts.compliant_ratio[i], &u_end);
+      if (coupled) addCompliantImpulse(*s, g, pn - pn_old, ws.ts.compliant_ratio[i], &u_end);
       moved = moved || std::abs(pn - pn_old) > 1e-9 * std::abs(pn);
     }
-    if (!moved || compliant == 1) break;
+    if (!moved || !coupled) break;
   }
 }
 
@@ -204,7 +208,11 @@ void assembleContactRows(TsStep* s) {
       double K, v_in;
       compliantLawOf(s, c, &K, &v_in);
       row.normal_unknown = false;
-      row.lambda_n_fixed = s->h * compliantNormalForce(g, K, v_in, m.hc_min_impact_speed_mps);
+      // The first guess of midpointCompliantForces.
+      row.lambda_n_fixed =
+          s->h * (mem.state != ContactState::kSeparated
+                      ? mem.normal_force_N
+                      : compliantNormalForce(g, K, v_in, m.hc_min_impact_speed_mps));
     }
     ws.active.push_back(static_cast<int>(c));
     ws.rows.push_back(row);
