@@ -136,21 +136,49 @@ double implicitCompliantForce(const Model& m, const ContactGeom& g, double K, do
 // the explicit law); several rows in Gauss-Seidel sweeps (a symmetric positive definite
 // coupling: they converge) until no force moves by 1e-9 of itself, at most 8. A lone row needs
 // one solve and no u_end: its own impulse is all that acts beside the free velocity.
+bool sharesBodyWithRigidRow(const Workspace& ws, int i) {
+  const ContactGeom& g = ws.geoms[ws.active[i]];
+  for (size_t j = 0; j < ws.active.size(); ++j) {
+    if (!ws.rows[j].normal_unknown) continue;
+    const ContactGeom& r = ws.geoms[ws.active[j]];
+    for (const BodyJac& a : g.side)
+      for (const BodyJac& b : r.side)
+        if (a.body >= 0 && a.body == b.body) return true;
+  }
+  return false;
+}
+
 void midpointCompliantForces(TsStep* s) {
   const Model& m = s->m;
   Workspace& ws = s->ws;
   const int k = static_cast<int>(ws.active.size());
+  // A row on a body that a rigid row holds keeps the law at the start's rate: the rigid
+  // reaction, unknown until the contact problem is solved, is not in u_end (without it, a
+  // kernel wedged against a rigid bar would seem to yield to the compliant force).
+  // Such rows are marked by a negative self rate.
+  growTo(&ws.ts.compliant_ratio, k);
+  growTo(&ws.ts.compliant_rate, k);
   int compliant = 0;
-  for (int i = 0; i < k; ++i) compliant += ws.rows[i].normal_unknown ? 0 : 1;
+  for (int i = 0; i < k; ++i) {
+    if (ws.rows[i].normal_unknown) continue;
+    ws.ts.compliant_rate[i] = 0.0;
+    if (sharesBodyWithRigidRow(ws, i)) {
+      ws.ts.compliant_rate[i] = -1.0;
+      double K, v_in;
+      compliantLawOf(s, ws.active[i], &K, &v_in);
+      ws.rows[i].lambda_n_fixed =
+          s->h * compliantNormalForce(ws.geoms[ws.active[i]], K, v_in, m.hc_min_impact_speed_mps);
+      continue;
+    }
+    ++compliant;
+  }
   if (compliant == 0) return;
   const bool coupled = compliant > 1;
   // Each row's friction ratio and self rate; the first guesses' impulses in u_end.
   VecX& u_end = ws.ts.u_end_guess;
   if (coupled) u_end = ws.ts.u_free;
-  growTo(&ws.ts.compliant_ratio, k);
-  growTo(&ws.ts.compliant_rate, k);
   for (int i = 0; i < k; ++i) {
-    if (ws.rows[i].normal_unknown) continue;
+    if (ws.rows[i].normal_unknown || ws.ts.compliant_rate[i] < 0.0) continue;
     ws.ts.compliant_ratio[i] = expectedFrictionRatio(s, ws.active[i]);
     addCompliantImpulse(*s, ws.geoms[ws.active[i]], coupled ? ws.rows[i].lambda_n_fixed : 0.0,
                         ws.ts.compliant_ratio[i], coupled ? &u_end : nullptr,
@@ -161,7 +189,7 @@ void midpointCompliantForces(TsStep* s) {
   for (int sweep = 0; sweep < 8; ++sweep) {
     bool moved = false;
     for (int i = 0; i < k; ++i) {
-      if (ws.rows[i].normal_unknown) continue;
+      if (ws.rows[i].normal_unknown || ws.ts.compliant_rate[i] < 0.0) continue;
       const ContactGeom& g = ws.geoms[ws.active[i]];
       double vn_end = g.wtilde_n;
       for (const BodyJac& side : g.side) {
