@@ -1,6 +1,7 @@
 // Time stepping (docs/model.md §9): the velocity-level contact problem of a step: the free
 // velocity (stage 3), the contact rows (stage 4), Newton's law targets (stage 5) and the
 // impulses (stage 6).
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -136,6 +137,66 @@ double implicitCompliantForce(const Model& m, const ContactGeom& g, double K, do
 // the explicit law); several rows in Gauss-Seidel sweeps (a symmetric positive definite
 // coupling: they converge) until no force moves by 1e-9 of itself, at most 8. A lone row needs
 // one solve and no u_end: its own impulse is all that acts beside the free velocity.
+// Newton's method on n coupled compliant rows (row indices rows_i, 2 <= n <= kMaxCoupled):
+// R_i(F) = F_i - Phi_i(vn_mid_i(F)), vn_mid_i = (vn_i + v0_i + h sum_j A_ij F_j) / 2, with v0 the
+// free end rates and A_ij = w_n,i . W^-1 (w_n,j + r_j w_t,j) the end rate of row i per unit
+// impulse of row j; the Jacobian I - (h/2) diag(Phi_i') A, Phi' by a forward difference (exact
+// for a law linear in the rate), forces clamped at zero (a releasing contact). From the rows'
+// first guesses it converges in a few iterations where Gauss-Seidel sweeps crawl (a kernel
+// squeezed between two stiff contacts: nearly opposite normals). Returns false if it did not
+// converge to 1e-12 of the largest force in 20 iterations (the rows are left as they were).
+constexpr int kMaxCoupled = 8;
+using CoupledMat =
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCoupled, kMaxCoupled>;
+using CoupledVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCoupled, 1>;
+
+bool newtonCompliantForces(TsStep* s, const int* rows_i, int n) {
+  const Model& m = s->m;
+  Workspace& ws = s->ws;
+  const std::vector<MatX>* minv = &ws.ts.iteration_inverse;
+  CoupledMat A(n, n), J(n, n);
+  CoupledVec v0(n), F(n), R(n), dphi(n), K(n), v_in(n);
+  for (int i = 0; i < n; ++i) {
+    const ContactGeom& gi = ws.geoms[ws.active[rows_i[i]]];
+    v0[i] = gi.wtilde_n;
+    for (const BodyJac& a : gi.side) {
+      if (a.body < 0 || a.w_n.size() == 0) continue;
+      v0[i] += a.w_n.dot(ws.ts.u_free.segment(bodyDofOffset(m, a.body), a.w_n.size()));
+    }
+    for (int j = 0; j < n; ++j) {
+      const ContactGeom& gj = ws.geoms[ws.active[rows_i[j]]];
+      const double r = ws.ts.compliant_ratio[rows_i[j]];
+      A(i, j) = 0.0;
+      for (const BodyJac& a : gi.side)
+        for (const BodyJac& b : gj.side)
+          if (a.body >= 0 && a.body == b.body && a.w_n.size() > 0)
+            A(i, j) += weightedDot(m, minv, a.body, a.w_n, b.w_n + r * b.w_t);
+    }
+    F[i] = ws.rows[rows_i[i]].lambda_n_fixed / s->h;
+    compliantLawOf(s, ws.active[rows_i[i]], &K[i], &v_in[i]);
+  }
+  const double floor_mps = m.hc_min_impact_speed_mps;
+  for (int it = 0; it < 20; ++it) {
+    for (int i = 0; i < n; ++i) {
+      const ContactGeom& g = ws.geoms[ws.active[rows_i[i]]];
+      const double vm = 0.5 * (g.vn + v0[i] + s->h * A.row(i).dot(F));
+      const double phi = compliantNormalForceAt(g, g.gap_m, vm, K[i], v_in[i], floor_mps);
+      const double dv = 1e-7 * std::max(std::abs(vm), 1e-3);
+      dphi[i] = (compliantNormalForceAt(g, g.gap_m, vm + dv, K[i], v_in[i], floor_mps) - phi) / dv;
+      R[i] = F[i] - phi;
+    }
+    if (R.cwiseAbs().maxCoeff() <= 1e-12 * std::max(F.maxCoeff(), 1e-12)) {
+      for (int i = 0; i < n; ++i) ws.rows[rows_i[i]].lambda_n_fixed = s->h * F[i];
+      return true;
+    }
+    J = (-0.5 * s->h) * (dphi.asDiagonal() * A);
+    J.diagonal().array() += 1.0;
+    F = (F - Eigen::PartialPivLU<CoupledMat>(J).solve(R)).cwiseMax(0.0);
+    if (!F.allFinite()) return false;
+  }
+  return false;
+}
+
 bool sharesBodyWithRigidRow(const Workspace& ws, int i) {
   const ContactGeom& g = ws.geoms[ws.active[i]];
   for (size_t j = 0; j < ws.active.size(); ++j) {
@@ -152,6 +213,7 @@ void midpointCompliantForces(TsStep* s) {
   const Model& m = s->m;
   Workspace& ws = s->ws;
   const int k = static_cast<int>(ws.active.size());
+  if (k == 0) return;
   // A row on a body that a rigid row holds keeps the law at the start's rate: the rigid
   // reaction, unknown until the contact problem is solved, is not in u_end (without it, a
   // kernel wedged against a rigid bar would seem to yield to the compliant force).
@@ -174,12 +236,21 @@ void midpointCompliantForces(TsStep* s) {
   }
   if (compliant == 0) return;
   const bool coupled = compliant > 1;
-  // Each row's friction ratio and self rate; the first guesses' impulses in u_end.
+  for (int i = 0; i < k; ++i)
+    if (!ws.rows[i].normal_unknown && ws.ts.compliant_rate[i] >= 0.0)
+      ws.ts.compliant_ratio[i] = expectedFrictionRatio(s, ws.active[i]);
+  // Coupled rows: Newton (Gauss-Seidel sweeps below if it fails or there are too many).
+  if (coupled && compliant <= kMaxCoupled) {
+    int rows_i[kMaxCoupled], n = 0;
+    for (int i = 0; i < k; ++i)
+      if (!ws.rows[i].normal_unknown && ws.ts.compliant_rate[i] >= 0.0) rows_i[n++] = i;
+    if (newtonCompliantForces(s, rows_i, n)) return;
+  }
+  // Each row's self rate; the first guesses' impulses in u_end.
   VecX& u_end = ws.ts.u_end_guess;
   if (coupled) u_end = ws.ts.u_free;
   for (int i = 0; i < k; ++i) {
     if (ws.rows[i].normal_unknown || ws.ts.compliant_rate[i] < 0.0) continue;
-    ws.ts.compliant_ratio[i] = expectedFrictionRatio(s, ws.active[i]);
     addCompliantImpulse(*s, ws.geoms[ws.active[i]], coupled ? ws.rows[i].lambda_n_fixed : 0.0,
                         ws.ts.compliant_ratio[i], coupled ? &u_end : nullptr,
                         &ws.ts.compliant_rate[i]);
