@@ -127,16 +127,6 @@ double implicitCompliantForce(const Model& m, const ContactGeom& g, double K, do
   return f1;
 }
 
-// The compliant rows' forces over the step (docs/model.md §9): the Hertz-Hunt-Crossley law at
-// the midpoint gap, its damping at the midpoint's gap rate (vn + vn_end) / 2. g.vn is the step
-// start's rate; vn_end is the end's under the free velocity and the compliant impulses (normal,
-// and friction at its expected ratio r): u_end = u_free + W^-1 sum_j h F_j (w_n + r_j w_t).
-// The start's rate alone lags the damping by half a step (+3 % on the default strike's peak at
-// 1e-6 s) and, explicit, amplifies a stiff squeeze. Each row is solved implicitly in its own
-// impulse (implicitCompliantForce), from the row's first guess (its last step's force, else
-// the explicit law); several rows in Gauss-Seidel sweeps (a symmetric positive definite
-// coupling: they converge) until no force moves by 1e-9 of itself, at most 8. A lone row needs
-// one solve and no u_end: its own impulse is all that acts beside the free velocity.
 // Newton's method on n coupled compliant rows (row indices rows_i, 2 <= n <= kMaxCoupled):
 // R_i(F) = F_i - Phi_i(vn_mid_i(F)), vn_mid_i = (vn_i + v0_i + h sum_j A_ij F_j) / 2, with v0 the
 // free end rates and A_ij = w_n,i . W^-1 (w_n,j + r_j w_t,j) the end rate of row i per unit
@@ -197,6 +187,7 @@ bool newtonCompliantForces(TsStep* s, const int* rows_i, int n) {
   return false;
 }
 
+// Whether active row i shares a moving body with a rigid row.
 bool sharesBodyWithRigidRow(const Workspace& ws, int i) {
   const ContactGeom& g = ws.geoms[ws.active[i]];
   for (size_t j = 0; j < ws.active.size(); ++j) {
@@ -209,6 +200,17 @@ bool sharesBodyWithRigidRow(const Workspace& ws, int i) {
   return false;
 }
 
+// The compliant rows' forces over the step (docs/model.md §9): the Hertz-Hunt-Crossley law at
+// the midpoint gap, its damping at the midpoint's gap rate (vn + vn_end) / 2. g.vn is the step
+// start's rate; vn_end is the end's under the free velocity and the compliant impulses (normal,
+// and friction at its expected ratio r): u_end = u_free + W^-1 sum_j h F_j (w_n + r_j w_t).
+// The start's rate alone lags the damping by half a step (+3 % on the default strike's peak at
+// 1e-6 s) and, explicit, amplifies a stiff squeeze. From the rows' first guesses (their last
+// step's force, else the explicit law): a lone row is solved implicitly in its own impulse
+// (implicitCompliantForce, no u_end needed), coupled rows by Newton's method
+// (newtonCompliantForces), else (more than kMaxCoupled, or no convergence) row by row in
+// Gauss-Seidel sweeps (a symmetric positive definite coupling: they converge, if slowly) until
+// no force moves by 1e-9 of itself, at most 8.
 void midpointCompliantForces(TsStep* s) {
   const Model& m = s->m;
   Workspace& ws = s->ws;
