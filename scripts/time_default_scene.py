@@ -2,7 +2,8 @@
 """Median wall time of `simulate` on a scene for both integrators (the README's figures).
 
 Runs each integrator REPEAT times one after another on one core, reads wall_time_s from the
-summary JSON (stepping loop only) and prints the median and the real-time factor.
+summary JSON (stepping loop only) and prints the median and the real-time factor, with the
+kernel's exit speed and the peak normal and tangential contact forces of each integrator.
 Usage: scripts/time_default_scene.py [--scene FILE] [--repeat N] [--simulate PATH]
 """
 import argparse
@@ -31,24 +32,29 @@ def main():
     settings = [("event_driven, tolerance 1e-6", ["--integrator", "event_driven", "--tolerance", "1e-6"]),
                 ("time_stepping, dt 1e-6", ["--integrator", "time_stepping", "--dt", "1e-6"])]
     print(f"scene {os.path.relpath(args.scene, ROOT)}, median of {args.repeat} runs")
-    print("| integrator | sim time [s] | steps | wall time [ms] | real-time factor | kernel exit speed [m/s] | peak normal force [N] |")
-    print("|---|---|---|---|---|---|---|")
+    print("| integrator | sim time [s] | steps | wall time [ms] | real-time factor | kernel exit speed [m/s] | peak normal force [N] | peak tangential force [N] |")
+    print("|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         summary = os.path.join(tmp, "s.json")
-        speeds = []
+        speeds, peaks = [], []
         for name, extra in settings:
             runs = [run_once(args.simulate, args.scene, extra, summary) for _ in range(args.repeat)]
             wall = statistics.median(r["wall_time_s"] for r in runs)
             r = runs[0]
             v = r["kernels"][0]["velocity_mps"] if r["kernels"] else [0, 0]
             speeds.append((v[0] ** 2 + v[1] ** 2) ** 0.5)
+            peaks.append((r["peak_normal_force_N"], r["peak_tangential_force_N"]))
             print(f"| {name} | {r['sim_time_s']:.4g} | {r['steps']} | {1e3 * wall:.1f} | "
                   f"{r['sim_time_s'] / wall:.3g} | {(v[0] ** 2 + v[1] ** 2) ** 0.5:.4f} | "
-                  f"{r['peak_normal_force_N']:.2f} |")
+                  f"{r['peak_normal_force_N']:.2f} | {r['peak_tangential_force_N']:.2f} |")
     if len(speeds) == 2 and speeds[0] > 0:
+        def rel(a, b):
+            return f"{100 * abs(a - b) / b:.2g} %" if b > 0 else "n/a"
         print()
         print(f"The two integrators agree on the kernel's exit speed to "
-              f"{100 * abs(speeds[1] - speeds[0]) / speeds[0]:.2g} %.")
+              f"{rel(speeds[1], speeds[0])}, on the peak normal force to "
+              f"{rel(peaks[1][0], peaks[0][0])} and on the peak tangential force to "
+              f"{rel(peaks[1][1], peaks[0][1])}.")
 
 
 if __name__ == "__main__":

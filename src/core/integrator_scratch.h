@@ -147,12 +147,16 @@ struct EventDrivenScratch {
 // The time-stepping integrator's state carried across steps and its scratch
 // (src/core/time_stepping/).
 struct TimeSteppingScratch {
-  VecX z_mid, u_free;                   // midpoint configuration, free velocity [m or -, m/s or -]
-  std::vector<MatX> iteration_inverse;  // (I + h theta D + h^2 theta^2 K)^-1
-  internal::StateValues end_values;     // energy and momentum at the last end
-  std::vector<int> candidate_memory;    // pair-table index of each candidate
-  std::vector<int> in_contact;          // pairs in contact at the last step end
-  long in_contact_step = -2;            // Data::steps when that list was made
+  VecX z_mid, u_free;    // midpoint configuration, free velocity [m or -, m/s or -]
+  VecX u_end_guess;      // end velocity under the compliant forces' predicted impulses [m/s or -]
+  VecX compliant_ratio;  // per contact row: expected friction per unit normal impulse [-]
+  VecX compliant_rate;   // per contact row: end gap rate per unit of its impulses, < 0: held
+                         // by a rigid row (the law at the start rate) [m/(N s^2)]
+  std::vector<MatX> iteration_inverse;                  // (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues end_values;                     // energy and momentum at the last end
+  std::vector<int> candidate_memory;                    // pair-table index of each candidate
+  std::vector<int> in_contact;                          // pairs in contact at the last step end
+  long in_contact_step = -2;                            // Data::steps when that list was made
   std::vector<std::uint8_t> attached_before;            // pedicels before this step's breaks [-]
   std::vector<MatX> iteration_stiffness;                // K(Omega) of each tooth [1/s^2]
   std::vector<MatX> iteration_matrix;                   // I + h theta D + h^2 theta^2 K [-]

@@ -243,5 +243,46 @@ TEST(Convergence, RodTipStrikeStickForceConvergesWithShearCorrectedSections) {
   EXPECT_NEAR(shear12, modal, 0.01 * modal);
 }
 
+// Time stepping at a scene's own step (1e-6 s) against the event-driven integrator at
+// tolerance 1e-8 (issue 23, item 4): the peak normal and tangential contact forces within 2 %.
+// The tangential peak of a strike is the sliding force mu N at the instant the slip ends,
+// inside a step; a step's mean friction (its impulse / h) was 48 % below it on the default
+// strike, and the compliant force's damping taken at the step start's gap rate put the normal
+// peak 3 % above (the knead squeeze over the steel bar: +64 %, the friction +56 %).
+struct PeakForces {
+  double normal_N = 0;      // peak normal contact force [N]
+  double tangential_N = 0;  // peak tangential contact force [N]
+};
+
+PeakForces runPeaks(const std::string& scene, const std::vector<std::string>& overrides) {
+  const Model m = loadScene(scene, overrides);
+  Data d;
+  resetData(m, &d);
+  EXPECT_EQ(advanceTo(m, &d, m.duration_s), StepStatus::kOk);
+  return {d.stats.peak_normal_force_N, d.stats.peak_tangential_force_N};
+}
+
+void expectTimeSteppingPeaksMatchEventDriven(const std::string& scene) {
+  SCOPED_TRACE(scene);
+  const PeakForces ed =
+      runPeaks(scene, {"integrator.type=event_driven", "integrator.tolerance=1e-8"});
+  const PeakForces ts = runPeaks(scene, {"integrator.type=time_stepping"});
+  ::testing::Test::RecordProperty(
+      "peaks_N", scene + ": time stepping " + std::to_string(ts.normal_N) + " " +
+                     std::to_string(ts.tangential_N) + ", event-driven " +
+                     std::to_string(ed.normal_N) + " " + std::to_string(ed.tangential_N));
+  EXPECT_GT(ed.tangential_N, 1.0);  // a real friction force
+  EXPECT_NEAR(ts.normal_N, ed.normal_N, 0.02 * ed.normal_N);
+  EXPECT_NEAR(ts.tangential_N, ed.tangential_N, 0.02 * ed.tangential_N);
+}
+
+TEST(Convergence, TimeSteppingPeakForcesAtTheScenesStepMatchEventDriven) {
+  const std::string dir = std::string(THRESHING_SIM_SOURCE_DIR) + "/config/";
+  expectTimeSteppingPeaksMatchEventDriven(dir + "default_scene.yaml");
+  expectTimeSteppingPeaksMatchEventDriven(dir + "bench/knead_polyurethane.yaml");
+  expectTimeSteppingPeaksMatchEventDriven(dir + "scenes/knead.yaml");
+  expectTimeSteppingPeaksMatchEventDriven(dir + "scenes/single_strike.yaml");
+}
+
 }  // namespace
 }  // namespace threshing_sim

@@ -182,8 +182,10 @@ Model defaultScene(std::vector<std::string> overrides = {}) {
   return loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/default_scene.yaml", overrides);
 }
 
-// Per step: the peaks are at least every published tooth force, and under time stepping
-// (forces once per step) exactly the largest of them, at the step it occurred.
+// Per step: the peaks are at least every published tooth force. Under time stepping (forces
+// once per step, each a step's mean) the normal peak is exactly the largest of them, at the
+// step it occurred; the knead peak is the sliding force mu N at the end of the slip, located
+// inside its step (docs/model.md §9): above every step's mean, off the step grid.
 // The global scheme's steps (integrator.islands: false): a step of the island scheme is a whole
 // scheduling window, whose end need not fall inside the contact.
 TEST(ToothPeaks, AreTheLargestForceOfEveryAcceptedStep) {
@@ -212,8 +214,11 @@ TEST(ToothPeaks, AreTheLargestForceOfEveryAcceptedStep) {
     if (m.integrator.type == IntegratorType::kTimeStepping) {
       EXPECT_EQ(core.normal_force_N, seen.normal_force_N);
       EXPECT_EQ(core.time_of_normal_s, seen.time_of_normal_s);
-      EXPECT_EQ(core.tangential_force_N, seen.tangential_force_N);
-      EXPECT_EQ(core.time_of_tangential_s, seen.time_of_tangential_s);
+      const double mu = m.contact[static_cast<int>(PairKind::kToothKernel)].friction;
+      EXPECT_GT(core.tangential_force_N, 1.5 * seen.tangential_force_N);
+      EXPECT_LE(core.tangential_force_N, mu * core.normal_force_N);
+      const double steps = core.time_of_tangential_s / m.integrator.dt_s;
+      EXPECT_GT(std::abs(steps - std::round(steps)), 1e-3);
     }
   }
 }

@@ -219,15 +219,20 @@ double seriesIndentation(const SeriesHertz& h, double delta) {
 }  // namespace
 
 double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps) {
-  const double delta = -g.gap_m;
+  return compliantNormalForceAt(g, g.gap_m, g.vn, K, v_in_mps, v_floor_mps);
+}
+
+double compliantNormalForceAt(const ContactGeom& g, double gap_m, double vn_mps, double K,
+                              double v_in_mps, double v_floor_mps) {
+  const double delta = -gap_m;
   if (delta <= 0.0) return 0.0;
   // F = K delta^{3/2} (1 + chi d(delta)/dt), chi = c* / v_in, clamped: no adhesion.
   const double chi = g.params->hc_damping_factor / std::max(v_in_mps, v_floor_mps);
   if (g.residual_mpN <= 0.0) {
-    const double f = K * delta * std::sqrt(delta) * (1.0 - chi * g.vn);
+    const double f = K * delta * std::sqrt(delta) * (1.0 - chi * vn_mps);
     return std::max(f, 0.0);
   }
-  const SeriesHertz h{K, chi, g.residual_mpN, -g.vn};
+  const SeriesHertz h{K, chi, g.residual_mpN, -vn_mps};
   double d_x, d_rate;
   return h.force(seriesIndentation(h, delta), &d_x, &d_rate);
 }

@@ -51,6 +51,10 @@ inline double residualForceFactor(const ContactGeom& g, double fn_N) {
 // (the quasi-static split of the approach between the two springs, F_e = K delta_e^{3/2}):
 //   F = K delta_e^{3/2} (1 + chi delta_e'),  solved for delta_e by a bracketed Newton iteration.
 double compliantNormalForce(const ContactGeom& g, double K, double v_in_mps, double v_floor_mps);
+// The same law at another gap gap_m [m] and normal gap rate vn_mps [m/s] of the pair g (its
+// residual flexibility and parameters): the force at an instant inside a time step [N].
+double compliantNormalForceAt(const ContactGeom& g, double gap_m, double vn_mps, double K,
+                              double v_in_mps, double v_floor_mps);
 // The same force before the no-adhesion clamp: negative where the damping would pull (the
 // event function of a compliant contact's release) [N].
 double compliantNormalForceSigned(const ContactGeom& g, double K, double v_in_mps,
