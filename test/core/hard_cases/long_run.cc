@@ -140,13 +140,11 @@ TEST(HardCases, Scene10LongRunConvergesAndIntegratorsAgree) {
   expectKnobSweepConvergesAndAgrees(out, "kernel velocities at 8 ms");
 }
 
-#ifdef THRESHING_SIM_GLOBAL_SCHEME
-// The short long run with the large-deflection tooth (issue 12; global scheme only, as the
-// tooth scenes in tooth_strikes.cc).
+// The short long run with the large-deflection tooth (issue 12; both schemes, as the tooth
+// scenes in tooth_strikes.cc).
 TEST_P(HardCase, Scene10LongRunShortVersionLargeDeflection) {
   expectLongRunShortVersion(GetParam(), {"teeth.0.model=large_deflection"});
 }
-#endif
 
 }  // namespace
 }  // namespace hard_cases
