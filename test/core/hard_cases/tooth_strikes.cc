@@ -59,8 +59,8 @@ Limits strikeLimits(const Model& m, const RunLog& r, const StrikeScene& sc) {
   // Event-driven: the broad-phase margin over the tooth's speed (2 mm / 41 m/s = 49 us), the
   // stability of an explicit step on the steel tooth's 85 kHz mode (~6 us) and the tolerance
   // during contact: 3e5 steps/s measured at most; 2e6 (0.5 us per step) would be a stall.
-  // Time stepping: 1/h.
-  lim.max_steps_per_s = ed ? 2e6 : 1.0 / h + 1;
+  // Time stepping: 1/h (and 1/h per rod under the island scheme, rodIslandStepsPerSecond).
+  lim.max_steps_per_s = ed ? 2e6 : 1.0 / h + 1 + rodIslandStepsPerSecond(m);
   lim.max_events_per_s = 1e4;  // ~5 events per strike
   // The kernel jammed in the wedge without drive (scene 8) rocks between stick and slip on the
   // tooth and the bar as the tooth rings: 31 transitions in 4 ms with 4 modes, 65 with the
