@@ -139,17 +139,19 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
 // config/scenes/cases/large_deflection.yaml sets it): the island scheme refused them; it
 // integrates a rod in an island of its own. The rod scenes of scripts/compare_teeth.py (the
 // knead with the nylon and the polyurethane tooth), the default strike and the tooth hard cases
-// (stiff, soft, wedged kernel), at 6 shape functions (the least `modes: auto` gives a rod;
-// the count is not what is compared, and the stiff rods' automatic counts cost minutes). The
-// same impacts in the same order, and the peak forces, the largest tip deflection, every
-// kernel's final velocity and the energy (final mechanical energy, drive work) within the
-// error estimate of the test above.
+// (stiff, wedged kernel), at 6 shape functions (the least `modes: auto` gives a rod; the count
+// is not what is compared, and the stiff rods' automatic counts cost minutes). The same impacts
+// in the same order, and the peak forces, the largest tip deflection, every kernel's final
+// velocity and the energy (final mechanical energy, drive work) within the error estimate of
+// the test above. Not the soft tooth (hard/07): at 6 shape functions its contact's end costs
+// the global scheme 1e4-2e4 steps at tolerance 1e-8 (a minute), and at the scene's 1e-6 the
+// global scheme's late tangential peak (3.09 N) is 23 % above its converged 2.50 N, which the
+// island scheme gives already; test_hard_cases runs it under both schemes.
 const Case kRodCases[] = {
     {"default_scene.yaml", ""},
     {"scenes/knead.yaml", ""},
     {"bench/knead_polyurethane.yaml", ""},
     {"hard/06_stiff_tooth.yaml", ""},
-    {"hard/07_soft_tooth.yaml", ""},
     {"hard/08_wedged.yaml", ""},
 };
 
