@@ -152,17 +152,16 @@ struct TimeSteppingScratch {
   VecX compliant_ratio;  // per contact row: expected friction per unit normal impulse [-]
   VecX compliant_rate;   // per contact row: end gap rate per unit of its impulses, < 0: held
                          // by a rigid row (the law at the start rate) [m/(N s^2)]
-  std::vector<MatX> iteration_inverse;                  // (I + h theta D + h^2 theta^2 K)^-1
-  internal::StateValues end_values;                     // energy and momentum at the last end
-  std::vector<int> candidate_memory;                    // pair-table index of each candidate
-  std::vector<int> in_contact;                          // pairs in contact at the last step end
-  long in_contact_step = -2;                            // Data::steps when that list was made
-  std::vector<std::uint8_t> attached_before;            // pedicels before this step's breaks [-]
-  std::vector<MatX> iteration_stiffness;                // K(Omega) of each tooth [1/s^2]
-  std::vector<MatX> iteration_matrix;                   // I + h theta D + h^2 theta^2 K [-]
-  std::vector<Eigen::PartialPivLU<MatX>> iteration_lu;  // and its factorisation
-  double iteration_omega = -1;  // drum speed the matrices above were built at [rad/s]
-  double iteration_h = -1;      // and the step [s]
+  std::vector<MatX> iteration_inverse;        // (I + h theta D + h^2 theta^2 K)^-1
+  internal::StateValues end_values;           // energy and momentum at the last end
+  std::vector<int> candidate_memory;          // pair-table index of each candidate
+  std::vector<int> in_contact;                // pairs in contact at the last step end
+  long in_contact_step = -2;                  // Data::steps when that list was made
+  std::vector<std::uint8_t> attached_before;  // pedicels before this step's breaks [-]
+  std::vector<MatX> iteration_stiffness;      // K(Omega) of each tooth [1/s^2]
+  std::vector<MatX> iteration_matrix;         // I + h theta D + h^2 theta^2 K [-]
+  double iteration_omega = -1;                // drum speed the matrices above were built at [rad/s]
+  double iteration_h = -1;                    // and the step [s]
   // A modal tooth's iteration matrix is A + Omega^2 B with A = I + h theta D + h^2 theta^2 Lambda
   // (diagonal) and B = h^2 theta^2 (K_G - I): with A^-1/2 B A^-1/2 = V diag(mu) V^T, its inverse
   // is C diag(1 / (1 + Omega^2 mu)) C^T, C = A^-1/2 V; a drum ramp then costs no factorisation.

@@ -291,8 +291,13 @@ void ldDynamics(const ToothModel& t, const LdConfig& cfg, const double* q, const
     }
   }
   if (f != nullptr) {
+    // The products into fixed-capacity storage: no heap temporary (the rod's right-hand side
+    // runs every stage of every step).
     const Eigen::Map<const VecX> qv(q, n), qdv(qd, n);
-    *f = -(t.ld_K * qv) - t.ld_D * qdv - Qin;
+    LdVec Kq(n), Dqd(n);
+    Kq.noalias() = t.ld_K * qv;
+    Dqd.noalias() = t.ld_D * qdv;
+    *f = -Kq - Dqd - Qin;
   }
   if (kinetic_J != nullptr) *kinetic_J = T;
   if (momentum != nullptr) *momentum = H;
@@ -389,10 +394,13 @@ void updateLdIterationMatrices(const Model& m, const VecX& z_mid, double h, Work
     LdMat M;
     const double* q = z_mid.data() + tm.dof_offset;
     ldDynamics(tm, cfg, q, q, 0.0, 0.0, &M, nullptr, nullptr, nullptr);
-    MatX& W = ws->ts.iteration_matrix[k];
-    W = M + (h * th) * tm.ld_D + (h * h * th * th) * tm.ld_K;
-    ws->ts.iteration_lu[k].compute(W);
-    ws->ts.iteration_inverse[k] = ws->ts.iteration_lu[k].inverse();
+    // Factorised and inverted in fixed-capacity storage (no heap temporary), then copied into
+    // the workspace's matrices (sized for the tooth by the step's set-up).
+    const LdMat W = M + (h * th) * tm.ld_D + (h * h * th * th) * tm.ld_K;
+    ws->ts.iteration_matrix[k] = W;
+    const Eigen::PartialPivLU<LdMat> lu(W);
+    const LdMat W_inv = lu.inverse();
+    ws->ts.iteration_inverse[k] = W_inv;
   }
 }
 

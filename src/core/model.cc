@@ -244,18 +244,6 @@ void compileTeeth(Model* model, int* offset) {
   }
 }
 
-// The island-local scheme advances free teeth by their exact linear modal solution and bounds
-// their sweep by the modal deflection: it has no large-deflection rod.
-void rejectIslandsWithRods(const Model& m) {
-  for (size_t k = 0; k < m.teeth.size() && m.integrator.islands; ++k) {
-    if (m.teeth[k].beam_model != ToothBeamModel::kLargeDeflection) continue;
-    throw std::invalid_argument(
-        "integrator.islands: true is not supported with teeth." + std::to_string(k) +
-        ".model: large_deflection (the island scheme has modal teeth only); set "
-        "integrator.islands: false");
-  }
-}
-
 // Kernel i (fields named from f, "kernels.<i>."): checked, its pedicel's rest length (a
 // negative one means "the distance at the start") and its uniform elliptic disc inertia.
 void compileKernel(KernelModel* kernel, const std::string& f) {
@@ -350,7 +338,6 @@ void compileModel(Model* model) {
   // Generalised coordinates: the teeth's modal coordinates first, then the kernels'.
   int offset = 0;
   compileTeeth(model, &offset);
-  rejectIslandsWithRods(m);
   compileKernels(model, &offset);
   m.n_dof = offset;
   compileObstacles(model);

@@ -126,7 +126,9 @@ void resetData(const Model& model, Data* data) {
   // The free-tooth propagators are rebuilt for this model on first use.
   for (internal::ToothPropagator& prop : data->ws->ed.prop) prop.n_modes = -1;
   // The large-deflection caches are keyed on q and z only: forget another model's.
-  data->ws->ld_cfg_q.clear();
+  // The rods' configuration keys are invalidated in place (NaN matches no q), keeping their
+  // storage: an island's sub-system is reset at every build and must not allocate then.
+  for (VecX& key : data->ws->ld_cfg_q) key.setConstant(std::numeric_limits<double>::quiet_NaN());
   data->ws->ld_minv_valid = false;
   resetBodies(model, data);
   internal::resetAsync(data);

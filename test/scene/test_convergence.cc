@@ -80,9 +80,8 @@ TEST(Convergence, LargeDeflectionKneadCompletesAndConverges) {
   std::vector<Result> levels;
   for (int n : {8, 10, 12}) {
     SCOPED_TRACE(n);
-    levels.push_back(runKnead({"integrator.islands=false", "teeth.0.model=large_deflection",
-                               "teeth.0.modes=" + std::to_string(n)},
-                              knead));
+    levels.push_back(
+        runKnead({"teeth.0.model=large_deflection", "teeth.0.modes=" + std::to_string(n)}, knead));
     EXPECT_EQ(levels.back().impacts, levels.front().impacts);
     EXPECT_EQ(levels.back().energy_gain_J, 0.0);
   }
@@ -110,8 +109,7 @@ void printKneadRow(const Result& r) {
 }
 
 Result runRodKnead(const std::string& modes) {
-  return runKnead(
-      {"integrator.islands=false", "teeth.*.model=large_deflection", "teeth.*.modes=" + modes});
+  return runKnead({"teeth.*.model=large_deflection", "teeth.*.modes=" + modes});
 }
 
 TEST(Convergence, LargeDeflectionPolyurethaneKneadIsConvergedAtTheAutomaticCount) {
@@ -140,10 +138,10 @@ TEST(Convergence, LargeDeflectionPolyurethaneKneadIsConvergedAtTheAutomaticCount
 
 // A rod takes at most kLdMaxShapes shape functions, refused by name past it.
 TEST(Convergence, LargeDeflectionRefusesMoreShapeFunctionsThanItResolves) {
-  EXPECT_NO_THROW(loadScene(kKnead, {"integrator.islands=false", "teeth.0.model=large_deflection",
-                                     "teeth.0.modes=" + std::to_string(kLdMaxShapes)}));
+  EXPECT_NO_THROW(loadScene(
+      kKnead, {"teeth.0.model=large_deflection", "teeth.0.modes=" + std::to_string(kLdMaxShapes)}));
   try {
-    loadScene(kKnead, {"integrator.islands=false", "teeth.0.model=large_deflection",
+    loadScene(kKnead, {"teeth.0.model=large_deflection",
                        "teeth.0.modes=" + std::to_string(kLdMaxShapes + 1)});
     ADD_FAILURE() << "no error";
   } catch (const std::exception& e) {
@@ -203,7 +201,6 @@ double tipStrikeStickForce(int modes, const std::string& rotation,
   overrides.push_back("teeth.*.section_rotation=" + rotation);
   overrides.push_back("integrator.tolerance=1e-10");
   overrides.push_back("teeth.*.model=" + model);
-  overrides.push_back("integrator.islands=false");
   const Model m = loadScene(dir + "single_strike.yaml", overrides);
   Data d;
   resetData(m, &d);

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
@@ -128,6 +129,82 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
                              : 0.0;
       const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
       EXPECT_LE(std::abs(oa[q] - og[q]), std::max({3.0 * estimate, tol, floor}))
+          << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined "
+          << of[q] << " and " << oaf[q];
+    }
+  }
+}
+
+// The scenes with a large-deflection rod (teeth.*.model: large_deflection, as
+// config/scenes/cases/large_deflection.yaml sets it): the island scheme refused them; it
+// integrates a rod in an island of its own. The rod scenes of scripts/compare_teeth.py (the
+// knead with the nylon and the polyurethane tooth), the default strike and the tooth hard cases
+// (stiff, wedged kernel), at 6 shape functions (the least `modes: auto` gives a rod; the count
+// is not what is compared, and the stiff rods' automatic counts cost minutes). The same impacts
+// in the same order, and the peak forces, the largest tip deflection, every kernel's final
+// velocity and the energy (final mechanical energy, drive work) within the error estimate of
+// the test above. Not the soft tooth (hard/07): at 6 shape functions its contact's end costs
+// the global scheme 1e4-2e4 steps at tolerance 1e-8 (a minute), and at the scene's 1e-6 the
+// global scheme's late tangential peak (3.09 N) is 23 % above its converged 2.50 N, which the
+// island scheme gives already; test_hard_cases runs it under both schemes.
+const Case kRodCases[] = {
+    {"default_scene.yaml", ""},
+    {"scenes/knead.yaml", ""},
+    {"bench/knead_polyurethane.yaml", ""},
+    {"hard/06_stiff_tooth.yaml", ""},
+    {"hard/08_wedged.yaml", ""},
+};
+
+// outputs() with the tip deflection and the energy.
+std::vector<double> rodOutputs(const SceneRun& r) {
+  std::vector<double> out = outputs(r);
+  out.push_back(r.d.stats.max_tip_deflection_ratio);
+  out.push_back(mechanicalEnergy(r.m, r.d));
+  out.push_back(r.d.stats.drive_work_J);
+  return out;
+}
+
+TEST_P(IslandScenes, RodScenesSameImpactsAndOutputsWithinTheErrorEstimate) {
+  const std::string rod = "teeth.*.model=large_deflection", shapes = "teeth.*.modes=6";
+  auto run = [&](const Case& c, bool islands, const std::string& knob) {
+    std::vector<std::string> o = settings(c, GetParam(), islands, knob);
+    o.push_back(rod);
+    o.push_back(shapes);
+    return runScene(c.file, o);
+  };
+  for (const Case& c : kRodCases) {
+    SCOPED_TRACE(std::string(c.file) + ", rod, " + GetParam());
+    const SceneRun g = run(c, false, "");
+    const SceneRun a = run(c, true, "");
+    const SceneRun f = run(c, false, refined(g));
+    const SceneRun af = run(c, true, refined(g));
+    ASSERT_NE(g.status, StepStatus::kFailed);
+    ASSERT_NE(a.status, StepStatus::kFailed);
+    ASSERT_NE(f.status, StepStatus::kFailed);
+    ASSERT_NE(af.status, StepStatus::kFailed);
+    ASSERT_EQ(a.m.teeth[0].beam_model, ToothBeamModel::kLargeDeflection);
+    EXPECT_GT(a.d.stats.scheduler.islands_built, 0);
+    EXPECT_GE(g.d.stats.impacts, 1);
+    EXPECT_EQ(a.d.stats.impacts, g.d.stats.impacts);
+    std::vector<PairId> ga, aa;
+    for (const ContactEvent& e : g.d.events)
+      if (e.is_impact || e.to == ContactState::kImpact) ga.push_back(e.pair);
+    for (const ContactEvent& e : a.d.events)
+      if (e.is_impact || e.to == ContactState::kImpact) aa.push_back(e.pair);
+    EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
+    const std::vector<double> og = rodOutputs(g), oa = rodOutputs(a), of = rodOutputs(f),
+                              oaf = rodOutputs(af);
+    for (size_t q = 0; q < og.size(); ++q) {
+      const double estimate = std::abs(og[q] - of[q]) + std::abs(oa[q] - oaf[q]);
+      const double tol = g.m.integrator.type == IntegratorType::kEventDriven
+                             ? 10.0 * g.m.integrator.tolerance * std::abs(og[q])
+                             : 0.0;
+      const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
+      const double bound = std::max({3.0 * estimate, tol, floor});
+      std::printf(
+          "ROD_ISLANDS %s %s output %zu: global %.9g islands %.9g (rel %+.2e, bound %.2e)\n",
+          c.file, GetParam(), q, og[q], oa[q], (oa[q] - og[q]) / (std::abs(og[q]) + 1e-300), bound);
+      EXPECT_LE(std::abs(oa[q] - og[q]), bound)
           << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined "
           << of[q] << " and " << oaf[q];
     }

@@ -256,7 +256,8 @@ bool pedicelEnvelope(const Model& m, const Data& d, AsyncState* as, int i, doubl
                      double* growth_m);
 // Free tooth k over h_s at the data's (constant) drum speed: exact (as->prop[k] must be built).
 void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s);
-// Bound on |w| at the stations of tooth k while it moves freely at the data's drum speed [m].
+// Bound on |w| at the stations of tooth k while it moves freely at the data's drum speed [m]
+// (a large-deflection rod: on its centreline's distance from its undeformed line).
 double toothDeflectionBound(const Model& m, const Data& d, const AsyncState& as, int k);
 
 // --- calendar.cc: the wake-time heap and the grid of bound circles ------------------------

@@ -6,10 +6,13 @@
 //     beyond that its own adaptive Dormand-Prince 5(4) over its 3 dofs (6 states, fixed-size,
 //     no allocation), with the error norm and tolerance of the global integrator, breaking the
 //     pedicel at a step end as the global integrator does;
-//   - a free tooth at constant drum speed: the exact solution of its linear modal equations.
+//   - a free tooth at constant drum speed: the exact solution of its linear modal equations. A
+//     large-deflection rod has none (it is nonlinear): it is always integrated, in an island
+//     of its own when it touches nothing (async_step.cc, toothNeedsIntegration).
 #include <Eigen/Cholesky>
 
 #include "async.h"
+#include "threshing_sim/core/large_deflection.h"
 
 namespace threshing_sim {
 namespace internal {
@@ -306,10 +309,50 @@ void advanceFreeTooth(const Model& m, Data* d, AsyncState* as, int k, double h_s
   ++as->counters.tooth_advances;
 }
 
+namespace {
+// Half the rod's moment of inertia about the drum axis at configuration cfg: its kinetic energy
+// at rest on the drum turning at 1 rad/s [kg m^2].
+double rodHalfInertia(const ToothModel& tm, const LdConfig& cfg, const double* q) {
+  const LdVec rest = LdVec::Zero(tm.n_modes);
+  double half_inertia = 0.0;
+  ldDynamics(tm, cfg, q, rest.data(), 1.0, 0.0, nullptr, nullptr, &half_inertia, nullptr);
+  return half_inertia;
+}
+
+// Bound on the distance of the rod's centreline from its undeformed line while it moves freely
+// at the drum's constant speed [m]. Its Jacobi energy in the drum frame,
+// H = 1/2 qd^T M(q) qd + 1/2 q^T K q + 1/2 Omega^2 (I(0) - I(q)) (relative kinetic, bending,
+// centrifugal potential against the straight rod: I(q) <= I(0), a bent rod's nodes are nearer
+// the drum axis), does not grow then (Coriolis does no work, D damps). The bending energy
+// bounds the section angle, |theta(s)| <= sqrt(s int theta'^2) = sqrt(2 s V / EI), and the
+// centreline's distance |r(s) - r_0(s)| <= int_0^s |theta| <= 2/3 s^3/2 sqrt(2 V / EI), largest at
+// the tip. (Every point of the rod is also within L of its root: the caller caps it there.)
+double rodDeflectionBound(const ToothModel& tm, const Data& d) {
+  const int n = tm.n_modes;
+  const double* q = d.z.data() + tm.dof_offset;
+  const double* qd = d.u.data() + tm.dof_offset;
+  LdConfig cfg;
+  ldConfigure(tm, q, &cfg);
+  double relative_kinetic_J = 0.0;
+  ldDynamics(tm, cfg, q, qd, 0.0, 0.0, nullptr, nullptr, &relative_kinetic_J, nullptr);
+  const double w2 = d.omega_radps * d.omega_radps;
+  const double bent_half_inertia = rodHalfInertia(tm, cfg, q);
+  const LdVec straight = LdVec::Zero(n);
+  ldConfigure(tm, straight.data(), &cfg);
+  const double straight_half_inertia = rodHalfInertia(tm, cfg, straight.data());
+  const double jacobi_J = relative_kinetic_J + ldElasticEnergy(tm, q) +
+                          w2 * std::max(0.0, straight_half_inertia - bent_half_inertia);
+  const double EI_Nm2 = tm.ld_K(0, 0) * tm.length_m;  // K_11 = EI / L
+  const double L = tm.length_m;
+  return 2.0 / 3.0 * L * std::sqrt(L * 2.0 * jacobi_J / EI_Nm2);
+}
+}  // namespace
+
 double toothDeflectionBound(const Model& m, const Data& d, const AsyncState& as, int k) {
   const ToothModel& tm = m.teeth[k];
   const int n = tm.n_modes;
   if (n == 0) return 0.0;
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection) return rodDeflectionBound(tm, d);
   // S = Lambda + Omega^2 (K_G - I); the modal energy E = 1/2 qd^T qd + 1/2 q^T S q does not
   // grow while the tooth is free at constant speed, and |phi^T q| <= sqrt(2 E phi^T S^-1 phi).
   // S and the largest phi^T S^-1 phi over the stations are kept per drum speed.

@@ -51,12 +51,16 @@ bool buildSubModel(const Model& m, IslandSystem* sys, const std::vector<int>& ke
     sm.deflection_validity_fraction = m.deflection_validity_fraction;
     sm.obstacles = m.obstacles;
     sm.teeth.resize(sys->teeth.size());
+    // Whether some tooth is a rod: the integrators then take its configuration-dependent mass
+    // matrix (compileModel derives it for the full model; the sub-model is not compiled).
+    sm.has_large_deflection = false;
     for (size_t l = 0; l < sys->teeth.size(); ++l) {
       const ToothModel& tg = m.teeth[sys->teeth[l]];
       alike = alike && sameDerivedInputs(sm.teeth[l], tg);
       sm.teeth[l] = tg;
       sm.teeth[l].dof_offset = offset;
       offset += sm.teeth[l].n_modes;
+      if (tg.beam_model == ToothBeamModel::kLargeDeflection) sm.has_large_deflection = true;
     }
     sm.kernels.resize(kernels.size());
     sys->teeth_of = &m;

@@ -38,6 +38,9 @@ double toothPad(const Model& m, const Data& d, const AsyncState& as, int k) {
   double deflection = toothDeflectionBound(m, d, as, k);
   if (as.tooth_island[k] >= 0)
     deflection = 2.0 * deflection + m.deflection_validity_fraction * tm.length_m;
+  // A rod is inextensible: its every point is within L of its root, whatever the forces.
+  if (tm.beam_model == ToothBeamModel::kLargeDeflection)
+    deflection = std::min(deflection, tm.length_m);
   return deflection + 0.5 * tm.diameter_m + m.broadphase_margin_m;
 }
 

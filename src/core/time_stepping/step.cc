@@ -57,7 +57,6 @@ void updateIterationMatrices(const Model& m, double omega, double h, Workspace* 
   ws->ts.iteration_inverse.resize(T);
   ws->ts.iteration_stiffness.resize(T);
   ws->ts.iteration_matrix.resize(T);
-  ws->ts.iteration_lu.resize(T);
   for (size_t k = 0; k < T; ++k) {
     const ToothModel& tm = m.teeth[k];
     const int n = tm.n_modes;

@@ -213,6 +213,17 @@ struct Limits {
   double max_events_per_s = 0;     // events per simulated second
 };
 
+// Steps per simulated second that large-deflection rods add to a time-stepping run under the
+// island scheme: a rod has no exact free motion, so it steps in an island of its own (1/h per
+// second) while the kernels' islands step too; data.steps counts every island's steps.
+inline double rodIslandStepsPerSecond(const Model& m) {
+  if (!testutil::kIslandScheme || m.integrator.type != IntegratorType::kTimeStepping) return 0.0;
+  double rods = 0.0;
+  for (const ToothModel& t : m.teeth)
+    if (t.beam_model == ToothBeamModel::kLargeDeflection) rods += 1.0;
+  return rods / m.integrator.dt_s;
+}
+
 // The properties every run must have, whatever the scene.
 inline void expectCommon(const Model& m, const RunLog& r, const Limits& lim) {
   SCOPED_TRACE(std::string("integrator ") + integratorName(m.integrator.type));

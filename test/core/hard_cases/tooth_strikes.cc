@@ -1,5 +1,5 @@
 // Hard cases, strikes of a driven flexible tooth: stiff, soft and with a wedged kernel (scenes
-// 6-8), with the modal tooth and (global scheme) the large-deflection tooth.
+// 6-8), with the modal tooth and the large-deflection tooth.
 // Fixture and the checks every scene gets: fixture.h.
 #include "fixture.h"
 
@@ -59,8 +59,8 @@ Limits strikeLimits(const Model& m, const RunLog& r, const StrikeScene& sc) {
   // Event-driven: the broad-phase margin over the tooth's speed (2 mm / 41 m/s = 49 us), the
   // stability of an explicit step on the steel tooth's 85 kHz mode (~6 us) and the tolerance
   // during contact: 3e5 steps/s measured at most; 2e6 (0.5 us per step) would be a stall.
-  // Time stepping: 1/h.
-  lim.max_steps_per_s = ed ? 2e6 : 1.0 / h + 1;
+  // Time stepping: 1/h (and 1/h per rod under the island scheme, rodIslandStepsPerSecond).
+  lim.max_steps_per_s = ed ? 2e6 : 1.0 / h + 1 + rodIslandStepsPerSecond(m);
   lim.max_events_per_s = 1e4;  // ~5 events per strike
   // The kernel jammed in the wedge without drive (scene 8) rocks between stick and slip on the
   // tooth and the bar as the tooth rings: 31 transitions in 4 ms with 4 modes, 65 with the
@@ -184,12 +184,12 @@ TEST(HardCases, Scene08WedgedKernelLeavesTheBarWithoutAnotherImpact) {
   }
 }
 
-#ifdef THRESHING_SIM_GLOBAL_SCHEME
 // =============================================================================================
 // The tooth scenes again with the large-deflection tooth (teeth.0.model: large_deflection,
-// issue 12), whose shape functions replace the modes; the island scheme refuses it, so these
-// run under the global scheme only. The same invariants: no energy gain at an impact nor
-// beyond the drive's work, bounded penetration and progress, bit-identical reruns.
+// issue 12), whose shape functions replace the modes, under both schemes (the island scheme
+// integrates the rod in an island of its own, issue 23). The same invariants: no energy gain
+// at an impact nor beyond the drive's work, bounded penetration and progress, bit-identical
+// reruns.
 const std::vector<std::string> kRod = {"teeth.0.model=large_deflection"};
 TEST_P(HardCase, Scene06StiffToothStrikeLargeDeflection) {
   expectStrikeInvariants(kStiff, GetParam(), kRod);
@@ -205,7 +205,6 @@ TEST_P(HardCase, Scene07SoftToothStrikeLargeDeflection) {
 TEST_P(HardCase, Scene08WedgedKernelStrikeLargeDeflection) {
   expectStrikeInvariants(kWedged, GetParam(), kRod);
 }
-#endif
 
 }  // namespace
 }  // namespace hard_cases
