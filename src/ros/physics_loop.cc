@@ -301,11 +301,15 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
       });
     };
   }
-  // Past the boundary to a step end (no step is cut but at ~end_time, as `simulate` cuts none
-  // but at its duration): the boundary's state is the step end's, commands apply there.
-  const bool bounded = params_.end_time_s > 0;
-  const double t_stop_s = bounded ? params_.end_time_s : std::numeric_limits<double>::infinity();
-  const bool final = bounded && k >= schedule_.endStep();
+  // Past the boundary to a step end (no step is cut but at the run's end, as `simulate` cuts
+  // none but at its duration): the boundary's state is the step end's, commands apply there.
+  // The end: ~end_time, else a re-simulation's last recorded boundary, else none.
+  const long end_step = schedule_.endStep();
+  const bool bounded = end_step > 0;
+  const double t_stop_s = params_.end_time_s > 0 ? params_.end_time_s
+                          : bounded              ? end_step * timing_.dt_s
+                                                 : std::numeric_limits<double>::infinity();
+  const bool final = bounded && k >= end_step;
   const StepStatus status =
       log_.advance(*model_, &data_, final ? t_stop_s : k * timing_.dt_s, t_stop_s, sample);
   step_meter_.end();
@@ -316,7 +320,6 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
 
   // The last step of a bounded run (or the failed one that ends it) and a periodic reset
   // publish everything.
-  const long end_step = schedule_.endStep();
   const bool last = (end_step > 0 && k >= end_step) || flags_.finished;
   unsigned streams = streams_.due(k, pacer_.realTimeFactor() == 0, clock_.nowSeconds()) |
                      forced_streams | (last ? kAllStreams : 0u);

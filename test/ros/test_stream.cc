@@ -4,6 +4,7 @@
 //  - stream_long (the scene's 8 ms): runs past t = 7.558 ms, where the forced strike sub-steps
 //    made the integrator fail on main, to its end time, ends by itself, and has `simulate`'s
 //    impacts and peak force over the whole duration (equal: both take the same steps);
+//  - the island scheme over the whole 8 ms (a child node): `simulate`'s impacts and peak force;
 //  - a bounded run whose integrator fails ends by itself with exit status 1 (on main it waited
 //    paused for ever: killed after 200 s).
 // Both nodes start paused, so that this test hears their whole runs.
@@ -27,6 +28,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "ros_test_util.h"
@@ -90,7 +92,8 @@ double jsonNumber(const std::string& json, const std::string& key) {
 // `simulate` over the stream scene's first duration_s: its impacts and peak normal force.
 void simulateStream(const std::string& duration_s, double* impacts, double* peak_N,
                     std::string* summary) {
-  const std::string json = std::string(TEST_TMP_DIR) + "/stream_" + duration_s + "_summary.json";
+  const std::string json = std::string(TEST_TMP_DIR) + "/stream_" +
+                           std::to_string(std::hash<std::string>()(duration_s)) + "_summary.json";
   std::string out;
   ASSERT_EQ(run(std::string(THRESHING_SIM_SIMULATE) + " " + THRESHING_SIM_SOURCE_DIR +
                     "/config/scenes/stream.yaml --set duration=" + duration_s +
@@ -175,6 +178,41 @@ TEST(Stream, WholeRunEndsWithSimulatesImpactsAndPeak) {
     EXPECT_DOUBLE_EQ(peak_N, peak_sim_N);
   }
   EXPECT_TRUE(endsWithin(pid, 20.0)) << "stream_long did not end by itself";
+}
+
+// The island scheme (soon the default) over the whole 8 ms: the node as a child process on the
+// scene with islands: true, `simulate` with --set integrator.islands=true at the same time.
+TEST(Stream, WholeRunUnderIslandsEndsWithSimulatesImpactsAndPeak) {
+  std::string scene = slurp(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/stream.yaml");
+  const std::regex integrator("\nintegrator: \\{");
+  ASSERT_TRUE(std::regex_search(scene, integrator));
+  scene = std::regex_replace(scene, integrator, "\nintegrator: {islands: true, ");
+  const std::string path = std::string(TEST_TMP_DIR) + "/stream_islands.yaml";
+  std::ofstream(path) << scene;
+  double impacts_sim = 0, peak_sim_N = 0;
+  std::string summary;
+  std::thread simulate(
+      [&] { simulateStream("0.008 --set integrator.islands=true", &impacts_sim, &peak_sim_N,
+                           &summary); });
+  std::string out;
+  const int status = run("timeout -s INT 400 " + std::string(THRESHING_SIM_NODE) +
+                             " __name:=stream_islands _scene:=" + path +
+                             " _clock_mode:=wall _real_time_factor:=0 _end_time:=0.008"
+                             " _status_period:=0 _diagnostic_period:=1",
+                         &out);
+  simulate.join();
+  ros::WallDuration(0.3).sleep();  // the node's last /diagnostics
+  EXPECT_EQ(status, 0) << out;
+  ASSERT_GT(impacts_sim, 0) << summary;
+  std::lock_guard<std::mutex> lock(g_mutex);
+  EXPECT_EQ(diag("stream_islands", "failure"), "none");
+  const double peak_N = std::stod(diag("stream_islands", "peak normal force [N]"));
+  const long impacts = std::stol(diag("stream_islands", "impacts"));
+  std::printf("stream 8 ms, islands: node %ld impacts, peak %.6f N; simulate %.0f impacts, peak "
+              "%.6f N\n",
+              impacts, peak_N, impacts_sim, peak_sim_N);
+  EXPECT_EQ(impacts, static_cast<long>(impacts_sim));
+  EXPECT_DOUBLE_EQ(peak_N, peak_sim_N);
 }
 
 TEST(Stream, FailedBoundedRunEndsWithExitStatusOne) {
