@@ -191,9 +191,9 @@ TEST(Stream, WholeRunUnderIslandsEndsWithSimulatesImpactsAndPeak) {
   std::ofstream(path) << scene;
   double impacts_sim = 0, peak_sim_N = 0;
   std::string summary;
-  std::thread simulate(
-      [&] { simulateStream("0.008 --set integrator.islands=true", &impacts_sim, &peak_sim_N,
-                           &summary); });
+  std::thread simulate([&] {
+    simulateStream("0.008 --set integrator.islands=true", &impacts_sim, &peak_sim_N, &summary);
+  });
   std::string out;
   const int status = run("timeout -s INT 400 " + std::string(THRESHING_SIM_NODE) +
                              " __name:=stream_islands _scene:=" + path +
@@ -208,9 +208,10 @@ TEST(Stream, WholeRunUnderIslandsEndsWithSimulatesImpactsAndPeak) {
   EXPECT_EQ(diag("stream_islands", "failure"), "none");
   const double peak_N = std::stod(diag("stream_islands", "peak normal force [N]"));
   const long impacts = std::stol(diag("stream_islands", "impacts"));
-  std::printf("stream 8 ms, islands: node %ld impacts, peak %.6f N; simulate %.0f impacts, peak "
-              "%.6f N\n",
-              impacts, peak_N, impacts_sim, peak_sim_N);
+  std::printf(
+      "stream 8 ms, islands: node %ld impacts, peak %.6f N; simulate %.0f impacts, peak "
+      "%.6f N\n",
+      impacts, peak_N, impacts_sim, peak_sim_N);
   EXPECT_EQ(impacts, static_cast<long>(impacts_sim));
   EXPECT_DOUBLE_EQ(peak_N, peak_sim_N);
 }
