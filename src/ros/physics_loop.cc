@@ -517,8 +517,14 @@ void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   // /diagnostics reports too).
   s.t_s = flags_.failed ? data_.t_s : s.step * timing_.dt_s;
   s.stamp = timing_.stampOf(s.step);
-  s.theta_rad = data_.theta_rad;
-  s.omega_radps = data_.omega_radps;
+  // The bodies are those of the step end at or past the boundary (less than one integrator step
+  // later: no step is cut at a boundary); the drum, whose motion over the step is known in
+  // closed form (the step's acceleration; steps end where a ramp does), at the boundary itself,
+  // so that its angle and speed follow the stamps exactly.
+  const double late_s = flags_.failed ? 0.0 : std::max(0.0, data_.t_s - s.t_s);
+  s.theta_rad =
+      data_.theta_rad - data_.omega_radps * late_s + 0.5 * data_.alpha_radps2 * late_s * late_s;
+  s.omega_radps = data_.omega_radps - data_.alpha_radps2 * late_s;
   s.z = data_.z;
   s.u = data_.u;
   s.contacts = data_.contacts;
