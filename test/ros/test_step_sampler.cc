@@ -126,6 +126,26 @@ void expectStreamAsInSimulate(bool islands) {
 TEST(StepSampler, StreamRunsAsInSimulate) { expectStreamAsInSimulate(false); }
 TEST(StepSampler, StreamRunsAsInSimulateUnderIslands) { expectStreamAsInSimulate(true); }
 
+// Time stepping takes whole steps of dt whatever the targets: the node and `simulate` agree bit
+// for bit there too (single strike, both schemes).
+TEST(StepSampler, TimeSteppingRunsAsInSimulate) {
+  for (const bool islands : {false, true}) {
+    Model model = loadScene(scene("config/scenes/single_strike.yaml"));
+    model.integrator.type = IntegratorType::kTimeStepping;
+    model.integrator.islands = islands;
+    const double end_s = 0.002;
+    const NodeRun run = runNode(model, end_s, true);
+    ASSERT_FALSE(run.failed);
+    const Data reference = runSimulate(model, end_s);
+    EXPECT_GT(reference.stats.impacts, 0);
+    EXPECT_EQ(run.data.stats.impacts, reference.stats.impacts) << islands;
+    EXPECT_EQ(run.data.stats.peak_normal_force_N, reference.stats.peak_normal_force_N) << islands;
+    if (!islands) {
+      EXPECT_TRUE(sameState(run.data, reference));
+    }
+  }
+}
+
 TEST(StepSampler, EventDrivenIsSampledStepByStepInBothSchemes) {
   Model model = loadScene(scene("config/default_scene.yaml"));
   EXPECT_TRUE(StepSampler::samplesSteps(model));
