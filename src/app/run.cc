@@ -212,11 +212,17 @@ int runModel(const Model& model, const DamageThresholds& damage, const Options& 
   // Chunks of kChunk_s; the last one lands exactly on the duration.
   const long n_chunks = std::max(1L, std::lround(std::ceil(model.duration_s / kChunk_s - 1e-9)));
   Progress progress(options.quiet);
+  double traced_t_s = run.data.t_s;  // time of the last trace row [s]
   for (long chunk = 1; chunk <= n_chunks && !run.failed; ++chunk) {
     advanceChunk(model, chunk == n_chunks ? model.duration_s : chunk * kChunk_s, streams, &run);
     if (run.failed) break;
-    if (streams.trace != nullptr && (chunk % options.trace_every == 0 || chunk == n_chunks))
+    // One row per chunk, at the step end that passed its end (a step longer than a chunk gives
+    // one row for the chunks it spans).
+    if (streams.trace != nullptr && (chunk % options.trace_every == 0 || chunk == n_chunks) &&
+        run.data.t_s > traced_t_s) {
       writeTraceRow(*streams.trace, model, run.data);
+      traced_t_s = run.data.t_s;
+    }
     progress.update(run.data, model.duration_s);
   }
   progress.finish();
