@@ -8,8 +8,10 @@
 // and peak forces are `simulate`'s (issue 24). A boundary's state is that of the step end at or
 // past it (by less than one step); strike frames inside a step are interpolated (StrikeFrames).
 // Near a strike (event-driven, both schemes) the sample function sees the state after every
-// step (island scheme: every scheduling window, the lone kernels brought to its end); time
-// stepping samples at its boundaries.
+// step (island scheme: every scheduling window, the lone kernels brought to its end; a window
+// can span a whole strike, up to max_step: the default strike's 33 us fall inside one 92 us
+// window, so strike histories under islands need an observer of the islands' own steps, which
+// the core does not offer yet); time stepping samples at its boundaries.
 #pragma once
 
 #include <functional>
