@@ -1,8 +1,10 @@
 // One run of a compiled scene to its duration, writing its outputs to streams (files for a
 // single run, strings for each run of a batch).
 //
-// Sampling: the state trace is written every kChunk_s (times --trace-every). Contacts are
-// sampled after every advanceTo(), at least every time the fastest body could cover the
+// Sampling: the state trace is written every kChunk_s (times --trace-every), event-driven at the
+// first step end at or past each chunk end: no step is cut for a sample, only the duration cuts
+// one (advancePast), so the steps do not depend on the sampling. Contacts are
+// sampled after every advancePast(), at least every time the fastest body could cover the
 // broad-phase margin (and at every trace chunk), so that the outcomes see every pair's
 // accumulated impulse before it leaves the candidate set. With --forces, the samples are every
 // --sample-interval while some tooth-kernel pair is within the margin, for the force histories;
@@ -137,8 +139,9 @@ struct Run {
   Run(const Model& model, const DamageThresholds& damage) : tracker(model, damage) {}
 };
 
-// Advances the run to t_chunk_s in sampling intervals (the last one lands on t_chunk_s),
-// writing events and force samples; stops on a failure.
+// Advances the run to t_chunk_s in sampling intervals (event-driven: to the first step end at or
+// past it, the duration's chunk exactly; time stepping: the step nearest it), writing events and
+// force samples; stops on a failure.
 void advanceChunk(const Model& model, double t_chunk_s, const RunStreams& out, Run* run) {
   Data& data = run->data;
   for (bool last = false; !last;) {
@@ -146,9 +149,11 @@ void advanceChunk(const Model& model, double t_chunk_s, const RunStreams& out, R
                                   ? run->sample_interval_s
                                   : std::max(coarseInterval(model, data), run->min_interval_s);
     const double t_next_s = std::min(t_chunk_s, data.t_s + interval_s);
-    last = t_next_s >= t_chunk_s;
     const auto started = std::chrono::steady_clock::now();
-    const StepStatus step_status = advanceTo(model, &data, t_next_s);
+    // No step is cut at a sample or chunk end, only at the duration (advancePast): the run's
+    // steps do not depend on where it is sampled (--forces, the node's boundaries).
+    const StepStatus step_status = advancePast(model, &data, t_next_s, model.duration_s);
+    last = run->min_interval_s > 0 ? t_next_s >= t_chunk_s : data.t_s >= t_chunk_s;
     run->stepping_time += std::chrono::steady_clock::now() - started;
     // Events and contact samples of this interval.
     if (out.events != nullptr) writeEventRows(*out.events, data.events);
@@ -207,11 +212,17 @@ int runModel(const Model& model, const DamageThresholds& damage, const Options& 
   // Chunks of kChunk_s; the last one lands exactly on the duration.
   const long n_chunks = std::max(1L, std::lround(std::ceil(model.duration_s / kChunk_s - 1e-9)));
   Progress progress(options.quiet);
+  double traced_t_s = run.data.t_s;  // time of the last trace row [s]
   for (long chunk = 1; chunk <= n_chunks && !run.failed; ++chunk) {
     advanceChunk(model, chunk == n_chunks ? model.duration_s : chunk * kChunk_s, streams, &run);
     if (run.failed) break;
-    if (streams.trace != nullptr && (chunk % options.trace_every == 0 || chunk == n_chunks))
+    // One row per chunk, at the step end that passed its end (a step longer than a chunk gives
+    // one row for the chunks it spans).
+    if (streams.trace != nullptr && (chunk % options.trace_every == 0 || chunk == n_chunks) &&
+        run.data.t_s > traced_t_s) {
       writeTraceRow(*streams.trace, model, run.data);
+      traced_t_s = run.data.t_s;
+    }
     progress.update(run.data, model.duration_s);
   }
   progress.finish();

@@ -157,7 +157,8 @@ double toothAngularMomentum(const ToothModel& tm, const Eigen::Ref<const VecX>& 
 StepStatus timeSteppingStep(const Model& m, Data* d, double h_s);
 StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s);
 // The asynchronous island-local scheme (integrator.islands: true; src/core/async/).
-StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync = true);
+StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync = true,
+                          double t_stop_s = std::numeric_limits<double>::quiet_NaN());
 StepStatus asyncSync(const Model& m, Data* d);
 StepStatus asyncStep(const Model& m, Data* d);
 // Forgets the scheduler's state (a reset of the bodies).

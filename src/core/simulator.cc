@@ -185,13 +185,13 @@ StepStatus fail(Data* d, FailureCause cause, double t_end_s, long work, long bud
 
 }  // namespace
 
-StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
+namespace {
+
+// The global scheme's advance: steps until t_end_s is reached, each event-driven step cut short
+// only at t_stop_s (advanceTo: t_stop_s = t_end_s; advancePast: the run's end).
+StepStatus advanceGlobal(const Model& model, Data* data, double t_end_s, double t_stop_s) {
   StepStatus worst = StepStatus::kOk;
   const double h = model.integrator.dt_s;
-  data->stats.failure = FailureInfo();
-  if (!std::isfinite(t_end_s)) return fail(data, FailureCause::kBadTarget, t_end_s, 0, 0);
-  // The island scheme: each island's advanceTo() has this budget over its own work.
-  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s);
   const long budget = static_cast<long>(
       std::min(1e15, kBaseWork + kWorkPerSecond * std::max(0.0, t_end_s - data->t_s)));
   const long steps_start = data->steps, trials_start = data->ws->ed.trial_steps;
@@ -208,7 +208,7 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
     const double t0 = data->t_s, th0 = data->theta_rad, om0 = data->omega_radps;
     const long steps0 = data->steps;
     StepStatus s = ts ? internal::timeSteppingStep(model, data, h)
-                      : internal::eventDrivenStep(model, data, t_end_s);
+                      : internal::eventDrivenStep(model, data, t_stop_s);
     if (s == StepStatus::kOk && finiteState(*data)) {
       internal::checkToothDeflection(model, data);
       stalled = data->t_s > t0 ? 0 : stalled + 1;
@@ -226,7 +226,7 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
     data->theta_rad = th0;
     data->omega_radps = om0;
     ++data->stats.numerical_recoveries;
-    const double h_small = (ts ? h : std::min(1e-7, t_end_s - t0)) / 10.0;
+    const double h_small = (ts ? h : std::min(1e-7, t_stop_s - t0)) / 10.0;
     bool ok = h_small > 0;
     for (int i = 0; i < 10 && ok; ++i) {
       ok =
@@ -249,11 +249,35 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
   return worst;
 }
 
-StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s) {
+// advanceTo and advancePast, with (sync) or without the lone kernels brought to data's time.
+StepStatus advanceChecked(const Model& model, Data* data, double t_end_s, double t_stop_s,
+                          bool sync) {
   data->stats.failure = FailureInfo();
-  if (!std::isfinite(t_end_s)) return fail(data, FailureCause::kBadTarget, t_end_s, 0, 0);
-  if (model.integrator.islands) return internal::asyncAdvanceTo(model, data, t_end_s, false);
-  return advanceTo(model, data, t_end_s);
+  if (!std::isfinite(t_end_s) || std::isnan(t_stop_s))
+    return fail(data, FailureCause::kBadTarget, t_end_s, 0, 0);
+  t_end_s = std::min(t_end_s, t_stop_s);
+  // The island scheme: each island's advanceTo() has the budget over its own work.
+  if (model.integrator.islands)
+    return internal::asyncAdvanceTo(model, data, t_end_s, sync, t_stop_s);
+  return advanceGlobal(model, data, t_end_s, t_stop_s);
+}
+
+}  // namespace
+
+StepStatus advanceTo(const Model& model, Data* data, double t_end_s) {
+  return advanceChecked(model, data, t_end_s, t_end_s, true);
+}
+
+StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s) {
+  return advanceChecked(model, data, t_end_s, t_end_s, false);
+}
+
+StepStatus advancePast(const Model& model, Data* data, double t_target_s, double t_stop_s) {
+  return advanceChecked(model, data, t_target_s, t_stop_s, true);
+}
+
+StepStatus advancePastLazy(const Model& model, Data* data, double t_target_s, double t_stop_s) {
+  return advanceChecked(model, data, t_target_s, t_stop_s, false);
 }
 
 StepStatus syncBodies(const Model& model, Data* data) {

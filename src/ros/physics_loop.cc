@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <thread>
 #include <utility>
 
@@ -111,21 +112,25 @@ void StrikeFrames::copy(const Data& data, State* s) {
 
 void StrikeFrames::start(const Data& data) { copy(data, &prev_); }
 
-void StrikeFrames::sample(const Data& data, std::int64_t boundary_ns,
-                          const std::function<void(const FrameState&)>& emit) {
+void StrikeFrames::sample(const Data& data, const std::function<void(const FrameState&)>& emit) {
   copy(data, &next_);
   const State& a = prev_;
   const State& b = next_;
   const double h_s = b.t_s - a.t_s;
   if (!a.closed && !b.closed) episode_frames_ = 0;
   if ((a.closed || b.closed) && h_s > 0 && a.z.size() == b.z.size()) {
-    // Frame times on the kFrame_ns grid in (a.t_s, b.t_s], strictly before the boundary.
+    // Frame times on the kFrame_ns grid in (a.t_s, b.t_s] (b may be past the boundary: the
+    // boundary's step end, which the boundary's snapshot draws after the frames).
     const std::int64_t first = static_cast<std::int64_t>(std::floor(a.t_s * 1e9 / kFrame_ns)) + 1;
     for (std::int64_t m = first;; ++m) {
       const std::int64_t t_ns = m * kFrame_ns;
       const double t_s = t_ns * 1e-9;
       if (t_s <= a.t_s || t_ns <= std::llround(a.t_s * 1e9)) continue;
-      if (t_s > b.t_s || t_ns >= boundary_ns || episode_frames_ >= kMaxEpisodeFrames) break;
+      if (t_s > b.t_s || episode_frames_ >= kMaxEpisodeFrames) break;
+      // A step with one end closed (the contact's first or last): its frames near that end
+      // only (steps are not cut at boundaries, and the one leaving a contact can be long).
+      if (!a.closed && t_s < b.t_s - kTailFrames * kFrame_ns * 1e-9) continue;
+      if (!b.closed && t_s > a.t_s + kTailFrames * kFrame_ns * 1e-9) break;
       ++episode_frames_;
       // Cubic Hermite on positions with their derivatives u = dz/dt (drum: theta, omega).
       const double x = (t_s - a.t_s) / h_s, x2 = x * x, x3 = x2 * x;
@@ -289,14 +294,24 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   std::function<void(const Data&)> sample;
   if (params_.strike_frames && counters_.requested_rtf == 0 && params_.sim_clock) {
     frames_.start(data_);
-    sample = [this, k, &framed](const Data& d) {
-      frames_.sample(d, k * timing_.dt_ns, [this, &framed](const FrameState& f) {
+    sample = [this, &framed](const Data& d) {
+      frames_.sample(d, [this, &framed](const FrameState& f) {
         takeFrame(f);
         framed = true;
       });
     };
   }
-  const StepStatus status = log_.advance(*model_, &data_, k * timing_.dt_s, sample);
+  // Past the boundary to a step end (no step is cut but at the run's end, as `simulate` cuts
+  // none but at its duration): the boundary's state is the step end's, commands apply there.
+  // The end: ~end_time, else a re-simulation's last recorded boundary, else none.
+  const long end_step = schedule_.endStep();
+  const bool bounded = end_step > 0;
+  const double t_stop_s = params_.end_time_s > 0 ? params_.end_time_s
+                          : bounded              ? end_step * timing_.dt_s
+                                                 : std::numeric_limits<double>::infinity();
+  const bool final = bounded && k >= end_step;
+  const StepStatus status =
+      log_.advance(*model_, &data_, final ? t_stop_s : k * timing_.dt_s, t_stop_s, sample);
   step_meter_.end();
   counters_.advance_started_s = -1;
   flags_.step = k;
@@ -305,7 +320,6 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
 
   // The last step of a bounded run (or the failed one that ends it) and a periodic reset
   // publish everything.
-  const long end_step = schedule_.endStep();
   const bool last = (end_step > 0 && k >= end_step) || flags_.finished;
   unsigned streams = streams_.due(k, pacer_.realTimeFactor() == 0, clock_.nowSeconds()) |
                      forced_streams | (last ? kAllStreams : 0u);
@@ -503,8 +517,14 @@ void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   // /diagnostics reports too).
   s.t_s = flags_.failed ? data_.t_s : s.step * timing_.dt_s;
   s.stamp = timing_.stampOf(s.step);
-  s.theta_rad = data_.theta_rad;
-  s.omega_radps = data_.omega_radps;
+  // The bodies are those of the step end at or past the boundary (less than one integrator step
+  // later: no step is cut at a boundary); the drum, whose motion over the step is known in
+  // closed form (the step's acceleration; steps end where a ramp does), at the boundary itself,
+  // so that its angle and speed follow the stamps exactly.
+  const double late_s = flags_.failed ? 0.0 : std::max(0.0, data_.t_s - s.t_s);
+  s.theta_rad =
+      data_.theta_rad - data_.omega_radps * late_s + 0.5 * data_.alpha_radps2 * late_s * late_s;
+  s.omega_radps = data_.omega_radps - data_.alpha_radps2 * late_s;
   s.z = data_.z;
   s.u = data_.u;
   s.contacts = data_.contacts;

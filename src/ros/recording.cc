@@ -28,9 +28,9 @@ StrikeLog::StrikeLog(const Model& model, const NodeParams& params, double dt_s)
       strikes_(model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s
                                                                       : dt_s) {}
 
-StepStatus StrikeLog::advance(const Model& model, Data* data, double t_s,
+StepStatus StrikeLog::advance(const Model& model, Data* data, double t_s, double t_stop_s,
                               const std::function<void(const Data&)>& sample) {
-  const StepStatus status = sampler_->advance(model, data, t_s, [&](const Data& d) {
+  const StepStatus status = sampler_->advance(model, data, t_s, t_stop_s, [&](const Data& d) {
     strikes_.sample(d);
     kernel_impulses_.update(model, d);
     if (sample) sample(d);

@@ -250,7 +250,8 @@ void RosInterface::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("rejected commands", counters_.rejected_commands.load());
   stat.add("numerical recoveries", counters_.recoveries.load());
   stat.add("impacts", counters_.impacts.load());
-  stat.add("peak normal force [N]", counters_.peak_force_N.load());
+  // All 17 digits: the value is `simulate`'s to the last bit (scenes.test compares them).
+  stat.addf("peak normal force [N]", "%.17g", counters_.peak_force_N.load());
   stat.add("paused", static_cast<bool>(flags_.paused));
   stat.add("max tip deflection / length", counters_.max_deflection_ratio.load());
   stat.add("first deflection warning [s]", counters_.deflection_warning_s.load());

@@ -69,7 +69,7 @@ void ThreshingSimNode::stop() {
   const double sim_s = flags_.failed ? inbox_.failure_t_s : flags_.step * timing_.dt_s;
   std::printf(
       "threshing_sim_node: simulated %.6f s in %.2f s of wall time (real-time factor %.3g "
-      "overall), %ld impacts, peak normal force %.1f N, %ld overruns, %ld rejected commands, "
+      "overall), %ld impacts, peak normal force %.17g N, %ld overruns, %ld rejected commands, "
       "%ld numerical recoveries%s\n",
       sim_s, wall_s, wall_s > 0 ? sim_s / wall_s : 0.0, counters_.impacts.load(),
       counters_.peak_force_N.load(), counters_.overruns.load(), counters_.rejected_commands.load(),

@@ -1,8 +1,10 @@
 // rostest (stream.test), issue 24 item 1: the stream scene runs in the node as in `simulate`.
 //  - stream_short (3 ms): ends by itself with `simulate`'s impact count and peak normal force;
 //    its strike histories are the integrator's accepted steps (several samples per strike);
-//  - stream_long (12 ms): runs past t = 7.558 ms, where the forced strike sub-steps made the
-//    integrator fail on main, to its end time, and ends by itself;
+//  - stream_long (the scene's 8 ms): runs past t = 7.558 ms, where the forced strike sub-steps
+//    made the integrator fail on main, to its end time, ends by itself, and has `simulate`'s
+//    impacts and peak force over the whole duration (equal: both take the same steps);
+//  - the island scheme over the whole 8 ms (a child node): `simulate`'s impacts and peak force;
 //  - a bounded run whose integrator fails ends by itself with exit status 1 (on main it waited
 //    paused for ever: killed after 200 s).
 // Both nodes start paused, so that this test hears their whole runs.
@@ -26,6 +28,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "ros_test_util.h"
@@ -86,6 +89,23 @@ double jsonNumber(const std::string& json, const std::string& key) {
   return std::stod(m[1]);
 }
 
+// `simulate` over the stream scene's first duration_s: its impacts and peak normal force.
+void simulateStream(const std::string& duration_s, double* impacts, double* peak_N,
+                    std::string* summary) {
+  const std::string json = std::string(TEST_TMP_DIR) + "/stream_" +
+                           std::to_string(std::hash<std::string>()(duration_s)) + "_summary.json";
+  std::string out;
+  ASSERT_EQ(run(std::string(THRESHING_SIM_SIMULATE) + " " + THRESHING_SIM_SOURCE_DIR +
+                    "/config/scenes/stream.yaml --set duration=" + duration_s +
+                    " --quiet --summary " + json,
+                &out),
+            0)
+      << out;
+  *summary = slurp(json);
+  *impacts = jsonNumber(*summary, "impacts");
+  *peak_N = jsonNumber(*summary, "peak_normal_force_N");
+}
+
 void start(const std::string& node) {
   std_srvs::SetBool run_srv;
   run_srv.request.data = false;
@@ -100,16 +120,9 @@ TEST(Stream, ShortRunEndsWithSimulatesImpactsAndPeak) {
   ASSERT_TRUE(waitFor([] { return g_summary[statusOf("stream_short")] == "finished"; }, 120.0))
       << "stream_short: " << g_summary[statusOf("stream_short")];
   // `simulate` over the same 3 ms.
-  const std::string json = std::string(TEST_TMP_DIR) + "/stream_3ms_summary.json";
-  std::string out;
-  ASSERT_EQ(run(std::string(THRESHING_SIM_SIMULATE) + " " + THRESHING_SIM_SOURCE_DIR +
-                    "/config/scenes/stream.yaml --set duration=0.003 --quiet --summary " + json,
-                &out),
-            0)
-      << out;
-  const std::string summary = slurp(json);
-  const double impacts_sim = jsonNumber(summary, "impacts");
-  const double peak_sim_N = jsonNumber(summary, "peak_normal_force_N");
+  double impacts_sim = 0, peak_sim_N = 0;
+  std::string summary;
+  simulateStream("0.003", &impacts_sim, &peak_sim_N, &summary);
   ASSERT_GT(impacts_sim, 0) << summary;
   std::lock_guard<std::mutex> lock(g_mutex);
   const double peak_N = std::stod(diag("stream_short", "peak normal force [N]"));
@@ -118,7 +131,7 @@ TEST(Stream, ShortRunEndsWithSimulatesImpactsAndPeak) {
               impacts, peak_N, impacts_sim, peak_sim_N);
   EXPECT_EQ(diag("stream_short", "failure"), "none");
   EXPECT_EQ(impacts, static_cast<long>(impacts_sim));
-  EXPECT_NEAR(peak_N, peak_sim_N, 1e-4 * peak_sim_N);
+  EXPECT_DOUBLE_EQ(peak_N, peak_sim_N);
   // Strike histories: the integrator's accepted steps, several per strike, and the largest
   // strike peak is the run's peak (the core's episode peak, not only the sampled one).
   const auto& strikes = g_strikes["stream_short"];
@@ -136,26 +149,71 @@ TEST(Stream, ShortRunEndsWithSimulatesImpactsAndPeak) {
   EXPECT_TRUE(endsWithin(pid, 20.0)) << "stream_short did not end by itself";
 }
 
-TEST(Stream, RunsPastTheOldFailureToItsEndTime) {
+TEST(Stream, WholeRunEndsWithSimulatesImpactsAndPeak) {
   const int pid = pidOf("/long/stream_long");
   ASSERT_GT(pid, 0);
   start("/long/stream_long");
+  // `simulate` over the scene's whole duration, while the node runs.
+  double impacts_sim = 0, peak_sim_N = 0;
+  std::string summary;
+  simulateStream("0.008", &impacts_sim, &peak_sim_N, &summary);
+  ASSERT_GT(impacts_sim, 0) << summary;
   ASSERT_TRUE(waitFor(
       [] {
         const std::string failure = diag("stream_long", "failure");
         return g_summary[statusOf("stream_long")] == "finished" ||
                (!failure.empty() && failure != "none");
       },
-      200.0))
+      400.0))
       << "stream_long: " << g_summary[statusOf("stream_long")];
   {
     std::lock_guard<std::mutex> lock(g_mutex);
     EXPECT_EQ(diag("stream_long", "failure"), "none");
-    EXPECT_NEAR(std::stod(diag("stream_long", "simulation time [s]")), 0.012, 1e-9);
-    std::printf("stream 12 ms: %s impacts, peak %s N\n", diag("stream_long", "impacts").c_str(),
-                diag("stream_long", "peak normal force [N]").c_str());
+    EXPECT_NEAR(std::stod(diag("stream_long", "simulation time [s]")), 0.008, 1e-9);
+    const double peak_N = std::stod(diag("stream_long", "peak normal force [N]"));
+    const long impacts = std::stol(diag("stream_long", "impacts"));
+    std::printf("stream 8 ms: node %ld impacts, peak %.6f N; simulate %.0f impacts, peak %.6f N\n",
+                impacts, peak_N, impacts_sim, peak_sim_N);
+    EXPECT_EQ(impacts, static_cast<long>(impacts_sim));
+    EXPECT_DOUBLE_EQ(peak_N, peak_sim_N);
   }
   EXPECT_TRUE(endsWithin(pid, 20.0)) << "stream_long did not end by itself";
+}
+
+// The island scheme (soon the default) over the whole 8 ms: the node as a child process on the
+// scene with islands: true, `simulate` with --set integrator.islands=true at the same time.
+TEST(Stream, WholeRunUnderIslandsEndsWithSimulatesImpactsAndPeak) {
+  std::string scene = slurp(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/stream.yaml");
+  const std::regex integrator("\nintegrator: \\{");
+  ASSERT_TRUE(std::regex_search(scene, integrator));
+  scene = std::regex_replace(scene, integrator, "\nintegrator: {islands: true, ");
+  const std::string path = std::string(TEST_TMP_DIR) + "/stream_islands.yaml";
+  std::ofstream(path) << scene;
+  double impacts_sim = 0, peak_sim_N = 0;
+  std::string summary;
+  std::thread simulate([&] {
+    simulateStream("0.008 --set integrator.islands=true", &impacts_sim, &peak_sim_N, &summary);
+  });
+  std::string out;
+  const int status = run("timeout -s INT 400 " + std::string(THRESHING_SIM_NODE) +
+                             " __name:=stream_islands _scene:=" + path +
+                             " _clock_mode:=wall _real_time_factor:=0 _end_time:=0.008"
+                             " _status_period:=0 _diagnostic_period:=1",
+                         &out);
+  simulate.join();
+  ros::WallDuration(0.3).sleep();  // the node's last /diagnostics
+  EXPECT_EQ(status, 0) << out;
+  ASSERT_GT(impacts_sim, 0) << summary;
+  std::lock_guard<std::mutex> lock(g_mutex);
+  EXPECT_EQ(diag("stream_islands", "failure"), "none");
+  const double peak_N = std::stod(diag("stream_islands", "peak normal force [N]"));
+  const long impacts = std::stol(diag("stream_islands", "impacts"));
+  std::printf(
+      "stream 8 ms, islands: node %ld impacts, peak %.6f N; simulate %.0f impacts, peak "
+      "%.6f N\n",
+      impacts, peak_N, impacts_sim, peak_sim_N);
+  EXPECT_EQ(impacts, static_cast<long>(impacts_sim));
+  EXPECT_DOUBLE_EQ(peak_N, peak_sim_N);
 }
 
 TEST(Stream, FailedBoundedRunEndsWithExitStatusOne) {

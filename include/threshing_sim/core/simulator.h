@@ -34,6 +34,19 @@ StepStatus advanceTo(const Model& model, Data* data, double t_end_s);
 // count. Under the global scheme it is advanceTo.
 StepStatus advanceToLazy(const Model& model, Data* data, double t_end_s);
 
+// Advances the simulation until data.t_s reaches t_target_s, without cutting a step there: each
+// step ends where the step-size law and the events put it (event-driven: the last one ends at or
+// past t_target_s, by less than one step; the island scheme: a scheduling window), and only
+// t_stop_s, the run's end (+infinity for an open run), cuts a step short (t_target_s is capped at
+// t_stop_s). Two callers with the same t_stop_s and the same commands at the same step ends
+// therefore take the same steps, whatever times they observe the state at; observation times
+// inside a step are the caller's to interpolate. Time stepping: as advanceTo (whole steps of
+// dt). Status, guard and work budget as advanceTo; t_stop_s NaN fails as kBadTarget.
+StepStatus advancePast(const Model& model, Data* data, double t_target_s, double t_stop_s);
+
+// The same with advanceToLazy's rule for lone kernels (island scheme: stale until syncBodies()).
+StepStatus advancePastLazy(const Model& model, Data* data, double t_target_s, double t_stop_s);
+
 // Brings every lone kernel to data's time (after advanceToLazy; advanceTo does it itself).
 // Returns kFailed if a kernel's own integrator failed.
 StepStatus syncBodies(const Model& model, Data* data);

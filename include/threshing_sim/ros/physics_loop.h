@@ -85,12 +85,13 @@ class StrikeFrames {
   // Frames of one stretch of closed tooth-kernel contact at most (a kernel resting on a tooth
   // would otherwise add a frame per us for as long as it rests) [-].
   static constexpr long kMaxEpisodeFrames = 200;
+  // Frames of a step with only one end in contact, next to that end at most [-].
+  static constexpr long kTailFrames = 3;
   // The state at a step boundary, where the next interpolation starts (after any reset).
   void start(const Data& data);
-  // The state after an accepted step (or at the end of the physics step ending at boundary_ns):
-  // calls emit(frame) for every frame time in (previous state, data.t_s] before boundary_ns.
-  void sample(const Data& data, std::int64_t boundary_ns,
-              const std::function<void(const FrameState&)>& emit);
+  // The state after an accepted step (or at the step end that passed a boundary): calls
+  // emit(frame) for every frame time in (previous state, data.t_s].
+  void sample(const Data& data, const std::function<void(const FrameState&)>& emit);
 
  private:
   struct State {

@@ -29,10 +29,11 @@ class StrikeLog {
   // global scheme), its step (time stepping) or the physics step (island scheme).
   StrikeLog(const Model& model, const NodeParams& params, double dt_s);
 
-  // Advances data to boundary time t_s, sampling strikes and kernel impulses on the way. With
-  // `sample`, also calls sample(data) with every state the sampler hands over (after each
-  // accepted step near a strike, and at the end): the strike's frames (StrikeFrames).
-  StepStatus advance(const Model& model, Data* data, double t_s,
+  // Advances data past boundary time t_s (StepSampler: to the first step end at or past it; no
+  // step is cut but at t_stop_s, the run's end), sampling strikes and kernel impulses on the
+  // way. With `sample`, also calls sample(data) with every state the sampler hands over (after
+  // each step near a strike, and at the end): the strike's frames (StrikeFrames).
+  StepStatus advance(const Model& model, Data* data, double t_s, double t_stop_s,
                      const std::function<void(const Data&)>& sample = {});
   // After boundary `step`: the completed impacts of data.events (cleared) and the pairs' peaks.
   void afterStep(Data* data, long step);

@@ -1,17 +1,17 @@
 // threshing_sim ROS layer: advances the core to a physics step boundary and, near a strike,
-// samples the state after every step the integrator accepts, without cutting its steps.
+// samples the state after every step the integrator takes, without cutting its steps.
 //
-// The node used to advance a physics step near a strike in advanceTo() calls 0.2 us apart
-// (~strike_sample_dt): every call ended an integrator step there, which changed the steps the
-// event-driven integrator took, and with them its trajectory and its work budget (the stream
-// scene failed at t = 7.558 ms, which `simulate` passes; issue 24). Here the integrator takes
-// the steps it chooses (core step(): one accepted step or event), and the caller's sample
-// function sees the state after each: the samples are the core's own evaluations.
-//
-// Near a strike the last accepted step may end past the boundary (by less than one accepted
-// step, a few us at most); the next boundary then continues from there. Away from strikes, for
-// time stepping and for the island scheme (whose step() is a scheduling window), the boundary is
-// reached by one advanceToLazy() call, as with sampling off.
+// Every advance is advancePast(): a boundary is passed at the first step end at or past it, and
+// only the run's end (~end_time; +infinity for an open run) cuts a step short. The node thus
+// takes the steps `simulate` takes over the same duration (which cuts no step at its sample and
+// chunk ends either), whatever its physics step, sampling or commands' boundaries: its impacts
+// and peak forces are `simulate`'s (issue 24). A boundary's state is that of the step end at or
+// past it (by less than one step); strike frames inside a step are interpolated (StrikeFrames).
+// Near a strike (event-driven, both schemes) the sample function sees the state after every
+// step (island scheme: every scheduling window, the lone kernels brought to its end; a window
+// can span a whole strike, up to max_step: the default strike's 33 us fall inside one 92 us
+// window, so strike histories under islands need an observer of the islands' own steps, which
+// the core does not offer yet); time stepping samples at its boundaries.
 #pragma once
 
 #include <functional>
@@ -24,38 +24,33 @@ namespace threshing_sim {
 
 class StepSampler {
  public:
-  // Accepted steps sampled one by one per advance() call at most; past that the call finishes
-  // the interval in advanceToLazy(), whose work budget ends a run that cannot progress [-].
+  // Steps sampled one by one per advance() call at most; past that the call finishes the
+  // interval in one advancePastLazy() call, whose work budget ends a run that cannot progress [-].
   static constexpr long kMaxSampledSteps = 20000;
-  // Accepted steps in a row that leave the time unchanged (events at one instant) before the
-  // call hands over to advanceToLazy() [-].
-  static constexpr int kMaxStalledSteps = 100;
 
-  // enabled: sample accepted steps near strikes (event-driven global scheme only, see
-  // samplesSteps); horizon_s: a tooth-kernel pair closing within this is near [s].
+  // enabled: sample accepted steps near strikes (event-driven only, see samplesSteps);
+  // horizon_s: a tooth-kernel pair closing within this is near [s].
   StepSampler(const Model& model, bool enabled, double horizon_s);
 
-  // Whether this model's integrator is sampled step by step (event-driven, global scheme).
+  // Whether this model's integrator is sampled step by step (event-driven, either scheme).
   static bool samplesSteps(const Model& model);
   bool enabled() const { return enabled_; }
 
-  // Advances data to t_end_s (or, near a strike, up to one accepted step past it), calling
-  // sample(data) after every accepted step near a strike and once at the end. Returns the
-  // worst status (kFailed: data holds the last good state, as after advanceTo()).
-  StepStatus advance(const Model& model, Data* data, double t_end_s,
+  // Advances data past t_end_s (to the first step end at or past it; t_stop_s, the run's end,
+  // exactly), calling sample(data) after every step near a strike and once at the end. Returns
+  // the worst status (kFailed: data holds the last good state, as after advanceTo()).
+  StepStatus advance(const Model& model, Data* data, double t_end_s, double t_stop_s,
                      const std::function<void(const Data&)>& sample);
 
-  long sampledSteps() const { return sampled_steps_; }  // accepted steps sampled so far [-]
-  long fallbacks() const { return fallbacks_; }  // steps redone by advanceTo (failure, NaN) [-]
+  long sampledSteps() const { return sampled_steps_; }  // steps sampled so far [-]
+  // advance() calls that reached kMaxSampledSteps and finished in one call [-].
+  long handovers() const { return handovers_; }
 
  private:
   bool enabled_ = false;
   double horizon_s_ = 0;
   long sampled_steps_ = 0;
-  long fallbacks_ = 0;
-  // The state before the running step, restored when step() fails or leaves non-finite values
-  // (advanceTo() then redoes the interval with its own recovery).
-  VecX guard_z_, guard_u_;
+  long handovers_ = 0;
 };
 
 }  // namespace threshing_sim

@@ -210,6 +210,21 @@ struct AsyncState {
   // Lazy kernels the teeth's sweeps looked at one by one since set-up (a grid cell wholly out of
   // a tooth's reach is skipped without them): a field out of reach costs nothing per window [-].
   long swept_kernels = 0;
+  // The lazy kernels a sync (syncBodies, advanceTo, advancePast) brought to the caller's time, as
+  // they were before it: put back before the next window (restoreSynced), so that a sync only
+  // observes. Otherwise each sync would restart a kernel's closed form or cut its pedicel clock's
+  // step at the caller's time, and the run would depend on when its caller looks (the node and
+  // `simulate` look at different times).
+  struct SyncedKernel {
+    int kernel = -1;                 // kernel index
+    KernelClock clock;               // its clock before the sync
+    Eigen::Matrix<double, 6, 1> zu;  // its z (3) and u (3) before the sync
+    std::uint8_t attached = 1;       // Data::kernel_attached before the sync
+    double detach_s = -1;            // RunStats::kernel_detach_time_s before the sync [s]
+  };
+  std::vector<SyncedKernel> synced;
+  bool field_synced = false;       // the last sync jumped the sleeping field's clock [-]
+  double field_synced_from_s = 0;  // and field_t_s before it did [s]
 };
 
 constexpr std::int64_t kEmptyCell = kEmptyCellKey;

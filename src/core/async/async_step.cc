@@ -287,6 +287,8 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   // The pair memory of pairs outside islands: reserved by the first island (buildIsland), so
   // that a field that never forms one does not pay for a table sized for every pair.
   if (as->stored_memory.size() > 0) as->stored_memory.clear();
+  as->synced.clear();  // the bodies were reset: nothing to put back
+  as->field_synced = false;
   as->max_horizon_s = 1.0;
   as->entity_slot.assign(T + K, -1);
   as->prop.resize(T);
@@ -314,8 +316,37 @@ void setUp(const Model& m, Data* d, AsyncState* as) {
   as->ready = true;
 }
 
-// Brings every lazy kernel to the data's time (the caller reads the whole state).
+// Keeps lazy kernel i's state before a sync moves it (AsyncState::synced).
+void saveSynced(const Model& m, const Data& d, AsyncState* as, int i) {
+  AsyncState::SyncedKernel s;
+  s.kernel = i;
+  s.clock = as->kernels[i];
+  const int o = m.kernels[i].dof_offset;
+  s.zu << d.z.segment<3>(o), d.u.segment<3>(o);
+  s.attached = d.kernel_attached[i];
+  s.detach_s = d.stats.kernel_detach_time_s[i];
+  as->synced.push_back(s);
+}
+
+// Puts the kernels the last sync moved back where their clocks were (the sync only observed).
+void restoreSynced(const Model& m, Data* d, AsyncState* as) {
+  for (auto it = as->synced.rbegin(); it != as->synced.rend(); ++it) {
+    const int i = it->kernel, o = m.kernels[i].dof_offset;
+    as->kernels[i] = it->clock;
+    d->z.segment<3>(o) = it->zu.head<3>();
+    d->u.segment<3>(o) = it->zu.tail<3>();
+    d->kernel_attached[i] = it->attached;
+    d->stats.kernel_detach_time_s[i] = it->detach_s;
+  }
+  as->synced.clear();
+  if (as->field_synced) as->field_t_s = as->field_synced_from_s;
+  as->field_synced = false;
+}
+
+// Brings every lazy kernel to the data's time (the caller reads the whole state); the next
+// window starts from their clocks as they were (restoreSynced).
 bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
+  restoreSynced(m, d, as);
   const double t_s = d->t_s;
   const int K = static_cast<int>(m.kernels.size());
   long jumps = 0;  // (counted here, added once)
@@ -323,6 +354,8 @@ bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
   // its wake time), its kernels share one clock, which jumps (advanceLazyKernel's first case).
   if (as->field_unlisted > 0 && t_s > as->field_t_s) {
     jumps += as->field_unlisted;
+    as->field_synced_from_s = as->field_t_s;  // put back like a kernel's clock (restoreSynced)
+    as->field_synced = true;
     as->field_t_s = t_s;
   }
   bool ok = true;
@@ -332,11 +365,14 @@ bool syncLazyKernels(const Model& m, Data* d, AsyncState* as) {
     KernelClock* kcs = as->kernels.data();
     for (; i < K && kcs[i].motion == KernelMotion::kPedicel && t_s <= kcs[i].rest_until_s; ++i) {
       if (kcs[i].listing != GridListing::kUnlisted && t_s > kcs[i].t_s) {
+        saveSynced(m, *d, as, i);
         ++jumps;
         kcs[i].t_s = t_s;
       }
     }
-    if (i < K) ok = advanceLazyKernel(m, d, as, i, t_s);
+    if (i >= K) break;
+    if (kcs[i].motion != KernelMotion::kIsland && t_s > kcs[i].t_s) saveSynced(m, *d, as, i);
+    ok = advanceLazyKernel(m, d, as, i, t_s);
   }
   as->counters.sleeps += jumps;
   return ok;
@@ -381,18 +417,22 @@ AsyncState& asyncState(const Model& m, Data* d) {
   return *ws.async;
 }
 
-StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync) {
+StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync, double t_stop_s) {
   StepStatus worst = StepStatus::kOk;
   const double half_step = timeStepping(m) ? 0.5 * m.integrator.dt_s : 0.0;
+  // Windows end where the motion puts them, cut short only at t_stop_s (advancePast: the run's
+  // end; advanceTo: t_end_s itself).
+  if (std::isnan(t_stop_s)) t_stop_s = t_end_s;
+  AsyncState& as = asyncState(m, d);
+  restoreSynced(m, d, &as);
   for (long w = 0; d->t_s < t_end_s - half_step; ++w) {
-    const StepStatus s = asyncWindow(m, d, t_end_s);
+    const StepStatus s = asyncWindow(m, d, t_stop_s);
     if (s == StepStatus::kFailed) {
       worst = s;
       break;
     }
     if (s == StepStatus::kRecovered) worst = s;
   }
-  AsyncState& as = asyncState(m, d);
   if (sync && !syncLazyKernels(m, d, &as)) worst = StepStatus::kFailed;
   publishContacts(d, as);
   d->stats.scheduler = as.counters;
@@ -407,8 +447,9 @@ StepStatus asyncSync(const Model& m, Data* d) {
 }
 
 StepStatus asyncStep(const Model& m, Data* d) {
-  StepStatus s = asyncWindow(m, d, std::numeric_limits<double>::infinity());
   AsyncState& as = asyncState(m, d);
+  restoreSynced(m, d, &as);
+  StepStatus s = asyncWindow(m, d, std::numeric_limits<double>::infinity());
   if (!syncLazyKernels(m, d, &as)) s = StepStatus::kFailed;
   publishContacts(d, as);
   d->stats.scheduler = as.counters;
