@@ -48,6 +48,7 @@ void recordStepForces(const Ctx& c) {
   Workspace& ws = c.ws;
   const double t = d->t_s;
   double torque1 = 0;
+  // (Unless an event moved the end, the end's event functions evaluated it: kStepEnd serves.)
   rhs(c, t, d->z, d->u, &ws.ed.udot_end, &torque1, true);
   const VecX& imp_n = ws.ed.imp_n_step;
   const VecX& imp_t = ws.ed.imp_t_step;
@@ -130,7 +131,8 @@ void finishStep(const Ctx& c, const StepPlan& plan, long attached_before) {
   const bool projected = projectConstraints(c, d->t_s);
   double torque1 = 0;
   if (plan.event || projected || attached_before != attachedCount(*d))
-    rhs(c, d->t_s, d->z, d->u, &ws.ed.udot_end, &torque1, true);
+    rhs(c, d->t_s, d->z, d->u, &ws.ed.udot_end, &torque1, true, SeparatedPairs::kStepEnd,
+        stepEndHorizon(ws, 0.0));
   publishContacts(d, &ws);
 }
 

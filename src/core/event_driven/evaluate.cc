@@ -33,7 +33,8 @@ double warmStart(const Model& m, const PairMemory& mem, const PairId& p, double 
 // within twice what its bodies can cover in horizon_s [s] at their present speeds: a pair
 // whose gap falls to zero and rises again inside a step of that length (a spinning kernel
 // grazing a wall) is then exact, with its rate, at both ends of the step, as the graze check
-// needs; a pair beyond that reach cannot close within the step.
+// needs; a pair beyond that reach cannot close within the step. kStepEnd: exact within the
+// larger of the kSign and the kNear reaches.
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
                  SeparatedPairs separated, double horizon_s) {
   c.ws.ed.memo.valid = false;  // ws.geoms and the stations change
@@ -80,10 +81,11 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
         continue;
       }
       const bool tooth = p.kind == PairKind::kToothKernel;
-      if (separated == SeparatedPairs::kSign && !tooth) {
+      if ((separated == SeparatedPairs::kSign || separated == SeparatedPairs::kStepEnd) && !tooth) {
         double speed_mps = kernelSpeedBound(c.m, u, p.a);
         if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
         far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);
+        if (separated == SeparatedPairs::kStepEnd) far_m = std::max(far_m, near_m);
       } else {
         far_m = near_m;
       }

@@ -42,12 +42,17 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   if (!mm.valid || mm.model != &c.m || mm.t_s != dr.t_s || mm.theta_rad != dr.theta_rad ||
       mm.omega_radps != dr.omega_radps || mm.alpha_radps2 != dr.alpha_radps2)
     return false;
-  // kNear and kSign differ only on separated kernel-kernel and kernel-obstacle pairs (tooth
-  // pairs are evaluated alike, whatever the horizon).
+  // kNear, kSign and kStepEnd differ only on separated kernel-kernel and kernel-obstacle pairs
+  // (tooth pairs are evaluated alike, whatever the horizon). A step end over a horizon serves
+  // kNear and kSign or kStepEnd over a horizon up to it: it evaluates exactly every pair those
+  // do (and perhaps more: their exact gaps are positive beyond either reach).
   const bool memo_none = mm.separated == static_cast<int>(SeparatedPairs::kNone);
+  const bool memo_end = mm.separated == static_cast<int>(SeparatedPairs::kStepEnd);
+  const bool served_by_end =
+      memo_end && (separated == SeparatedPairs::kNear || horizon_s <= mm.horizon_s);
   const bool mode_ok =
       separated == SeparatedPairs::kNone || mm.n_separated == 0 ||
-      (!memo_none && (mm.n_separated_other == 0 ||
+      (!memo_none && (mm.n_separated_other == 0 || served_by_end ||
                       (static_cast<int>(separated) == mm.separated &&
                        (separated != SeparatedPairs::kSign || horizon_s == mm.horizon_s))));
   if (!mode_ok || !bitsEqual(z, mm.z) || !bitsEqual(u, mm.u) ||
