@@ -54,7 +54,7 @@ void recordStepForces(const Ctx& c) {
   const VecX& imp_t = ws.ed.imp_t_step;
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
-    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    PairMemory& mem = candidateMemory(ws, i);
     if (!isActive(mem)) continue;
     recordForce(m, d, g, mem.normal_force_N, mem.tangential_force_N, t);
     mem.episode_peak_N = std::max(mem.episode_peak_N, mem.normal_force_N);
@@ -82,7 +82,7 @@ bool projectConstraints(const Ctx& c, double t) {
   const Drive dr = driveAtTime(c, t);
   for (int pass = 0; pass < 3; ++pass) {
     for (size_t i = 0; i < ws.candidates.size(); ++i) {
-      const PairMemory& mem = ws.memory[pairKey(ws.candidates[i])];
+      const PairMemory& mem = candidateMemory(ws, i);
       if (!isActive(mem)) continue;
       const ContactParams& cp = m.contact[static_cast<int>(ws.candidates[i].kind)];
       const bool normal = cp.law == ContactLaw::kRigid && mem.closed;

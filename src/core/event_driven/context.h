@@ -38,6 +38,21 @@ inline bool releasedAt(const PairMemory& mem, const ContactParams& p, double t) 
          mem.episode_start_s < t;
 }
 
+// The pair memory of candidate i (ws.candidates[i], the pair of ws.geoms[i]) by the pair-table
+// index prepareCandidates cached for it (a hash lookup per use cost 9 % of a stream's
+// instructions); by the lookup where the cache does not hold the pair.
+inline PairMemory& candidateMemory(Workspace& ws, size_t i) {
+  const std::uint64_t key = pairKey(ws.candidates[i]);
+  if (i < ws.ed.cand_entry.size()) {
+    const int index = ws.ed.cand_entry[i];
+    if (index >= 0 && static_cast<size_t>(index) < ws.memory.size()) {
+      PairTable::Entry& e = ws.memory.entry(index);
+      if (e.first == key) return e.second;
+    }
+  }
+  return ws.memory[key];
+}
+
 // Drum state at absolute time t (the target is fixed within a step).
 inline Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 

@@ -44,10 +44,11 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   // none: the warm start computes the two stations around its points itself.
   layoutStations(c.m, &c.ws);
   int last_tooth = -1;
-  for (const PairId& p : c.ws.candidates) {
+  for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
+    const PairId& p = c.ws.candidates[i];
     if (p.kind != PairKind::kToothKernel) break;
     if (p.a == last_tooth) continue;
-    const PairMemory& mem = c.ws.memory[pairKey(p)];
+    const PairMemory& mem = candidateMemory(c.ws, i);
     const bool separated_pair = mem.state == ContactState::kSeparated;
     if (separated == SeparatedPairs::kNone && separated_pair) continue;
     if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0 &&
@@ -63,7 +64,7 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     ContactGeom& g = c.ws.geoms[i];
     double far_m = kInf;
     bool tight = false;
-    PairMemory& mem = c.ws.memory[pairKey(p)];
+    PairMemory& mem = candidateMemory(c.ws, i);
     // Tooth pairs in contact start the narrow phase from their last closest point (moved on
     // in time by the rate between the last two); a separated one records its closest point for
     // when its contact begins.

@@ -30,7 +30,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
   if (rates) rates->assign(vals->size(), std::numeric_limits<double>::quiet_NaN());
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
-    const PairMemory& mem = ws.memory[pairKey(g.pair)];
+    const PairMemory& mem = candidateMemory(ws, i);
     double* v = &(*vals)[4 * i];
     if (!isActive(mem)) {
       // Separated: the gap closes (a rigid contact released at the step start: below the
@@ -264,8 +264,7 @@ void detectGrazes(const Ctx& c, StepPlan* plan) {
   double et, tq;
   for (size_t i = 0; i < ws.geoms.size() && !plan->event; ++i) {
     const size_t j = 4 * i;
-    if (static_cast<Arm>(ws.ed.arm[j]) != Arm::kAtZero ||
-        isActive(ws.memory[pairKey(ws.geoms[i].pair)]))
+    if (static_cast<Arm>(ws.ed.arm[j]) != Arm::kAtZero || isActive(candidateMemory(ws, i)))
       continue;
     if (!(ws.ed.rate0[j] < 0 && ws.ed.rate1[j] > 0)) continue;  // no interior minimum
     double s_min = 0;

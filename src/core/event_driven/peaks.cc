@@ -98,7 +98,7 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
   bool any = false;
   for (size_t i = 0; i < n_geoms; ++i) {
     const ContactGeom& g = ws.geoms[i];
-    const PairMemory& mem = ws.memory[pairKey(g.pair)];
+    const PairMemory& mem = candidateMemory(ws, i);
     if (!inCompliantContact(g, mem)) continue;
     any = true;
     (*on)[i] = 1;

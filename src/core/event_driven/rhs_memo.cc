@@ -60,7 +60,7 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
       c.ws.geoms.size() != c.ws.candidates.size())
     return false;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
-    const RhsMemo::PairState p = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
+    const RhsMemo::PairState p = pairStateOf(candidateMemory(c.ws, i));  // (the same list)
     const RhsMemo::PairState& q = mm.pairs[i];
     if (p.state != q.state || p.closed != q.closed || p.slip_sign != q.slip_sign ||
         p.v_in_mps != q.v_in_mps || p.hertz_K != q.hertz_K)
@@ -86,7 +86,7 @@ void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   mm.n_separated = 0;
   mm.n_separated_other = 0;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
-    mm.pairs[i] = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
+    mm.pairs[i] = pairStateOf(candidateMemory(c.ws, i));
     const bool apart = mm.pairs[i].state == static_cast<int>(ContactState::kSeparated);
     mm.n_separated += apart ? 1 : 0;
     mm.n_separated_other += apart && mm.candidates[i].kind != PairKind::kToothKernel ? 1 : 0;
