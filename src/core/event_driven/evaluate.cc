@@ -92,7 +92,8 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       }
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm);
+    double* warm_theta = p.kind == PairKind::kKernelKernel ? &mem.warm_theta_rad : nullptr;
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm, warm_theta);
     if (warm && !g.far) {
       mem.warm_x_prev_m = mem.warm_x_m;
       mem.warm_t_prev_s = mem.warm_t_s;
