@@ -24,12 +24,13 @@ mkdir -p "$OUT"
 # run NAME TOLERANCE DURATION: prints "Ir steps"
 run() {
   valgrind --tool=callgrind --toggle-collect='threshing_sim::advanceTo*' \
+    --toggle-collect='threshing_sim::advancePast*' \
     --callgrind-out-file="$OUT/$1.cg" "$SIMULATE" "$ROOT/config/default_scene.yaml" \
     --integrator event_driven --tolerance "$2" --duration "$3" --quiet \
     --summary "$OUT/$1.json" >"$OUT/$1.log" 2>&1
   local ir steps
   ir=$(callgrind_annotate --inclusive=yes "$OUT/$1.cg" 2>/dev/null |
-       awk '/threshing_sim::advanceTo/ && !done {gsub(",", "", $1); print $1; done = 1}')
+       awk '/PROGRAM TOTALS/ {gsub(",", "", $1); print $1}')
   steps=$(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['steps'])" \
           "$OUT/$1.json")
   echo "$ir $steps"

@@ -54,10 +54,11 @@ for c in "${CASES[@]}"; do
   IFS='|' read -r name scene opts <<<"$c"
   # shellcheck disable=SC2086
   valgrind --tool=callgrind --toggle-collect='threshing_sim::advanceTo*' \
+    --toggle-collect='threshing_sim::advancePast*' \
     --callgrind-out-file="$OUT/$name.cg" "$SIMULATE" "$ROOT/$scene" \
     $opts --quiet --summary "$OUT/$name.json" >"$OUT/$name.log" 2>&1
   ir=$(callgrind_annotate --inclusive=yes "$OUT/$name.cg" 2>/dev/null |
-       awk '/threshing_sim::advanceTo/ && !done {gsub(",", "", $1); print $1; done = 1}')
+       awk '/PROGRAM TOTALS/ {gsub(",", "", $1); print $1}')
   steps=$(/usr/bin/python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['steps'])" \
           "$OUT/$name.json")
   echo "| $name | $ir | $steps | $((ir / steps)) |"

@@ -54,7 +54,7 @@ STAGES = [
 ]
 SETUP = r"^threshing_sim::loadScene\("  # model set-up: the scene's parsing and compile
 TRANSCENDENTAL = "transcendental (libm: sin, cos, exp, ...)"
-STEPPING = r"^threshing_sim::advanceTo\("  # the stepping loop
+STEPPING = r"^threshing_sim::advance(To|Past)\("  # the stepping loop (simulate: advancePast)
 NOT_TRANSCENDENTAL = r"^(fmax|fmin|fabs|floor|ceil|trunc|round|lround|copysign)"  # libm, cheap
 
 
@@ -87,7 +87,8 @@ def run_callgrind(simulate, scene, args, out_prefix, stepping_only):
     collect inside advanceTo only (the stepping loop)."""
     out = pathlib.Path(f"{out_prefix}{'.step' if stepping_only else ''}.cg")
     summary = pathlib.Path(f"{out_prefix}.json")
-    toggle = ["--toggle-collect=threshing_sim::advanceTo*"] if stepping_only else []
+    toggle = ([f"--toggle-collect=threshing_sim::{f}*" for f in ("advanceTo", "advancePast")]
+              if stepping_only else [])
     cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"] + toggle + [
         str(simulate), str(scene)] + args + ["--quiet", "--summary", str(summary)]
     subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True,
@@ -181,8 +182,10 @@ def annotate_total(cg_path):
                           capture_output=True, text=True, check=True).stdout
     total = int(re.search(r"([\d,]+) \(100\.0%\)\s+PROGRAM TOTALS", text).group(1)
                 .replace(",", ""))
-    m = re.search(r"^\s*([\d,]+) \([\d. ]+%\)\s+\S*threshing_sim::advanceTo\(", text, re.M)
-    return total, int(m.group(1).replace(",", "")) if m else 0
+    # advanceTo and advancePast call the same loop, neither the other: their counts add.
+    found = re.findall(r"^\s*([\d,]+) \([\d. ]+%\)\s+\S*threshing_sim::advance(?:To|Past)\(",
+                       text, re.M)
+    return total, sum(int(n.replace(",", "")) for n in found)
 
 
 def check(whole_cg, step_cg, whole, stepping):
