@@ -75,13 +75,18 @@ bool sameState(const Data& a, const Data& b) {
 
 std::string scene(const char* name) { return std::string(THRESHING_SIM_SOURCE_DIR) + "/" + name; }
 
-TEST(StepSampler, DefaultStrikeIsSampledAtAcceptedStepsWithTheCorePeak) {
-  const Model model = loadScene(scene("config/default_scene.yaml"));
-  const NodeRun run = runNode(model, 0.01, true);
+// Both schemes: under islands the strike lies inside one scheduling window, and its samples
+// are the island's accepted steps (the core's StepObserver).
+void expectDefaultStrikeSampledAtAcceptedSteps(bool islands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = islands;
+  NodeRun run = runNode(model, 0.01, true);
   ASSERT_FALSE(run.failed);
   ASSERT_EQ(run.strikes.size(), 1u);
   const StrikeRecord& r = run.strikes.front();
   // 33 us of contact: the integrator accepts about 20 steps (not 3 physics steps).
+  std::printf("islands %d: %zu samples, peak %.17g N\n", islands, r.t_s.size(),
+              r.peakNormalForce());
   EXPECT_GT(r.t_s.size(), 15u);
   for (size_t i = 1; i < r.t_s.size(); ++i) EXPECT_GT(r.t_s[i], r.t_s[i - 1]);
   EXPECT_NEAR(r.sample_interval_s, (r.t_s.back() - r.t_s.front()) / (r.t_s.size() - 1), 1e-15);
@@ -89,12 +94,29 @@ TEST(StepSampler, DefaultStrikeIsSampledAtAcceptedStepsWithTheCorePeak) {
   const Data reference = runSimulate(model, 0.01);
   EXPECT_NEAR(r.peakNormalForce(), reference.stats.peak_normal_force_N,
               1e-5 * reference.stats.peak_normal_force_N);
+  EXPECT_EQ(r.core_peak_normal_force_N, reference.stats.peak_normal_force_N);
   EXPECT_EQ(run.data.stats.impacts, reference.stats.impacts);
+  if (islands) {
+    // Sampling (the core's observer of the islands' steps) changes nothing: the node's run
+    // without it, bit for bit; and its lone kernels, brought to the end (the node leaves them
+    // on their own clocks), are `simulate`'s.
+    EXPECT_TRUE(sameState(run.data, runNode(model, 0.01, false).data));
+    ASSERT_EQ(syncBodies(model, &run.data), StepStatus::kOk);
+  }
+  EXPECT_TRUE(sameState(run.data, reference));
+  if (islands) return;
   // Without sampling, one sample per physics step.
   const NodeRun coarse = runNode(model, 0.01, false);
   ASSERT_EQ(coarse.strikes.size(), 1u);
   EXPECT_LT(coarse.strikes.front().t_s.size(), 6u);
   EXPECT_EQ(coarse.sampled_steps, 0);
+}
+
+TEST(StepSampler, DefaultStrikeIsSampledAtAcceptedStepsWithTheCorePeak) {
+  expectDefaultStrikeSampledAtAcceptedSteps(false);
+}
+TEST(StepSampler, DefaultStrikeIsSampledAtIslandStepsWithTheCorePeak) {
+  expectDefaultStrikeSampledAtAcceptedSteps(true);
 }
 
 // The stream scene's first 3 ms (8 strikes, kernels bouncing on the grate), both schemes: the
@@ -162,8 +184,9 @@ TEST(StepSampler, EventDrivenIsSampledStepByStepInBothSchemes) {
 // boundary (up to the step end past it, which the boundary's snapshot draws) and increasing; the
 // kernel, pushed up by the tooth, never moves back between frames (the interpolant stays between
 // the accepted steps); and the run is bit for bit the run without frames.
-TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) {
-  const Model model = loadScene(scene("config/default_scene.yaml"));
+void expectDefaultStrikeFrames(bool islands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = islands;
   constexpr double kEnd_s = 1e-3;
   Data data;
   resetData(model, &data);
@@ -209,6 +232,11 @@ TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) {
   EXPECT_LT(got.size(), 60u);  // only around the strike
   const NodeRun plain = runNode(model, kEnd_s, true);
   EXPECT_TRUE(plain.data.z == data.z && plain.data.u == data.u && plain.data.t_s == data.t_s);
+}
+
+TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) { expectDefaultStrikeFrames(false); }
+TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecondUnderIslands) {
+  expectDefaultStrikeFrames(true);
 }
 
 }  // namespace

@@ -8,10 +8,15 @@
 // and peak forces are `simulate`'s (issue 24). A boundary's state is that of the step end at or
 // past it (by less than one step); strike frames inside a step are interpolated (StrikeFrames).
 // Near a strike (event-driven, both schemes) the sample function sees the state after every
-// step (island scheme: every scheduling window, the lone kernels brought to its end; a window
-// can span a whole strike, up to max_step: the default strike's 33 us fall inside one 92 us
-// window, so strike histories under islands need an observer of the islands' own steps, which
-// the core does not offer yet); time stepping samples at its boundaries.
+// step. Island scheme: after every accepted step of every island (the core's StepObserver; a
+// window can span a whole strike: the default strike's 33 us fall inside one 92 us window),
+// then at the window's end with the lone kernels brought to it. At an island's step the state
+// holds that island's bodies at the step's end and the other bodies as last seen (at the
+// window's start, or at another island's last step); the contacts are the island's then and
+// the other islands' as last seen; the events are the island's since the window began. The
+// islands of one window are reported one after the other, so with two islands in one window
+// the second's steps go back in time (its strike history is whole, frames between them are
+// skipped). Time stepping samples at its boundaries.
 #pragma once
 
 #include <functional>
@@ -19,6 +24,7 @@
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/simulator.h"
+#include "threshing_sim/core/step_observer.h"
 
 namespace threshing_sim {
 
@@ -42,11 +48,27 @@ class StepSampler {
   StepStatus advance(const Model& model, Data* data, double t_end_s, double t_stop_s,
                      const std::function<void(const Data&)>& sample);
 
-  long sampledSteps() const { return sampled_steps_; }  // steps sampled so far [-]
+  // Steps sampled so far (island scheme: islands' steps, or the window if it had none) [-].
+  long sampledSteps() const { return sampled_steps_; }
   // advance() calls that reached kMaxSampledSteps and finished in one call [-].
   long handovers() const { return handovers_; }
 
  private:
+  // The state the sample function sees at an island's step (island scheme).
+  class IslandView : public StepObserver {
+   public:
+    // Starts a window from data's state (all bodies at data.t_s), sampling with sample.
+    void begin(const Data& data, const std::function<void(const Data&)>* sample);
+    void islandStep(const Model& model, const IslandStep& step) override;
+    long steps() const { return steps_; }  // island steps seen since begin() [-]
+
+   private:
+    Data view_;
+    const std::function<void(const Data&)>* sample_ = nullptr;
+    long steps_ = 0;
+  };
+
+  IslandView island_view_;
   bool enabled_ = false;
   double horizon_s_ = 0;
   long sampled_steps_ = 0;
