@@ -28,7 +28,7 @@ StepStatus StepSampler::advance(const Model& model, Data* data, double t_end_s, 
     for (; n < kMaxSampledSteps && data->t_s < t_end_s; ++n) {
       const double just_past_s = std::nextafter(data->t_s, std::numeric_limits<double>::infinity());
       if (islands) {
-        island_view_.begin(*data, &sample);
+        island_view_.begin(*data, &sample, -1.0);
         data->observer = &island_view_;
       }
       const StepStatus status = advancePast(model, data, just_past_s, t_stop_s);
@@ -40,14 +40,24 @@ StepStatus StepSampler::advance(const Model& model, Data* data, double t_end_s, 
     if (n == kMaxSampledSteps) ++handovers_;
   }
   // Away from strikes: to the boundary in one call, the last step ending at or past it. Lone
-  // kernels stay on their own clocks until a snapshot reads them (syncBodies).
+  // kernels stay on their own clocks until a snapshot reads them (syncBodies). Under islands a
+  // pair out of every island is not among the contacts, so a strike can begin and end inside
+  // this call's windows: the islands' steps are watched, and sampled while a strike is near.
+  const bool watch = enabled_ && model.integrator.islands && data->t_s < t_end_s;
+  if (watch) {
+    island_view_.begin(*data, &sample, horizon_s_);
+    data->observer = &island_view_;
+  }
   const StepStatus status = advancePastLazy(model, data, t_end_s, t_stop_s);
+  data->observer = nullptr;
+  if (watch) sampled_steps_ += island_view_.sampled();
   sample(*data);
   return status;
 }
 
 void StepSampler::IslandView::begin(const Data& data,
-                                    const std::function<void(const Data&)>* sample) {
+                                    const std::function<void(const Data&)>* sample,
+                                    double horizon_s) {
   view_.t_s = data.t_s;
   view_.steps = data.steps;
   view_.theta_rad = data.theta_rad;
@@ -60,7 +70,10 @@ void StepSampler::IslandView::begin(const Data& data,
   view_.contacts = data.contacts;
   view_.events.clear();
   sample_ = sample;
+  horizon_s_ = horizon_s;
   steps_ = 0;
+  sampled_ = 0;
+  was_near_ = false;
 }
 
 void StepSampler::IslandView::islandStep(const Model& model, const IslandStep& step) {
@@ -88,6 +101,14 @@ void StepSampler::IslandView::islandStep(const Model& model, const IslandStep& s
                        view_.contacts.end());
   view_.contacts.insert(view_.contacts.end(), step.contacts->begin(), step.contacts->end());
   view_.events = *step.events;
+  // Watching (horizon_s_ >= 0): the steps near a strike, and the first after (its end).
+  if (horizon_s_ >= 0) {
+    const bool near = StrikeRecorder::strikeNear(view_, horizon_s_);
+    const bool take = near || was_near_;
+    was_near_ = near;
+    if (!take) return;
+  }
+  ++sampled_;
   (*sample_)(view_);
 }
 

@@ -10,13 +10,15 @@
 // Near a strike (event-driven, both schemes) the sample function sees the state after every
 // step. Island scheme: after every accepted step of every island (the core's StepObserver; a
 // window can span a whole strike: the default strike's 33 us fall inside one 92 us window),
-// then at the window's end with the lone kernels brought to it. At an island's step the state
-// holds that island's bodies at the step's end and the other bodies as last seen (at the
-// window's start, or at another island's last step); the contacts are the island's then and
-// the other islands' as last seen; the events are the island's since the window began. The
-// islands of one window are reported one after the other, so with two islands in one window
-// the second's steps go back in time (its strike history is whole, frames between them are
-// skipped). Time stepping samples at its boundaries.
+// then at the window's end with the lone kernels brought to it. Between sampled windows the
+// islands' steps are watched too (a pair enters the contacts only with its island, and a
+// strike can begin and end inside one advance): those near a strike are sampled. At an island's
+// step the state holds that island's bodies at the step's end and the other bodies as last seen (at
+// the window's start, or at another island's last step); the contacts are the island's then and the
+// other islands' as last seen; the events are the island's since the window began. The islands of
+// one window are reported one after the other, so with two islands in one window the second's steps
+// go back in time (its strike history is whole, frames between them are skipped). Time stepping
+// samples at its boundaries.
 #pragma once
 
 #include <functional>
@@ -57,15 +59,20 @@ class StepSampler {
   // The state the sample function sees at an island's step (island scheme).
   class IslandView : public StepObserver {
    public:
-    // Starts a window from data's state (all bodies at data.t_s), sampling with sample.
-    void begin(const Data& data, const std::function<void(const Data&)>* sample);
+    // Starts from data's state, sampling with sample: every island step (horizon_s < 0), or
+    // those with a tooth-kernel pair closed or closing within horizon_s [s] and the first after.
+    void begin(const Data& data, const std::function<void(const Data&)>* sample, double horizon_s);
     void islandStep(const Model& model, const IslandStep& step) override;
-    long steps() const { return steps_; }  // island steps seen since begin() [-]
+    long steps() const { return steps_; }      // island steps seen since begin() [-]
+    long sampled() const { return sampled_; }  // of them sampled [-]
 
    private:
     Data view_;
     const std::function<void(const Data&)>* sample_ = nullptr;
+    double horizon_s_ = -1;  // < 0: sample every step, else near strikes only [s]
     long steps_ = 0;
+    long sampled_ = 0;
+    bool was_near_ = false;  // the last step seen was near a strike
   };
 
   IslandView island_view_;
