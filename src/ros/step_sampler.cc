@@ -58,6 +58,16 @@ StepStatus StepSampler::advance(const Model& model, Data* data, double t_end_s, 
 void StepSampler::IslandView::begin(const Data& data,
                                     const std::function<void(const Data&)>* sample,
                                     double horizon_s) {
+  source_ = &data;
+  sample_ = sample;
+  horizon_s_ = horizon_s;
+  steps_ = 0;
+  sampled_ = 0;
+  was_near_ = false;
+}
+
+void StepSampler::IslandView::copySource() {
+  const Data& data = *source_;
   view_.t_s = data.t_s;
   view_.steps = data.steps;
   view_.theta_rad = data.theta_rad;
@@ -69,15 +79,12 @@ void StepSampler::IslandView::begin(const Data& data,
   view_.kernel_attached = data.kernel_attached;
   view_.contacts = data.contacts;
   view_.events.clear();
-  sample_ = sample;
-  horizon_s_ = horizon_s;
-  steps_ = 0;
-  sampled_ = 0;
-  was_near_ = false;
 }
 
 void StepSampler::IslandView::islandStep(const Model& model, const IslandStep& step) {
-  ++steps_;
+  // The whole state is copied at the advance's first island step only: an advance without
+  // islands (lone bodies only) costs nothing per kernel.
+  if (steps_++ == 0) copySource();
   view_.t_s = step.t_s;
   view_.theta_rad = step.theta_rad;
   view_.omega_radps = step.omega_radps;

@@ -119,6 +119,35 @@ TEST(StepSampler, DefaultStrikeIsSampledAtIslandStepsWithTheCorePeak) {
   expectDefaultStrikeSampledAtAcceptedSteps(true);
 }
 
+// Under islands a tooth-kernel pair is among the contacts only once its island has formed: at
+// boundaries 0.2 ms apart the default strike begins and ends inside one advance, between two
+// boundaries that do not see it near. The islands' steps are watched there too: the strike still
+// has its history, the island's accepted steps, with `simulate`'s peak.
+TEST(StepSampler, StrikeInsideOneAdvanceIsSampledUnderIslands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = true;
+  constexpr double kStep_s = 2e-4, kEnd_s = 1e-3;
+  Data data;
+  resetData(model, &data);
+  StepSampler sampler(model, true, 1e-6);
+  StrikeRecorder strikes(kStep_s);
+  long near_boundaries = 0;
+  for (long k = 1; k * kStep_s < kEnd_s + 1e-12; ++k) {
+    near_boundaries += StrikeRecorder::strikeNear(data, 1e-6) ? 1 : 0;
+    ASSERT_NE(sampler.advance(model, &data, k * kStep_s, kEnd_s,
+                              [&](const Data& d) { strikes.sample(d); }),
+              StepStatus::kFailed);
+  }
+  EXPECT_EQ(near_boundaries, 0);  // no boundary saw it coming: it was inside one advance
+  ASSERT_EQ(strikes.finished().size(), 1u);
+  const StrikeRecord& r = strikes.finished().front();
+  std::printf("strike inside one advance: %zu samples\n", r.t_s.size());
+  EXPECT_GT(r.t_s.size(), 15u);
+  const Data reference = runSimulate(model, kEnd_s);
+  EXPECT_EQ(r.core_peak_normal_force_N, reference.stats.peak_normal_force_N);
+  EXPECT_EQ(data.stats.impacts, reference.stats.impacts);
+}
+
 // The stream scene's first 3 ms (8 strikes, kernels bouncing on the grate), both schemes: the
 // node (10 us boundaries, strikes sampled step by step) and `simulate` (1e-4 s chunks, or 1 us
 // samples as with --forces) take the same steps, bit for bit. With every target cutting a

@@ -59,14 +59,18 @@ class StepSampler {
   // The state the sample function sees at an island's step (island scheme).
   class IslandView : public StepObserver {
    public:
-    // Starts from data's state, sampling with sample: every island step (horizon_s < 0), or
-    // those with a tooth-kernel pair closed or closing within horizon_s [s] and the first after.
+    // Starts from data's state (read at the first island step), sampling with sample: every island
+    // step (horizon_s < 0), or those with a tooth-kernel pair closed or closing within horizon_s
+    // [s] and the first after.
     void begin(const Data& data, const std::function<void(const Data&)>* sample, double horizon_s);
     void islandStep(const Model& model, const IslandStep& step) override;
     long steps() const { return steps_; }      // island steps seen since begin() [-]
     long sampled() const { return sampled_; }  // of them sampled [-]
 
    private:
+    void copySource();  // the view from the advance's data, as it is now
+
+    const Data* source_ = nullptr;  // the data being advanced (begin())
     Data view_;
     const std::function<void(const Data&)>* sample_ = nullptr;
     double horizon_s_ = -1;  // < 0: sample every step, else near strikes only [s]
