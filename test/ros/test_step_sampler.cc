@@ -24,6 +24,8 @@ struct NodeRun {
   std::vector<StrikeRecord> strikes;
   long sampled_steps = 0;
   bool failed = false;
+  long samples = 0;       // sample calls [-]
+  long samples_back = 0;  // of them earlier than the one before [-]
 };
 
 // The node's stepping: boundary by boundary, sampling strikes (or not), no step cut but at
@@ -33,9 +35,15 @@ NodeRun runNode(const Model& model, double end_s, bool sampling) {
   resetData(model, &run.data);
   StepSampler sampler(model, sampling, 3 * kPhysicsStep_s);
   StrikeRecorder strikes(kPhysicsStep_s);
+  double last_sample_s = 0;
   for (long k = 1; k * kPhysicsStep_s < end_s + 1e-12; ++k) {
-    const StepStatus s = sampler.advance(model, &run.data, k * kPhysicsStep_s, end_s,
-                                         [&](const Data& d) { strikes.sample(d); });
+    const StepStatus s =
+        sampler.advance(model, &run.data, k * kPhysicsStep_s, end_s, [&](const Data& d) {
+          run.samples_back += d.t_s < last_sample_s ? 1 : 0;
+          last_sample_s = d.t_s;
+          ++run.samples;
+          strikes.sample(d);
+        });
     run.data.events.clear();
     if (s == StepStatus::kFailed) {
       run.failed = true;
@@ -168,6 +176,9 @@ void expectStreamAsInSimulate(bool islands) {
   EXPECT_EQ(run.data.stats.impacts, reference.stats.impacts);
   EXPECT_EQ(run.data.stats.peak_normal_force_N, reference.stats.peak_normal_force_N);
   EXPECT_TRUE(sameState(fine, reference));
+  // The samples come in time order (islands: the islands of a window are replayed by time).
+  std::printf("%ld samples, %ld back in time\n", run.samples, run.samples_back);
+  EXPECT_EQ(run.samples_back, 0);
   if (!islands) {
     EXPECT_TRUE(sameState(run.data, reference));
     EXPECT_FALSE(sameState(runCutting(model, end_s, 1e-6), runCutting(model, end_s, 1e-4)));
@@ -176,6 +187,20 @@ void expectStreamAsInSimulate(bool islands) {
 
 TEST(StepSampler, StreamRunsAsInSimulate) { expectStreamAsInSimulate(false); }
 TEST(StepSampler, StreamRunsAsInSimulateUnderIslands) { expectStreamAsInSimulate(true); }
+
+// Under islands the islands of one window are integrated (and reported) one after the other:
+// the sampler replays their steps in time order. The stream's first 10 ms have windows with two
+// islands near strikes (replayed in report order, 2 samples went back in time).
+TEST(StepSampler, StreamSamplesComeInTimeOrderUnderIslands) {
+  Model model = loadScene(scene("config/scenes/stream.yaml"));
+  model.integrator.islands = true;
+  const NodeRun run = runNode(model, 0.01, true);
+  ASSERT_FALSE(run.failed);
+  std::printf("%ld samples, %ld back in time, %zu strikes\n", run.samples, run.samples_back,
+              run.strikes.size());
+  EXPECT_GT(run.samples, 10000);
+  EXPECT_EQ(run.samples_back, 0);
+}
 
 // Time stepping takes whole steps of dt whatever the targets: the node and `simulate` agree bit
 // for bit there too (single strike, both schemes).
