@@ -85,6 +85,14 @@ void propagateTooth(ToothPropagator* prop, double h_s, const Eigen::Ref<const Ve
 
 struct AsyncState;  // the island-local scheduler (src/core/async/async.h)
 
+// Called by the global scheme's advance after every accepted step of the data it advances (an
+// island's sub-system, while its window is observed: Data::observer). Only reads.
+class StepHook {
+ public:
+  virtual ~StepHook() = default;
+  virtual void afterStep(const Data& d) const = 0;
+};
+
 }  // namespace internal
 
 // Integrator scratch memory; grows to the largest sizes seen, then is reused.
@@ -93,6 +101,8 @@ struct Workspace {
   ~Workspace();  // out of line (simulator.cc), where AsyncState is complete
   // The asynchronous island-local scheduler's state (integrator.islands); built on first use.
   std::unique_ptr<internal::AsyncState> async;
+  // Not owned; set by the island scheme around an observed island's advance (else nullptr).
+  const internal::StepHook* step_hook = nullptr;
   std::vector<PairId> candidates;            // broad-phase survivors
   std::vector<internal::ContactGeom> geoms;  // narrow-phase results for candidates
   internal::PairTable memory;

@@ -214,6 +214,7 @@ StepStatus advanceGlobal(const Model& model, Data* data, double t_end_s, double 
       stalled = data->t_s > t0 ? 0 : stalled + 1;
       if (stalled >= kMaxStalledSteps)
         return fail(data, FailureCause::kTimeStalled, t_end_s, work, budget);
+      if (ws.step_hook != nullptr) ws.step_hook->afterStep(*data);
       continue;
     }
     const FailureCause cause = s == StepStatus::kOk || !finiteState(*data)
@@ -244,6 +245,7 @@ StepStatus advanceGlobal(const Model& model, Data* data, double t_end_s, double 
       return fail(data, why, t_end_s, work, budget);
     }
     internal::checkToothDeflection(model, data);
+    if (ws.step_hook != nullptr) ws.step_hook->afterStep(*data);
     worst = StepStatus::kRecovered;
   }
   return worst;

@@ -22,9 +22,9 @@ constexpr double kStrikeHorizonSteps = 3.0;
 StrikeLog::StrikeLog(const Model& model, const NodeParams& params, double dt_s)
     : sampler_(std::make_unique<StepSampler>(model, params.strike_sample_dt_s > 0,
                                              kStrikeHorizonSteps * dt_s)),
-      // Event-driven (global scheme): every accepted step near a strike is a sample; time
-      // stepping: the integrator step is the finest evaluation point there is; the island
-      // scheme: the physics step. The integrator's steps are never cut for a sample.
+      // Event-driven (either scheme; islands: every island step, StepObserver): every accepted
+      // step near a strike is a sample; time stepping: the integrator step is the finest
+      // evaluation point there is. The integrator's steps are never cut for a sample.
       strikes_(model.integrator.type == IntegratorType::kTimeStepping ? model.integrator.dt_s
                                                                       : dt_s) {}
 

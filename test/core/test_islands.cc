@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -13,6 +14,7 @@
 #include "sim_test_util.h"
 #include "threshing_sim/core/large_deflection.h"
 #include "threshing_sim/core/simulator.h"
+#include "threshing_sim/core/step_observer.h"
 
 namespace threshing_sim {
 namespace {
@@ -822,6 +824,67 @@ TEST_P(IslandsVsGlobal, RerunsAreBitIdentical) {
   resetData(m, &c);
   for (int chunk = 1; chunk <= 10; ++chunk) advanceTo(m, &c, m.duration_s * chunk / 10);
   EXPECT_EQ(0, std::memcmp(a.z.data(), c.z.data(), sizeof(double) * a.z.size()));
+}
+
+// Records what the island scheme reports of its islands' steps.
+class StepCounter : public StepObserver {
+ public:
+  void islandStep(const Model& model, const IslandStep& step) override {
+    ++steps;
+    EXPECT_GE(step.t_s, last_t_s[step.kernels->front()]) << "steps of an island in time order";
+    last_t_s[step.kernels->front()] = step.t_s;
+    for (const ContactInfo& c : *step.contacts) {
+      if (c.pair.kind != PairKind::kToothKernel) continue;
+      EXPECT_TRUE(std::binary_search(step.teeth->begin(), step.teeth->end(), c.pair.a));
+      EXPECT_TRUE(std::binary_search(step.kernels->begin(), step.kernels->end(), c.pair.b));
+      peak_N = std::max(peak_N, c.normal_force_N);
+      if (c.state != ContactState::kSeparated) ++closed_steps;
+    }
+    z.setConstant(model.n_dof, std::numeric_limits<double>::quiet_NaN());
+    u = z;
+    step.writeState(model, &z, &u);
+    for (int i : *step.kernels)
+      EXPECT_TRUE(z.segment<3>(model.kernels[i].dof_offset).allFinite() &&
+                  u.segment<3>(model.kernels[i].dof_offset).allFinite());
+  }
+  long steps = 0, closed_steps = 0;
+  double peak_N = 0;
+  std::map<int, double> last_t_s;
+  VecX z, u;
+};
+
+// An observer of the islands' steps sees every accepted island step (the default strike's
+// closed steps among them, in global numbers) and changes nothing: the run is bit for bit the
+// unobserved one.
+TEST_P(IslandsVsGlobal, ObservingIslandStepsChangesNothing) {
+  Model m = testutil::defaultSceneModel(GetParam());
+  m.integrator.islands = true;
+  compileModel(&m);
+  Data a, b;
+  resetData(m, &a);
+  resetData(m, &b);
+  StepCounter counter;
+  b.observer = &counter;
+  for (int chunk = 1; chunk <= 10; ++chunk) {
+    ASSERT_NE(advanceTo(m, &a, m.duration_s * chunk / 10), StepStatus::kFailed);
+    ASSERT_NE(advanceTo(m, &b, m.duration_s * chunk / 10), StepStatus::kFailed);
+  }
+  EXPECT_EQ(0, std::memcmp(a.z.data(), b.z.data(), sizeof(double) * a.z.size()));
+  EXPECT_EQ(0, std::memcmp(a.u.data(), b.u.data(), sizeof(double) * a.u.size()));
+  EXPECT_EQ(a.t_s, b.t_s);
+  EXPECT_EQ(a.steps, b.steps);
+  EXPECT_EQ(a.stats.impacts, b.stats.impacts);
+  EXPECT_EQ(a.stats.peak_normal_force_N, b.stats.peak_normal_force_N);
+  EXPECT_EQ(a.stats.rejected_steps, b.stats.rejected_steps);
+  ASSERT_EQ(a.events.size(), b.events.size());
+  for (size_t e = 0; e < a.events.size(); ++e) EXPECT_EQ(a.events[e].t_s, b.events[e].t_s);
+  // Every island step is reported; the strike's closed steps among them.
+  EXPECT_EQ(counter.steps, b.stats.scheduler.island_steps);
+  EXPECT_GT(counter.closed_steps, GetParam() == IntegratorType::kEventDriven ? 15 : 2);
+  std::printf("observed %ld island steps, %ld closed, peak %.6g N (core %.6g N)\n", counter.steps,
+              counter.closed_steps, counter.peak_N, b.stats.peak_normal_force_N);
+  EXPECT_GT(counter.peak_N, 0.5 * b.stats.peak_normal_force_N);
+  EXPECT_LE(counter.peak_N, b.stats.peak_normal_force_N * (1 + 1e-12));
 }
 
 // The energy account (energy now against energy at the start, the drive's work and what the

@@ -24,6 +24,8 @@ struct NodeRun {
   std::vector<StrikeRecord> strikes;
   long sampled_steps = 0;
   bool failed = false;
+  long samples = 0;       // sample calls [-]
+  long samples_back = 0;  // of them earlier than the one before [-]
 };
 
 // The node's stepping: boundary by boundary, sampling strikes (or not), no step cut but at
@@ -33,9 +35,15 @@ NodeRun runNode(const Model& model, double end_s, bool sampling) {
   resetData(model, &run.data);
   StepSampler sampler(model, sampling, 3 * kPhysicsStep_s);
   StrikeRecorder strikes(kPhysicsStep_s);
+  double last_sample_s = 0;
   for (long k = 1; k * kPhysicsStep_s < end_s + 1e-12; ++k) {
-    const StepStatus s = sampler.advance(model, &run.data, k * kPhysicsStep_s, end_s,
-                                         [&](const Data& d) { strikes.sample(d); });
+    const StepStatus s =
+        sampler.advance(model, &run.data, k * kPhysicsStep_s, end_s, [&](const Data& d) {
+          run.samples_back += d.t_s < last_sample_s ? 1 : 0;
+          last_sample_s = d.t_s;
+          ++run.samples;
+          strikes.sample(d);
+        });
     run.data.events.clear();
     if (s == StepStatus::kFailed) {
       run.failed = true;
@@ -75,13 +83,18 @@ bool sameState(const Data& a, const Data& b) {
 
 std::string scene(const char* name) { return std::string(THRESHING_SIM_SOURCE_DIR) + "/" + name; }
 
-TEST(StepSampler, DefaultStrikeIsSampledAtAcceptedStepsWithTheCorePeak) {
-  const Model model = loadScene(scene("config/default_scene.yaml"));
-  const NodeRun run = runNode(model, 0.01, true);
+// Both schemes: under islands the strike lies inside one scheduling window, and its samples
+// are the island's accepted steps (the core's StepObserver).
+void expectDefaultStrikeSampledAtAcceptedSteps(bool islands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = islands;
+  NodeRun run = runNode(model, 0.01, true);
   ASSERT_FALSE(run.failed);
   ASSERT_EQ(run.strikes.size(), 1u);
   const StrikeRecord& r = run.strikes.front();
   // 33 us of contact: the integrator accepts about 20 steps (not 3 physics steps).
+  std::printf("islands %d: %zu samples, peak %.17g N\n", islands, r.t_s.size(),
+              r.peakNormalForce());
   EXPECT_GT(r.t_s.size(), 15u);
   for (size_t i = 1; i < r.t_s.size(); ++i) EXPECT_GT(r.t_s[i], r.t_s[i - 1]);
   EXPECT_NEAR(r.sample_interval_s, (r.t_s.back() - r.t_s.front()) / (r.t_s.size() - 1), 1e-15);
@@ -89,12 +102,58 @@ TEST(StepSampler, DefaultStrikeIsSampledAtAcceptedStepsWithTheCorePeak) {
   const Data reference = runSimulate(model, 0.01);
   EXPECT_NEAR(r.peakNormalForce(), reference.stats.peak_normal_force_N,
               1e-5 * reference.stats.peak_normal_force_N);
+  EXPECT_EQ(r.core_peak_normal_force_N, reference.stats.peak_normal_force_N);
   EXPECT_EQ(run.data.stats.impacts, reference.stats.impacts);
+  if (islands) {
+    // Sampling (the core's observer of the islands' steps) changes nothing: the node's run
+    // without it, bit for bit; and its lone kernels, brought to the end (the node leaves them
+    // on their own clocks), are `simulate`'s.
+    EXPECT_TRUE(sameState(run.data, runNode(model, 0.01, false).data));
+    ASSERT_EQ(syncBodies(model, &run.data), StepStatus::kOk);
+  }
+  EXPECT_TRUE(sameState(run.data, reference));
+  if (islands) return;
   // Without sampling, one sample per physics step.
   const NodeRun coarse = runNode(model, 0.01, false);
   ASSERT_EQ(coarse.strikes.size(), 1u);
   EXPECT_LT(coarse.strikes.front().t_s.size(), 6u);
   EXPECT_EQ(coarse.sampled_steps, 0);
+}
+
+TEST(StepSampler, DefaultStrikeIsSampledAtAcceptedStepsWithTheCorePeak) {
+  expectDefaultStrikeSampledAtAcceptedSteps(false);
+}
+TEST(StepSampler, DefaultStrikeIsSampledAtIslandStepsWithTheCorePeak) {
+  expectDefaultStrikeSampledAtAcceptedSteps(true);
+}
+
+// Under islands a tooth-kernel pair is among the contacts only once its island has formed: at
+// boundaries 0.2 ms apart the default strike begins and ends inside one advance, between two
+// boundaries that do not see it near. The islands' steps are watched there too: the strike still
+// has its history, the island's accepted steps, with `simulate`'s peak.
+TEST(StepSampler, StrikeInsideOneAdvanceIsSampledUnderIslands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = true;
+  constexpr double kStep_s = 2e-4, kEnd_s = 1e-3;
+  Data data;
+  resetData(model, &data);
+  StepSampler sampler(model, true, 1e-6);
+  StrikeRecorder strikes(kStep_s);
+  long near_boundaries = 0;
+  for (long k = 1; k * kStep_s < kEnd_s + 1e-12; ++k) {
+    near_boundaries += StrikeRecorder::strikeNear(data, 1e-6) ? 1 : 0;
+    ASSERT_NE(sampler.advance(model, &data, k * kStep_s, kEnd_s,
+                              [&](const Data& d) { strikes.sample(d); }),
+              StepStatus::kFailed);
+  }
+  EXPECT_EQ(near_boundaries, 0);  // no boundary saw it coming: it was inside one advance
+  ASSERT_EQ(strikes.finished().size(), 1u);
+  const StrikeRecord& r = strikes.finished().front();
+  std::printf("strike inside one advance: %zu samples\n", r.t_s.size());
+  EXPECT_GT(r.t_s.size(), 15u);
+  const Data reference = runSimulate(model, kEnd_s);
+  EXPECT_EQ(r.core_peak_normal_force_N, reference.stats.peak_normal_force_N);
+  EXPECT_EQ(data.stats.impacts, reference.stats.impacts);
 }
 
 // The stream scene's first 3 ms (8 strikes, kernels bouncing on the grate), both schemes: the
@@ -117,6 +176,9 @@ void expectStreamAsInSimulate(bool islands) {
   EXPECT_EQ(run.data.stats.impacts, reference.stats.impacts);
   EXPECT_EQ(run.data.stats.peak_normal_force_N, reference.stats.peak_normal_force_N);
   EXPECT_TRUE(sameState(fine, reference));
+  // The samples come in time order (islands: the islands of a window are replayed by time).
+  std::printf("%ld samples, %ld back in time\n", run.samples, run.samples_back);
+  EXPECT_EQ(run.samples_back, 0);
   if (!islands) {
     EXPECT_TRUE(sameState(run.data, reference));
     EXPECT_FALSE(sameState(runCutting(model, end_s, 1e-6), runCutting(model, end_s, 1e-4)));
@@ -125,6 +187,20 @@ void expectStreamAsInSimulate(bool islands) {
 
 TEST(StepSampler, StreamRunsAsInSimulate) { expectStreamAsInSimulate(false); }
 TEST(StepSampler, StreamRunsAsInSimulateUnderIslands) { expectStreamAsInSimulate(true); }
+
+// Under islands the islands of one window are integrated (and reported) one after the other:
+// the sampler replays their steps in time order. The stream's first 10 ms have windows with two
+// islands near strikes (replayed in report order, 2 samples went back in time).
+TEST(StepSampler, StreamSamplesComeInTimeOrderUnderIslands) {
+  Model model = loadScene(scene("config/scenes/stream.yaml"));
+  model.integrator.islands = true;
+  const NodeRun run = runNode(model, 0.01, true);
+  ASSERT_FALSE(run.failed);
+  std::printf("%ld samples, %ld back in time, %zu strikes\n", run.samples, run.samples_back,
+              run.strikes.size());
+  EXPECT_GT(run.samples, 10000);
+  EXPECT_EQ(run.samples_back, 0);
+}
 
 // Time stepping takes whole steps of dt whatever the targets: the node and `simulate` agree bit
 // for bit there too (single strike, both schemes).
@@ -162,8 +238,9 @@ TEST(StepSampler, EventDrivenIsSampledStepByStepInBothSchemes) {
 // boundary (up to the step end past it, which the boundary's snapshot draws) and increasing; the
 // kernel, pushed up by the tooth, never moves back between frames (the interpolant stays between
 // the accepted steps); and the run is bit for bit the run without frames.
-TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) {
-  const Model model = loadScene(scene("config/default_scene.yaml"));
+void expectDefaultStrikeFrames(bool islands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = islands;
   constexpr double kEnd_s = 1e-3;
   Data data;
   resetData(model, &data);
@@ -209,6 +286,11 @@ TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) {
   EXPECT_LT(got.size(), 60u);  // only around the strike
   const NodeRun plain = runNode(model, kEnd_s, true);
   EXPECT_TRUE(plain.data.z == data.z && plain.data.u == data.u && plain.data.t_s == data.t_s);
+}
+
+TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) { expectDefaultStrikeFrames(false); }
+TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecondUnderIslands) {
+  expectDefaultStrikeFrames(true);
 }
 
 }  // namespace

@@ -133,7 +133,8 @@ struct RunStats {
   FailureInfo failure;       // why the last advanceTo() failed (cause kNone if it did not)
 };
 
-struct Workspace;  // integrator scratch memory, opaque
+struct Workspace;    // integrator scratch memory, opaque
+class StepObserver;  // island steps' observer (step_observer.h)
 
 struct Data {
   double t_s = 0;                             // simulation time [s]
@@ -148,6 +149,9 @@ struct Data {
   std::vector<ContactInfo> contacts;          // pairs examined in the last step
   std::vector<ContactEvent> events;           // appended by step(); the caller may clear it
   RunStats stats;
+  // Not owned; if set, the island scheme reports every accepted step of its islands to it
+  // (step_observer.h). Observing changes no result. Unset (nullptr) costs nothing.
+  StepObserver* observer = nullptr;
 
   Data();
   ~Data();

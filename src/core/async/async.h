@@ -25,6 +25,7 @@
 
 #include "../internal.h"
 #include "pedicel_propagator.h"
+#include "threshing_sim/core/step_observer.h"
 
 namespace threshing_sim {
 namespace internal {
@@ -151,6 +152,19 @@ struct ToothBound {
   double worst = -1;  // largest phi^T S^-1 phi over the stations [m^2 s^2/kg]; < 0 = none
 };
 
+// Reports an island's accepted steps to Data::observer in global numbers (island.cc): set as the
+// island's StepHook while its window is observed.
+struct AsyncState;
+class IslandStepHook : public StepHook {
+ public:
+  void afterStep(const Data& island_data) const override;
+  const Model* model = nullptr;      // the full model
+  StepObserver* observer = nullptr;  // the caller's (Data::observer)
+  AsyncState* as = nullptr;          // the scheduler (its island slots, its buffers)
+  int island = -1;                   // the observed island's slot
+  double t_window_end_s = 0;         // the window's end: reported times stop there [s]
+};
+
 // The scheduler's whole state (lives in Workspace::async).
 struct AsyncState {
   bool ready = false;                // set up for the current model and reset
@@ -200,7 +214,12 @@ struct AsyncState {
   std::vector<int> split_parent;                 // union-find over its bodies
   std::vector<int> split_teeth, split_kernels;   // the dissolved island's bodies (global)
   std::vector<ContactEvent> window_events;       // events of this window, before time ordering
-  SchedulerStats counters;                       // work by kind (copied to RunStats::scheduler)
+  // Observed windows only (Data::observer): the hook and the island's contacts and events of
+  // the step being reported, in global numbers.
+  IslandStepHook observe_hook;
+  std::vector<ContactInfo> observed_contacts;
+  std::vector<ContactEvent> observed_events;
+  SchedulerStats counters;  // work by kind (copied to RunStats::scheduler)
 
   // Closed forms of idle pedicel kernels, per class, built on first need and kept across resets
   // (a class is its parameters: a new model finds its own).
@@ -401,6 +420,10 @@ void buildIsland(const Model& m, Data* d, AsyncState* as, int s, const std::vect
 void dissolveIsland(const Model& m, Data* d, AsyncState* as, int s);
 void storeIslandState(const Model& m, Data* d, const AsyncState& as, int s);
 void mergeIslandResults(const Model& m, Data* d, AsyncState* as, int s);
+// Reports island s's steps up to t1 to d->observer (if set) during its next advance; stop with
+// endIslandObservation.
+void beginIslandObservation(const Model& m, Data* d, AsyncState* as, int s, double t1);
+void endIslandObservation(AsyncState* as, int s);
 bool islandInContact(AsyncState* as, int s);
 void publishIslandContacts(const AsyncState& as, std::vector<ContactInfo>* out);
 

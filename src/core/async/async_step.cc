@@ -159,6 +159,7 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
     // advanceTo's work budget scales with the interval; an island's interval is one window, so
     // a budget spent while time still advances is renewed, a bounded number of times.
     StepStatus st = StepStatus::kOk;
+    beginIslandObservation(m, d, as, static_cast<int>(s), t1);
     for (int renewal = 0; renewal <= kMaxBudgetRenewals; ++renewal) {
       const double t_before = isl.data().t_s;
       st = advanceTo(isl.model(), &isl.data(), t1);
@@ -167,6 +168,7 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
           !(isl.data().t_s > t_before))
         break;
     }
+    endIslandObservation(as, static_cast<int>(s));
     as->counters.island_body_steps += (isl.data().steps - steps_before) *
                                       static_cast<long>(isl.teeth.size() + isl.kernels.size());
     if (!timeStepping(m)) isl.data().t_s = t1;  // it lands on t1 or an ulp past it

@@ -4,6 +4,7 @@
 // its Data holds their state, its own clock, steps, events, pair memory and integrator
 // workspace. The global integrator (integrator.islands: false) advances it. What it reports
 // (events, statistics, contacts) is mapped back to global indices here.
+#include <algorithm>
 #include <cstdio>
 
 #include "async.h"
@@ -344,6 +345,50 @@ void mergeIslandResults(const Model& m, Data* d, AsyncState* as, int s) {
   mergeKernelStats(d, &isl);
 }
 
+void beginIslandObservation(const Model& m, Data* d, AsyncState* as, int s, double t1) {
+  if (d->observer == nullptr) return;
+  IslandStepHook& hook = as->observe_hook;
+  hook.model = &m;
+  hook.observer = d->observer;
+  hook.as = as;
+  hook.island = s;
+  hook.t_window_end_s = t1;
+  as->islands[s].data().ws->step_hook = &hook;
+}
+
+void endIslandObservation(AsyncState* as, int s) {
+  Island& isl = as->islands[s];
+  if (isl.sys != nullptr) isl.data().ws->step_hook = nullptr;
+}
+
+void IslandStepHook::afterStep(const Data& sd) const {
+  const Island& isl = as->islands[island];
+  as->observed_contacts.clear();
+  for (const ContactInfo& c : sd.contacts) {
+    as->observed_contacts.push_back(c);
+    as->observed_contacts.back().pair = localToGlobal(isl, c.pair);
+  }
+  as->observed_events.clear();
+  for (const ContactEvent& e : sd.events) {
+    as->observed_events.push_back(e);
+    as->observed_events.back().pair = localToGlobal(isl, e.pair);
+  }
+  IslandStep step;
+  // The island's last step lands on the window's end or an ulp past it (integrateIslands puts
+  // its clock on the end afterwards).
+  step.t_s = std::min(sd.t_s, t_window_end_s);
+  step.theta_rad = sd.theta_rad;
+  step.omega_radps = sd.omega_radps;
+  step.teeth = &isl.teeth;
+  step.kernels = &isl.kernels;
+  step.contacts = &as->observed_contacts;
+  step.events = &as->observed_events;
+  step.island_model = &isl.model();
+  step.island_z = &sd.z;
+  step.island_u = &sd.u;
+  observer->islandStep(*model, step);
+}
+
 bool islandInContact(AsyncState* as, int s) {
   for (auto& entry : as->islands[s].data().ws->memory)
     if (entry.second.state != ContactState::kSeparated) return true;
@@ -361,4 +406,20 @@ void publishIslandContacts(const AsyncState& as, std::vector<ContactInfo>* out) 
 }
 
 }  // namespace internal
+
+void IslandStep::writeState(const Model& model, VecX* z, VecX* u) const {
+  const Model& sm = *island_model;
+  for (size_t l = 0; l < teeth->size(); ++l) {
+    const ToothModel& tg = model.teeth[(*teeth)[l]];
+    const ToothModel& tl = sm.teeth[l];
+    z->segment(tg.dof_offset, tg.n_modes) = island_z->segment(tl.dof_offset, tl.n_modes);
+    u->segment(tg.dof_offset, tg.n_modes) = island_u->segment(tl.dof_offset, tl.n_modes);
+  }
+  for (size_t l = 0; l < kernels->size(); ++l) {
+    const int i = (*kernels)[l];
+    z->segment<3>(model.kernels[i].dof_offset) = island_z->segment<3>(sm.kernels[l].dof_offset);
+    u->segment<3>(model.kernels[i].dof_offset) = island_u->segment<3>(sm.kernels[l].dof_offset);
+  }
+}
+
 }  // namespace threshing_sim
