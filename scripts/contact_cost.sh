@@ -23,8 +23,7 @@ OUT=${KEEP:-$(mktemp -d)}
 mkdir -p "$OUT"
 # run NAME TOLERANCE DURATION: prints "Ir steps"
 run() {
-  valgrind --tool=callgrind --toggle-collect='threshing_sim::advanceTo*' \
-    --toggle-collect='threshing_sim::advancePast*' \
+  valgrind --tool=callgrind --toggle-collect='threshing_sim::advancePast*' \
     --callgrind-out-file="$OUT/$1.cg" "$SIMULATE" "$ROOT/config/default_scene.yaml" \
     --integrator event_driven --tolerance "$2" --duration "$3" --quiet \
     --summary "$OUT/$1.json" >"$OUT/$1.log" 2>&1

@@ -53,8 +53,7 @@ echo "|---|---|---|---|"
 for c in "${CASES[@]}"; do
   IFS='|' read -r name scene opts <<<"$c"
   # shellcheck disable=SC2086
-  valgrind --tool=callgrind --toggle-collect='threshing_sim::advanceTo*' \
-    --toggle-collect='threshing_sim::advancePast*' \
+  valgrind --tool=callgrind --toggle-collect='threshing_sim::advancePast*' \
     --callgrind-out-file="$OUT/$name.cg" "$SIMULATE" "$ROOT/$scene" \
     $opts --quiet --summary "$OUT/$name.json" >"$OUT/$name.log" 2>&1
   ir=$(callgrind_annotate --inclusive=yes "$OUT/$name.cg" 2>/dev/null |

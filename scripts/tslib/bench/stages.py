@@ -74,7 +74,10 @@ def cases(kernel_file):
     """(name, label, scene, arguments) of the profiled runs; kernel_file(count, sparse) gives
     the stream's kernel files."""
     return [
-        ("strike", "default single strike (10 ms, global scheme)", DEFAULT_SCENE, EVENT_DRIVEN),
+        ("strike", "default single strike (10 ms, global scheme)", DEFAULT_SCENE,
+         ["--set", "integrator.islands=false"] + EVENT_DRIVEN),
+        ("strike_islands", "default single strike (10 ms, islands: the default)", DEFAULT_SCENE,
+         ISLANDS),
         ("stream100", "stream, 100 kernels (2 ms, islands)", STREAM,
          ["--set-file", str(kernel_file(100, None))] + ISLANDS),
         ("stream1000", "stream, 1000 kernels, 10 in reach (2 ms, islands)", STREAM,
@@ -87,8 +90,9 @@ def run_callgrind(simulate, scene, args, out_prefix, stepping_only):
     collect inside advanceTo only (the stepping loop)."""
     out = pathlib.Path(f"{out_prefix}{'.step' if stepping_only else ''}.cg")
     summary = pathlib.Path(f"{out_prefix}.json")
-    toggle = ([f"--toggle-collect=threshing_sim::{f}*" for f in ("advanceTo", "advancePast")]
-              if stepping_only else [])
+    # simulate's loop calls advancePast only; the island scheme calls advanceTo inside it, so
+    # toggling both would switch collection off there.
+    toggle = ["--toggle-collect=threshing_sim::advancePast*"] if stepping_only else []
     cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}"] + toggle + [
         str(simulate), str(scene)] + args + ["--quiet", "--summary", str(summary)]
     subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, check=True,
