@@ -89,17 +89,17 @@ Result runSimulate(const std::string& scene, double duration_s, const std::strin
 Result runNode(const std::string& scene, double duration_s, const std::string& islands,
                const std::string& tag) {
   Result r;
-  // The island scheme: the scene with islands: true in its integrator map.
-  std::string path = scene;
-  if (islands == "true") {
-    std::string text = slurp(scene);
-    text = std::regex_replace(text, std::regex("\\nintegrator: \\{"),
-                              "\nintegrator: {islands: true, ");
-    text = std::regex_replace(text, std::regex("\\nintegrator:[ \t]*\\n"),
-                              "\nintegrator:\n  islands: true\n");
-    path = std::string(TEST_TMP_DIR) + "/scenes_" + tag + ".yaml";
-    std::ofstream(path) << text;
-  }
+  // The scheme named in the scene's integrator map (islands: true or false), as simulate's
+  // --set names it: the node has no overrides, and the default is one of the two.
+  std::string text = slurp(scene);
+  const std::string before = text;
+  text = std::regex_replace(text, std::regex("\\nintegrator: \\{"),
+                            "\nintegrator: {islands: " + islands + ", ");
+  text = std::regex_replace(text, std::regex("\\nintegrator:[ \t]*\\n"),
+                            "\nintegrator:\n  islands: " + islands + "\n");
+  if (text == before) text += "\nintegrator: {islands: " + islands + "}\n";
+  const std::string path = std::string(TEST_TMP_DIR) + "/scenes_" + tag + ".yaml";
+  std::ofstream(path) << text;
   char end[64];
   std::snprintf(end, sizeof(end), "%.17g", duration_s);
   const std::string name = "scenes_" + tag;
