@@ -2,6 +2,7 @@
 process, and the JUnit XML file scripts/test.sh counts (one testcase per test, with its time)."""
 import argparse
 import pathlib
+import shutil
 import signal
 import subprocess
 import sys
@@ -18,6 +19,14 @@ def sweep(*args, timeout=120):
     """Runs scripts/sweep; returns the completed process (output captured)."""
     return subprocess.run([sys.executable, str(SWEEP), *map(str, args)], capture_output=True,
                           text=True, timeout=timeout)
+
+
+def fresh_folder(path):
+    """path emptied (or made): a test class's output folder at its set-up."""
+    folder = pathlib.Path(path)
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    return folder
 
 
 def parser(description, out=None):

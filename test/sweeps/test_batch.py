@@ -23,13 +23,12 @@ import csv
 import json
 import os
 import pathlib
-import shutil
 import subprocess
 import sys
 import unittest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from sweep_test_util import ROOT, load, parser, run_suite  # noqa: E402
+from sweep_test_util import ROOT, fresh_folder, load, parser, run_suite  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "scripts"))
 from tslib.sweep import runner, spec  # noqa: E402
@@ -85,9 +84,7 @@ def batch(simulate, lines, timeout=300):
 class BatchTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.out = pathlib.Path(ARGS.out)
-        shutil.rmtree(cls.out, ignore_errors=True)
-        cls.out.mkdir(parents=True)
+        cls.out = fresh_folder(ARGS.out)
         cls.simulate = ARGS.simulate
         cls.sweep_file = cls.out / "every_axis.yaml"
         cls.sweep_file.write_text(SWEEP)

@@ -13,13 +13,12 @@ import copy
 import json
 import math
 import pathlib
-import shutil
 import statistics
 import sys
 import unittest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from sweep_test_util import ROOT, load, parser, run_suite, sweep  # noqa: E402
+from sweep_test_util import ROOT, fresh_folder, load, parser, run_suite, sweep  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "scripts"))
 from tslib.sweep import runner, spec, stats  # noqa: E402
@@ -95,9 +94,7 @@ class EstimatorTest(unittest.TestCase):
 class StopRuleTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.out = pathlib.Path(ARGS.out)
-        shutil.rmtree(cls.out, ignore_errors=True)
-        cls.out.mkdir(parents=True)
+        cls.out = fresh_folder(ARGS.out)
         cls.simulate = ARGS.simulate
 
     def test_stops_on_standard_error(self):

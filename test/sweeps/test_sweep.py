@@ -20,7 +20,7 @@ import sys
 import unittest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from sweep_test_util import ROOT, SWEEP, load, parser, run_suite, sweep  # noqa: E402
+from sweep_test_util import ROOT, SWEEP, fresh_folder, load, parser, run_suite, sweep  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "scripts"))
 from tslib.sweep.cluster import LoopbackCluster, wait_for  # noqa: E402
@@ -37,9 +37,7 @@ def rows(path):
 class SweepTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        cls.out = pathlib.Path(ARGS.out)
-        shutil.rmtree(cls.out, ignore_errors=True)
-        cls.out.mkdir(parents=True)
+        cls.out = fresh_folder(ARGS.out)
         cls.simulate = ARGS.simulate
         # The reference: the small sweep on a local cluster of two workers.
         cls.local = cls.out / "local"
