@@ -42,17 +42,12 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   if (!mm.valid || mm.model != &c.m || mm.t_s != dr.t_s || mm.theta_rad != dr.theta_rad ||
       mm.omega_radps != dr.omega_radps || mm.alpha_radps2 != dr.alpha_radps2)
     return false;
-  // kNear, kSign and kStepEnd differ only on separated kernel-kernel and kernel-obstacle pairs
-  // (tooth pairs are evaluated alike, whatever the horizon). A step end over a horizon serves
-  // kNear and kSign or kStepEnd over a horizon up to it: it evaluates exactly every pair those
-  // do (and perhaps more: their exact gaps are positive beyond either reach).
+  // kNear and kSign differ only on separated kernel-kernel and kernel-obstacle pairs (tooth
+  // pairs are evaluated alike, whatever the horizon).
   const bool memo_none = mm.separated == static_cast<int>(SeparatedPairs::kNone);
-  const bool memo_end = mm.separated == static_cast<int>(SeparatedPairs::kStepEnd);
-  const bool served_by_end =
-      memo_end && (separated == SeparatedPairs::kNear || horizon_s <= mm.horizon_s);
   const bool mode_ok =
       separated == SeparatedPairs::kNone || mm.n_separated == 0 ||
-      (!memo_none && (mm.n_separated_other == 0 || served_by_end ||
+      (!memo_none && (mm.n_separated_other == 0 ||
                       (static_cast<int>(separated) == mm.separated &&
                        (separated != SeparatedPairs::kSign || horizon_s == mm.horizon_s))));
   if (!mode_ok || !bitsEqual(z, mm.z) || !bitsEqual(u, mm.u) ||
@@ -60,7 +55,7 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
       c.ws.geoms.size() != c.ws.candidates.size())
     return false;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
-    const RhsMemo::PairState p = pairStateOf(candidateMemory(c.ws, i));  // (the same list)
+    const RhsMemo::PairState p = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
     const RhsMemo::PairState& q = mm.pairs[i];
     if (p.state != q.state || p.closed != q.closed || p.slip_sign != q.slip_sign ||
         p.v_in_mps != q.v_in_mps || p.hertz_K != q.hertz_K)
@@ -86,7 +81,7 @@ void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   mm.n_separated = 0;
   mm.n_separated_other = 0;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
-    mm.pairs[i] = pairStateOf(candidateMemory(c.ws, i));
+    mm.pairs[i] = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
     const bool apart = mm.pairs[i].state == static_cast<int>(ContactState::kSeparated);
     mm.n_separated += apart ? 1 : 0;
     mm.n_separated_other += apart && mm.candidates[i].kind != PairKind::kToothKernel ? 1 : 0;
