@@ -27,6 +27,7 @@ SECTIONS = {
     "stability-full": "docs/numerical_stability.md",   # scripts/stability_table.py --full
     "findings": "docs/threshing_findings.md",  # scripts/compare_teeth.py --findings
     "convergence": "README.md",             # scripts/convergence_table.py
+    "correction-table": "docs/convergence.md",  # scripts/correction_table.py --docs
     # scripts/sweep report out/sweeps/stream_statistics --stream-docs docs/convergence.md
     "stream-statistics": "docs/convergence.md",
     "sweep-overhead": "docs/sweeps.md",     # scripts/sweep_overhead.py --docs

@@ -179,7 +179,8 @@ bool copyTwin(Model* model, size_t k) {
         o.density_kgpm3 != t.density_kgpm3 || o.n_modes != t.n_modes ||
         o.damping_ratio != t.damping_ratio || o.n_stations != t.n_stations ||
         o.static_correction != t.static_correction || o.section_rotation != t.section_rotation ||
-        o.modes_auto != t.modes_auto)
+        o.modes_auto != t.modes_auto || o.quasi_static_from_mode != t.quasi_static_from_mode ||
+        o.quasi_static_speedup != t.quasi_static_speedup)
       continue;
     const double angle_rad = t.mount_angle_rad;
     t = o;

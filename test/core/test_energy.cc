@@ -112,5 +112,33 @@ INSTANTIATE_TEST_SUITE_P(AllTeeth, ElasticStrikeEnergy, ::testing::ValuesIn(vari
                            return info.param.name;
                          });
 
+// The tangential case (docs/convergence.md, "Static correction against the mode count"): the
+// elastic strike with Coulomb friction (mu 0.5) on the tooth. Friction only dissipates, so the
+// energy's change may not exceed the drive's work by more than the bound at the finest accuracy,
+// whatever the correction does along the tangent; and the strike must slide or stick (the
+// balance must show the friction's loss, at least 1e-4 of the impact energy).
+class FrictionalStrikeEnergy : public ::testing::TestWithParam<Variant> {};
+
+TEST_P(FrictionalStrikeEnergy, FrictionGainsNoEnergy) {
+  const Variant& v = GetParam();
+  Model m = elasticStrike(v, v.type == kED ? kTolerances.back() : kSteps_s.back());
+  m.contact[static_cast<int>(PairKind::kToothKernel)].friction = 0.5;
+  const double error = balanceError(m);
+  RecordProperty("balance", testutil::fmt(error));
+  EXPECT_LE(error, kBound) << "friction gained energy";
+  EXPECT_LT(error, -1e-4) << "no friction loss: the strike did not load the tangent";
+}
+
+INSTANTIATE_TEST_SUITE_P(ModalTeeth, FrictionalStrikeEnergy, ::testing::ValuesIn([] {
+                           std::vector<Variant> out;
+                           for (const Variant& v : variants())
+                             if (v.beam == ToothBeamModel::kModal && v.n_modes > 0)
+                               out.push_back(v);
+                           return out;
+                         }()),
+                         [](const ::testing::TestParamInfo<Variant>& info) {
+                           return info.param.name;
+                         });
+
 }  // namespace
 }  // namespace threshing_sim
