@@ -57,6 +57,19 @@ void copyCompiled(const ToothModel& from, ToothModel* to) {
   t.ld_root_T = from.ld_root_T;
 }
 
+// The size of a compiled tooth with its tables (approximate: the arrays' payloads) [bytes].
+size_t toothBytes(const ToothModel& t) {
+  size_t doubles = static_cast<size_t>(
+      t.beta_per_m.size() + t.sigma.size() + t.half_one_minus_sigma.size() + t.norm_C.size() +
+      t.omega0_sq.size() + t.rotation_factor.size() + t.damping_coeff.size() + t.K_G.size() +
+      t.p_inertia.size() + t.station_x_m.size() + t.phi_s.size() + t.dphi_s.size() +
+      t.beta4_per_m4.size() + t.ld_node_s_m.size() + t.ld_node_mass_kg.size() + t.ld_Phi.size() +
+      t.ld_K.size() + t.ld_D.size() + t.ld_rotation_filter.size() + t.ld_frequencies_Hz.size());
+  for (const MatX& H : t.H_s) doubles += static_cast<size_t>(H.size());
+  if (t.mode_table) doubles += t.mode_table->size();
+  return sizeof(ToothModel) + sizeof(double) * doubles;
+}
+
 }  // namespace
 
 std::string toothCompileKey(double drum_radius_m, const ToothModel& tooth) {
@@ -87,8 +100,14 @@ void ToothCache::compile(double drum_radius_m, ToothModel* tooth) {
   }
   ++misses_;
   compileTooth(drum_radius_m, tooth);  // throws on a bad tooth: nothing kept
-  if (teeth_.size() >= kMaxTeeth) teeth_.clear();
+  const size_t bytes = toothBytes(*tooth);
+  if (bytes > kMaxBytes / 8) return;  // alone above an eighth of the bound: not kept
+  if (teeth_.size() >= kMaxTeeth || bytes_ + bytes > kMaxBytes) {
+    teeth_.clear();
+    bytes_ = 0;
+  }
   teeth_.emplace(key, *tooth);
+  bytes_ += bytes;
 }
 
 }  // namespace threshing_sim

@@ -3,6 +3,7 @@
 // any input of compileTooth misses the cache.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <functional>
 #include <set>
@@ -245,5 +246,30 @@ TEST(ToothCache, BoundedSize) {
   EXPECT_EQ(cache.misses(), ToothCache::kMaxTeeth + 1);
 }
 
+// Teeth of 16 modes (about 0.4 MB of tables each): the bytes kept stay within the bound. A
+// tooth of 64 modes (about 6.5 MB) is above an eighth of it: compiled, never kept.
+TEST(ToothCache, BoundedBytes) {
+  ToothCache cache;
+  Model m = defaultSceneModel();
+  m.teeth[0].n_modes = 16;
+  size_t largest = 0;
+  for (int i = 0; i < 40; ++i) {
+    m.teeth[0].length_m = 0.05 + 5e-4 * i;
+    compiled(m, &cache);
+    EXPECT_LE(cache.bytes(), ToothCache::kMaxBytes) << i;
+    largest = std::max(largest, cache.size());
+  }
+  EXPECT_GE(largest, 4u);
+  EXPECT_LT(largest, 40u);
+  EXPECT_EQ(cache.misses(), 40u);
+
+  ToothCache big;
+  m.teeth[0].n_modes = 64;
+  const Model first = compiled(m, &big);
+  const Model again = compiled(m, &big);
+  EXPECT_EQ(big.size(), 0u);
+  EXPECT_EQ(big.misses(), 2u);
+  expectSameModel(first, again, "64 modes");
+}
 }  // namespace
 }  // namespace threshing_sim

@@ -316,18 +316,21 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     return rows, stats
 
 
-# Largest batch: a simulate --batch process costs a few ms to start (exec, dynamic linking, a
-# Dask task); 64 runs spread that over about a second of runs.
+# Largest batch of the local threads: their processes take one batch after another, so a
+# batch only sets how finely the runs are shared out.
 MAX_BATCH = 64
+# Largest batch of a Dask task: each task costs a simulate --batch process start (exec,
+# dynamic linking: about 3 ms of CPU) and the task's own round trips to the scheduler.
+MAX_TASK_BATCH = 128
 
 
-def batch_sizes(n_runs, workers, fixed=None):
-    """Runs per batch, in order: `fixed` each, or guided (each batch a quarter of the remaining
-    runs' share per worker, at most MAX_BATCH), so that the first batches spread the
-    process start over many runs and the last ones, of one or two runs, balance the workers."""
+def batch_sizes(n_runs, workers, fixed=None, parts=4, largest=MAX_BATCH):
+    """Runs per batch, in order: `fixed` each, or guided (each batch 1 / parts of the remaining
+    runs' share per worker, at most `largest`), so that the first batches spread the process
+    start over many runs and the last ones, of one or two runs, balance the workers."""
     sizes, left = [], n_runs
     while left > 0:
-        k = fixed or max(1, min(MAX_BATCH, math.ceil(left / (4 * max(workers, 1)))))
+        k = fixed or max(1, min(largest, math.ceil(left / (parts * max(workers, 1)))))
         k = min(k, left)
         sizes.append(k)
         left -= k
@@ -421,7 +424,8 @@ def _dispatch(work, scheduler, workers, batch, accept, pending, stats):
         departures = queue.Queue()
         client.subscribe_topic("all", lambda event: departures.put(event)
                                if event[1].get("action") == "remove-worker" else None)
-        sizes = batch_sizes(len(work), threads, batch)
+        # Half of each worker's remaining share: about half the tasks of a quarter.
+        sizes = batch_sizes(len(work), threads, batch, parts=2, largest=MAX_TASK_BATCH)
         stats.update(batch=max(sizes), batches=len(sizes))
         batches = _split(work, sizes)
         # One map call: every submit call would read the caller's source (Dask records it).
