@@ -20,6 +20,7 @@
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/geometry.h"
 #include "threshing_sim/core/overlap.h"
+#include "threshing_sim/core/tooth_cache.h"
 #include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
@@ -1403,7 +1404,7 @@ std::vector<std::string> overridesFromFile(const std::string& path) {
   return assignments;
 }
 
-Model modelFromYaml(const YAML::Node& root) {
+Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache) {
   if (!root.IsMap()) {
     fail("", "expected a mapping of sections at the top level (got " + show(root) + ")");
   }
@@ -1444,7 +1445,7 @@ Model modelFromYaml(const YAML::Node& root) {
   // Start configuration, then the core's own checks and derived quantities.
   checkInitialOverlaps(model);
   try {
-    compileModel(&model);
+    compileModel(&model, tooth_cache);
   } catch (const std::invalid_argument& e) {
     throw SceneError(e.what());
   }
