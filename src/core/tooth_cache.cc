@@ -11,7 +11,7 @@ namespace {
 // A new ToothModel field must be sorted here: into toothCompileKey if compileTooth (beam.cc,
 // large_deflection.cc) reads it, into copyCompiled if compileTooth writes it, else nowhere
 // (then update the size). test_tooth_cache checks a cached compile against a fresh one.
-static_assert(sizeof(ToothModel) == 816,
+static_assert(sizeof(ToothModel) == 832,
               "ToothModel changed: sort its new field into toothCompileKey or copyCompiled");
 
 template <typename T>
@@ -87,6 +87,8 @@ std::string toothCompileKey(double drum_radius_m, const ToothModel& tooth) {
   append(tooth.n_stations, &key);
   append(tooth.beam_model, &key);
   append(tooth.section_rotation, &key);
+  append(tooth.quasi_static_from_mode, &key);
+  append(tooth.quasi_static_speedup, &key);
   return key;
 }
 

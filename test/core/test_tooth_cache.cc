@@ -68,6 +68,8 @@ void expectSameTooth(const ToothModel& a, const ToothModel& b, const std::string
   EXPECT_TRUE(a.beam_model == b.beam_model) << where << ": beam_model";
   EXPECT_SAME_FIELD(static_correction);
   EXPECT_TRUE(a.section_rotation == b.section_rotation) << where << ": section_rotation";
+  EXPECT_SAME_FIELD(quasi_static_from_mode);
+  EXPECT_SAME_FIELD(quasi_static_speedup);
   EXPECT_SAME_FIELD(area_m2);
   EXPECT_SAME_FIELD(second_moment_m4);
   EXPECT_SAME_FIELD(mass_per_length_kgpm);
@@ -189,6 +191,11 @@ TEST(ToothCache, ChangedInputMisses) {
       {"beam model", [](Model* m) { m->teeth[0].beam_model = ToothBeamModel::kLargeDeflection; }},
       {"section rotation",
        [](Model* m) { m->teeth[0].section_rotation = ToothSectionRotation::kEulerBernoulli; }},
+      {"quasi-static modes",
+       [](Model* m) {
+         m->teeth[0].quasi_static_from_mode = 2;
+         m->teeth[0].quasi_static_speedup = 10;
+       }},
   };
   for (const auto& [name, change] : changes) {
     ToothCache cache;
