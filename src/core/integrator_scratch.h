@@ -67,6 +67,20 @@ struct ToothPropagator {
   Eigen::VectorXcd c;       // scratch: modal amplitudes V^-1 y, then scaled, 2n [mixed]
 };
 
+// One tooth's Lawson (integrating-factor) Dormand-Prince step (IntegratorParams::modal_split):
+// its modal state y = [q; qdot] in the interaction picture of its free propagator, in modal
+// amplitudes a = V^-1 y, where the propagator is diagonal (exp(lambda t)). Stage s is
+// a_s = G(c_s) a_0 + h sum_j a_sj G(c_s - c_j) n_j with n_j = V^-1 [0; N_j], N_j the stage's
+// acceleration minus the free tooth's (the contact force), G(x) = exp(lambda x h). Scratch, sized
+// 2n on the first use and reused.
+struct ModalSplitScratch {
+  Eigen::VectorXcd a0;         // amplitudes of the step start [mixed]
+  Eigen::VectorXcd n_k[7];     // V^-1 [0; N_j] of each stage [mixed / s]
+  Eigen::VectorXcd growth[6];  // exp(lambda c_s h) of the nodes c_1..c_6 (growth[0]: c_1) [-]
+  Eigen::VectorXcd decay[6];   // exp(-lambda c_s h) likewise [-]
+  Eigen::VectorXcd a;          // scratch amplitudes [mixed]
+};
+
 // The inputs of the event-driven integrator's last right-hand side evaluation, so that a call
 // with the same inputs (the step end, evaluated again as the next step's start, by the event
 // functions and the statistics) reuses its results, which stay in the workspace until any
@@ -130,7 +144,12 @@ struct EventDrivenScratch {
   // Exact propagation of free teeth (IntegratorParams::exact_free_teeth).
   std::vector<internal::ToothPropagator> prop;  // per tooth, keyed on the drum speed
   std::vector<std::uint8_t> tooth_exact;        // per tooth: exact over the current trial [-]
-  std::vector<std::uint8_t> own_error;          // per dof: counted in the error estimate [-]
+  std::vector<std::uint8_t> own_error;  // per dof: 0 out of the error estimate, 1 the Runge-Kutta
+                                        // estimate, 2 the modal split's (err_split) [-]
+  // Lawson split of the modal teeth in contact (IntegratorParams::modal_split).
+  std::vector<std::uint8_t> tooth_split;           // per tooth: split over the current trial [-]
+  std::vector<internal::ModalSplitScratch> split;  // per tooth
+  VecX err_split;                                  // error estimate of split dofs [z; u]
   // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
   // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
   std::vector<double> pk_f0, pk_r0, pk_f1, pk_r1;

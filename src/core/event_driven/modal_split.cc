@@ -1,0 +1,192 @@
+// The event-driven integrator's Lawson split of the modal teeth in contact
+// (IntegratorParams::modal_split): a tooth's modal state y = [q; qdot] obeys
+// y' = A y + [0; N], A the free tooth's state matrix at the drum speed (ToothPropagator) and N
+// the contact forces' modal acceleration. In the interaction picture w(t) = exp(-A (t - t0)) y(t)
+// the free part drops out, w' = exp(-A (t - t0)) [0; N], and the step applies the same
+// Dormand-Prince tableau and error control to w: the modes are propagated exactly, only the
+// contact force is integrated, so the step follows the contact, not the highest mode. Worked in
+// modal amplitudes (V^-1 y), where exp(A t) is diagonal: stage s of the tooth is
+//   a_s = G(c_s) [a_0 + h sum_j a_sj G(-c_j) n_j],   n_j = V^-1 [0; N_j],   G(x) = exp(lambda x h),
+// its error estimate G(1) h sum_j e_j G(-c_j) n_j. With N = 0 the step is the free propagator.
+#include <cmath>
+#include <complex>
+
+#include "../modal_propagator.h"
+#include "context.h"
+
+namespace threshing_sim {
+namespace internal {
+namespace event_driven {
+
+namespace {
+
+// Largest decay -Re(lambda) h over a step for which exp(-lambda c h) is formed (beyond it the
+// product G(c_s) G(-c_j) could overflow; such a tooth takes plain Dormand-Prince).
+constexpr double kMaxDecay = 300.0;
+
+// Complex product and exponential written out in real arithmetic (the library's operators check
+// for infinities and NaNs in a call per product; the values here are finite by kMaxDecay).
+inline std::complex<double> mul(const std::complex<double>& a, const std::complex<double>& b) {
+  return {a.real() * b.real() - a.imag() * b.imag(), a.real() * b.imag() + a.imag() * b.real()};
+}
+inline std::complex<double> expOf(const std::complex<double>& x) {
+  const double r = std::exp(x.real());
+  return {r * std::cos(x.imag()), r * std::sin(x.imag())};
+}
+
+// Growth and decay factors exp(+-lambda c_i h) of the nodes c_1..c_6 into the scratch; false if a
+// mode decays too fast over h for them.
+bool nodeFactors(const ToothPropagator& p, double h, ModalSplitScratch* sc) {
+  const int n2 = static_cast<int>(p.lambda.size());
+  for (int i = 0; i < n2; ++i)
+    if (-p.lambda[i].real() * h > kMaxDecay) return false;
+  for (int node = 1; node < 7; ++node) {
+    Eigen::VectorXcd& g = sc->growth[node - 1];
+    Eigen::VectorXcd& e = sc->decay[node - 1];
+    g.resize(n2);
+    e.resize(n2);
+    if (node > 1 && kC[node] == kC[node - 1]) {
+      g = sc->growth[node - 2];
+      e = sc->decay[node - 2];
+      continue;
+    }
+    for (int i = 0; i < n2; ++i) {
+      // One exponential per conjugate pair (as modalEvaluate).
+      const bool conjugate_of_previous = i > 0 && p.lambda[i] == std::conj(p.lambda[i - 1]);
+      if (conjugate_of_previous) {
+        g[i] = std::conj(g[i - 1]);
+        e[i] = std::conj(e[i - 1]);
+      } else {
+        const double ch = kC[node] * h;
+        g[i] = expOf(p.lambda[i] * ch);
+        // 1 / g = conj(g) / |g|^2 (finite and nonzero by kMaxDecay).
+        e[i] = std::conj(g[i]) / std::norm(g[i]);
+      }
+    }
+  }
+  return true;
+}
+
+// y = Re(V a) into (q, qd) (real arithmetic, as modalEvaluate).
+template <class Q, class Qd>
+void evaluateAmplitudes(const ToothPropagator& p, int n, const Eigen::VectorXcd& a, Q q, Qd qd) {
+  const int n2 = 2 * n;
+  for (int r = 0; r < n2; ++r) {
+    double y = 0.0;
+    for (int i = 0; i < n2; ++i)
+      y += p.V(r, i).real() * a[i].real() - p.V(r, i).imag() * a[i].imag();
+    (r < n ? q[r] : qd[r - n]) = y;
+  }
+}
+
+// w = a_0 + h sum_{j < s} a_sj G(-c_j) n_j (weights row of the tableau, s stages), into sc->a.
+void interactionSum(ModalSplitScratch* sc, int n2, const double* weights, int s, double h) {
+  Eigen::VectorXcd& w = sc->a;
+  w = sc->a0;
+  for (int j = 0; j < s; ++j) {
+    if (weights[j] == 0.0) continue;
+    const double b = h * weights[j];
+    for (int i = 0; i < n2; ++i)
+      w[i] += b * (j == 0 ? sc->n_k[0][i] : mul(sc->decay[j - 1][i], sc->n_k[j][i]));
+  }
+}
+
+}  // namespace
+
+int beginModalSplit(const Ctx& c, double h, const VecX& z0, const VecX& u0) {
+  const Model& m = c.m;
+  Workspace& ws = c.ws;
+  const int T = static_cast<int>(m.teeth.size());
+  ws.ed.tooth_split.assign(T, 0);
+  if (!m.integrator.modal_split || c.d.omega_radps != c.d.omega_target_radps) return 0;
+  if (ws.ed.prop.size() != static_cast<size_t>(T)) ws.ed.prop.resize(T);
+  if (ws.ed.split.size() != static_cast<size_t>(T)) ws.ed.split.resize(T);
+  growTo(&ws.ed.err_split, 2 * m.n_dof);
+  int marked = 0;
+  for (int k = 0; k < T; ++k) {
+    const ToothModel& tm = m.teeth[k];
+    if (tm.n_modes == 0 || (k < static_cast<int>(ws.ed.tooth_exact.size()) && ws.ed.tooth_exact[k]))
+      continue;
+    if (!buildToothPropagator(m, k, c.d.omega_radps, &ws.ed.prop[k])) continue;
+    ModalSplitScratch& sc = ws.ed.split[k];
+    if (!nodeFactors(ws.ed.prop[k], h, &sc)) continue;
+    const int n2 = 2 * tm.n_modes;
+    sc.a0.resize(n2);
+    sc.a.resize(n2);
+    for (Eigen::VectorXcd& v : sc.n_k) v.resize(n2);
+    modalAmplitudes(ws.ed.prop[k].V_inv, tm.n_modes, z0.segment(tm.dof_offset, tm.n_modes),
+                    u0.segment(tm.dof_offset, tm.n_modes), sc.a0);
+    ws.ed.tooth_split[k] = 1;
+    ++marked;
+  }
+  return marked;
+}
+
+void modalSplitStageState(const Ctx& c, int s, double h) {
+  Workspace& ws = c.ws;
+  for (size_t k = 0; k < ws.ed.tooth_split.size(); ++k) {
+    if (!ws.ed.tooth_split[k]) continue;
+    const ToothModel& tm = c.m.teeth[k];
+    const int n = tm.n_modes;
+    ModalSplitScratch& sc = ws.ed.split[k];
+    interactionSum(&sc, 2 * n, kA[s], s, h);
+    if (s > 0)
+      for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[s - 1][i]);
+    evaluateAmplitudes(ws.ed.prop[k], n, sc.a, ws.ed.zz.segment(tm.dof_offset, n),
+                       ws.ed.uu.segment(tm.dof_offset, n));
+  }
+}
+
+void modalSplitStoreStage(const Ctx& c, int s, double omega_radps) {
+  Workspace& ws = c.ws;
+  const double w2 = omega_radps * omega_radps;
+  for (size_t k = 0; k < ws.ed.tooth_split.size(); ++k) {
+    if (!ws.ed.tooth_split[k]) continue;
+    const ToothModel& tm = c.m.teeth[k];
+    const int n = tm.n_modes;
+    const int o = tm.dof_offset;
+    const ToothPropagator& p = ws.ed.prop[k];
+    const double* q = ws.ed.zz.data() + o;
+    const double* qd = ws.ed.uu.data() + o;
+    Eigen::VectorXcd& nk = ws.ed.split[k].n_k[s];
+    nk.setZero();
+    for (int i = 0; i < n; ++i) {
+      // N_i: the stage's acceleration minus the free tooth's (smoothForces' terms at constant
+      // drum speed), the contact forces' modal acceleration.
+      double kq = 0.0;
+      for (int j = 0; j < n; ++j) kq += tm.K_G(i, j) * q[j];
+      const double free_i =
+          -w2 * kq + (-(tm.omega0_sq[i] - w2) * q[i] - tm.damping_coeff[i] * qd[i]);
+      const double N_i = ws.ed.udot[o + i] - free_i;
+      if (N_i == 0.0) continue;
+      for (int r = 0; r < 2 * n; ++r) nk[r] += p.V_inv(r, n + i) * N_i;
+    }
+  }
+}
+
+void modalSplitError(const Ctx& c, double h) {
+  Workspace& ws = c.ws;
+  const int nd = c.m.n_dof;
+  for (size_t k = 0; k < ws.ed.tooth_split.size(); ++k) {
+    if (!ws.ed.tooth_split[k]) continue;
+    const ToothModel& tm = c.m.teeth[k];
+    const int n = tm.n_modes;
+    ModalSplitScratch& sc = ws.ed.split[k];
+    // h sum_j e_j G(-c_j) n_j (without a_0), carried to the step end by G(1).
+    sc.a.setZero();
+    for (int j = 0; j < 7; ++j) {
+      if (kE[j] == 0.0) continue;
+      const double b = h * kE[j];
+      for (int i = 0; i < 2 * n; ++i)
+        sc.a[i] += b * (j == 0 ? sc.n_k[0][i] : mul(sc.decay[j - 1][i], sc.n_k[j][i]));
+    }
+    for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[5][i]);
+    evaluateAmplitudes(ws.ed.prop[k], n, sc.a, ws.ed.err_split.segment(tm.dof_offset, n),
+                       ws.ed.err_split.segment(nd + tm.dof_offset, n));
+    std::fill_n(ws.ed.own_error.begin() + tm.dof_offset, n, 2);
+  }
+}
+
+}  // namespace event_driven
+}  // namespace internal
+}  // namespace threshing_sim
