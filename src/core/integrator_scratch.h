@@ -78,6 +78,7 @@ struct ModalSplitScratch {
   Eigen::VectorXcd n_k[7];     // V^-1 [0; N_j] of each stage [mixed / s]
   Eigen::VectorXcd growth[6];  // exp(lambda c_s h) of the nodes c_1..c_6 (growth[0]: c_1) [-]
   Eigen::VectorXcd decay[6];   // exp(-lambda c_s h) likewise [-]
+  Eigen::VectorXcd shift;      // static shift a* of each mode (0: none) [mixed]
   Eigen::VectorXcd a;          // scratch amplitudes [mixed]
 };
 

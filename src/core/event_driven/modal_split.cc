@@ -5,9 +5,16 @@
 // the free part drops out, w' = exp(-A (t - t0)) [0; N], and the step applies the same
 // Dormand-Prince tableau and error control to w: the modes are propagated exactly, only the
 // contact force is integrated, so the step follows the contact, not the highest mode. Worked in
-// modal amplitudes (V^-1 y), where exp(A t) is diagonal: stage s of the tooth is
-//   a_s = G(c_s) [a_0 + h sum_j a_sj G(-c_j) n_j],   n_j = V^-1 [0; N_j],   G(x) = exp(lambda x h),
-// its error estimate G(1) h sum_j e_j G(-c_j) n_j. With N = 0 the step is the free propagator.
+// modal amplitudes a = V^-1 y, where exp(A t) is diagonal (a_i' = lambda_i a_i + n_i).
+// A plain Lawson step integrates exp(-lambda t) n, which turns at the mode's frequency even when
+// the force is steady (a tooth pressed against a kernel): each fast mode is first shifted by its
+// static amplitude under the step start's force, a*_i = -n_0i / lambda_i (constant over the step,
+// so the shifted system b = a - a* is the same ODE with the forcing n - n_0: the order is kept,
+// and a steady force is propagated exactly; a generalised integrating factor, Krogstad 2005).
+// Stage s of the tooth is
+//   a_s = a* + G(c_s) [a_0 - a* + h sum_j a_sj G(-c_j) (n_j - n_0)],   G(x) = exp(lambda x h),
+// n_j = V^-1 [0; N_j] at stage j; its error estimate G(1) h sum_j e_j G(-c_j) (n_j - n_0). With
+// N = 0 the step is the free propagator.
 #include <cmath>
 #include <complex>
 
@@ -79,15 +86,37 @@ void evaluateAmplitudes(const ToothPropagator& p, int n, const Eigen::VectorXcd&
   }
 }
 
-// w = a_0 + h sum_{j < s} a_sj G(-c_j) n_j (weights row of the tableau, s stages), into sc->a.
+// The static shift of each mode, a*_i = -n_0i / lambda_i (the amplitude at which the step
+// start's contact term n_0 holds the mode still), for the modes that turn by at least
+// kShiftTurn radians (or decay by as much) over h; 0 for slower modes, whose interaction picture
+// is smooth over the step anyway.
+constexpr double kShiftTurn = 0.1;
+void staticShift(const ToothPropagator& p, double h, ModalSplitScratch* sc) {
+  for (int i = 0; i < sc->shift.size(); ++i) {
+    const std::complex<double> l = p.lambda[i];
+    const double l2 = std::norm(l);
+    sc->shift[i] = l2 * h * h >= kShiftTurn * kShiftTurn ? -mul(sc->n_k[0][i], std::conj(l)) / l2
+                                                         : std::complex<double>(0.0, 0.0);
+  }
+}
+
+// The contact term of stage j less the step start's on the modes that carry a static shift [mixed
+// / s]: n_j - n_0 there, n_j elsewhere.
+inline std::complex<double> shiftedTerm(const ModalSplitScratch& sc, int j, int i) {
+  return sc.shift[i] == 0.0 ? sc.n_k[j][i] : sc.n_k[j][i] - sc.n_k[0][i];
+}
+
+// w = (a_0 - a*) + h sum_{j < s} a_sj G(-c_j) (n_j - n_0) (weights row of the tableau, s stages),
+// into sc->a.
 void interactionSum(ModalSplitScratch* sc, int n2, const double* weights, int s, double h) {
   Eigen::VectorXcd& w = sc->a;
-  w = sc->a0;
+  for (int i = 0; i < n2; ++i) w[i] = sc->a0[i] - sc->shift[i];
   for (int j = 0; j < s; ++j) {
     if (weights[j] == 0.0) continue;
     const double b = h * weights[j];
     for (int i = 0; i < n2; ++i)
-      w[i] += b * (j == 0 ? sc->n_k[0][i] : mul(sc->decay[j - 1][i], sc->n_k[j][i]));
+      w[i] +=
+          b * (j == 0 ? shiftedTerm(*sc, 0, i) : mul(sc->decay[j - 1][i], shiftedTerm(*sc, j, i)));
   }
 }
 
@@ -113,6 +142,7 @@ int beginModalSplit(const Ctx& c, double h, const VecX& z0, const VecX& u0) {
     const int n2 = 2 * tm.n_modes;
     sc.a0.resize(n2);
     sc.a.resize(n2);
+    sc.shift.setZero(n2);
     for (Eigen::VectorXcd& v : sc.n_k) v.resize(n2);
     modalAmplitudes(ws.ed.prop[k].V_inv, tm.n_modes, z0.segment(tm.dof_offset, tm.n_modes),
                     u0.segment(tm.dof_offset, tm.n_modes), sc.a0);
@@ -129,9 +159,10 @@ void modalSplitStageState(const Ctx& c, int s, double h) {
     const ToothModel& tm = c.m.teeth[k];
     const int n = tm.n_modes;
     ModalSplitScratch& sc = ws.ed.split[k];
+    if (s == 1) staticShift(ws.ed.prop[k], h, &sc);  // from the first stage's contact term
     interactionSum(&sc, 2 * n, kA[s], s, h);
     if (s > 0)
-      for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[s - 1][i]);
+      for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[s - 1][i]) + sc.shift[i];
     evaluateAmplitudes(ws.ed.prop[k], n, sc.a, ws.ed.zz.segment(tm.dof_offset, n),
                        ws.ed.uu.segment(tm.dof_offset, n));
   }
@@ -172,13 +203,14 @@ void modalSplitError(const Ctx& c, double h) {
     const ToothModel& tm = c.m.teeth[k];
     const int n = tm.n_modes;
     ModalSplitScratch& sc = ws.ed.split[k];
-    // h sum_j e_j G(-c_j) n_j (without a_0), carried to the step end by G(1).
+    // h sum_j e_j G(-c_j) (n_j - n_0) (without a_0), carried to the step end by G(1).
     sc.a.setZero();
     for (int j = 0; j < 7; ++j) {
       if (kE[j] == 0.0) continue;
       const double b = h * kE[j];
       for (int i = 0; i < 2 * n; ++i)
-        sc.a[i] += b * (j == 0 ? sc.n_k[0][i] : mul(sc.decay[j - 1][i], sc.n_k[j][i]));
+        sc.a[i] +=
+            b * (j == 0 ? shiftedTerm(sc, 0, i) : mul(sc.decay[j - 1][i], shiftedTerm(sc, j, i)));
     }
     for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[5][i]);
     evaluateAmplitudes(ws.ed.prop[k], n, sc.a, ws.ed.err_split.segment(tm.dof_offset, n),
