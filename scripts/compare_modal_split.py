@@ -11,7 +11,9 @@ shared machine where wall times are not) of one run of each variant.
 
 Usage: scripts/compare_modal_split.py [--scene FILE]... [--tolerance X] [--ref-tolerance X]
        [--duration S] [--callgrind] [--simulate PATH]
-(default scene: config/default_scene.yaml; needs valgrind for --callgrind)
+(default scenes: config/default_scene.yaml (4 modes), config/scenes/single_strike.yaml and
+config/scenes/knead.yaml (modes: auto; a strike and a tooth pressed against a kernel on a bar);
+needs valgrind for --callgrind)
 """
 import argparse
 import json
@@ -92,7 +94,9 @@ def main():
     ap.add_argument("--callgrind", action="store_true")
     ap.add_argument("--simulate", default=str(BIN_DIR / "simulate"))
     args = ap.parse_args()
-    scenes = args.scene or [os.path.join(ROOT, "config", "default_scene.yaml")]
+    scenes = args.scene or [os.path.join(ROOT, "config", "default_scene.yaml"),
+                            os.path.join(ROOT, "config", "scenes", "single_strike.yaml"),
+                            os.path.join(ROOT, "config", "scenes", "knead.yaml")]
 
     print("event-driven, tolerance %g; reference: modal_split none, global scheme, tolerance %g"
           % (args.tolerance, args.ref_tolerance))

@@ -80,6 +80,14 @@ struct ModalSplitScratch {
   Eigen::VectorXcd decay[6];   // exp(-lambda c_s h) likewise [-]
   Eigen::VectorXcd shift;      // static shift a* of each mode (0: none) [mixed]
   Eigen::VectorXcd a;          // scratch amplitudes [mixed]
+  // Real and imaginary parts of the propagator's V and of V^-1's velocity columns (real
+  // matrix-vector products), built at the drum speed factors_omega_radps.
+  double factors_omega_radps = std::numeric_limits<double>::quiet_NaN();  // [rad/s]
+  MatX V_re, V_im;                                                        // 2n x 2n [mixed]
+  MatX Vinv_u_re, Vinv_u_im;                                              // 2n x n [mixed]
+  VecX a_re, a_im;    // scratch: amplitudes' parts, 2n [mixed]
+  VecX N;             // scratch: contact modal acceleration, n [1/s^2 sqrt(kg) m]
+  VecX nk_re, nk_im;  // scratch: V^-1 [0; N] parts, 2n [mixed / s]
 };
 
 // The inputs of the event-driven integrator's last right-hand side evaluation, so that a call

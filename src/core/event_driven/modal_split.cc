@@ -47,43 +47,84 @@ bool nodeFactors(const ToothPropagator& p, double h, ModalSplitScratch* sc) {
   const int n2 = static_cast<int>(p.lambda.size());
   for (int i = 0; i < n2; ++i)
     if (-p.lambda[i].real() * h > kMaxDecay) return false;
-  for (int node = 1; node < 7; ++node) {
-    Eigen::VectorXcd& g = sc->growth[node - 1];
-    Eigen::VectorXcd& e = sc->decay[node - 1];
-    g.resize(n2);
-    e.resize(n2);
-    if (node > 1 && kC[node] == kC[node - 1]) {
-      g = sc->growth[node - 2];
-      e = sc->decay[node - 2];
-      continue;
-    }
-    for (int i = 0; i < n2; ++i) {
-      // One exponential per conjugate pair (as modalEvaluate).
-      const bool conjugate_of_previous = i > 0 && p.lambda[i] == std::conj(p.lambda[i - 1]);
+  // The nodes 1/5, 3/10, 4/5, 1 are multiples of 1/10: their factors are powers of
+  // g = exp(lambda h / 10) (a few rounding errors each); 8/9 takes its own exponential.
+  static_assert(kC[1] == 2. / 10 && kC[2] == 3. / 10 && kC[3] == 8. / 10 && kC[4] == 8. / 9 &&
+                    kC[5] == 1.0 && kC[6] == 1.0,
+                "nodeFactors assumes the Dormand-Prince nodes");
+  for (int node = 0; node < 6; ++node) {
+    sc->growth[node].resize(n2);
+    sc->decay[node].resize(n2);
+  }
+  for (int i = 0; i < n2; ++i) {
+    // One set per conjugate pair (as modalEvaluate).
+    const bool conjugate_of_previous = i > 0 && p.lambda[i] == std::conj(p.lambda[i - 1]);
+    for (int node = 0; node < 6; ++node) {
+      std::complex<double>& g = sc->growth[node][i];
       if (conjugate_of_previous) {
-        g[i] = std::conj(g[i - 1]);
-        e[i] = std::conj(e[i - 1]);
-      } else {
-        const double ch = kC[node] * h;
-        g[i] = expOf(p.lambda[i] * ch);
-        // 1 / g = conj(g) / |g|^2 (finite and nonzero by kMaxDecay).
-        e[i] = std::conj(g[i]) / std::norm(g[i]);
+        g = std::conj(sc->growth[node][i - 1]);
+        continue;
       }
+      switch (node) {
+        case 0: {  // 2/10
+          const std::complex<double> g1 = expOf(p.lambda[i] * (0.1 * h));
+          g = mul(g1, g1);
+          sc->growth[1][i] = mul(g, g1);  // 3/10
+          break;
+        }
+        case 2:  // 8/10 = 3/10 + 3/10 + 2/10
+          g = mul(mul(sc->growth[1][i], sc->growth[1][i]), sc->growth[0][i]);
+          break;
+        case 3:  // 8/9
+          g = expOf(p.lambda[i] * (kC[4] * h));
+          break;
+        case 4:  // 1 = 8/10 + 2/10
+          g = mul(sc->growth[2][i], sc->growth[0][i]);
+          break;
+        case 5:  // 1 (FSAL)
+          g = sc->growth[4][i];
+          break;
+        default:  // 3/10, set with 2/10
+          break;
+      }
+    }
+    for (int node = 0; node < 6; ++node) {
+      // 1 / g = conj(g) / |g|^2 (finite and nonzero by kMaxDecay).
+      const std::complex<double>& g = sc->growth[node][i];
+      sc->decay[node][i] = std::conj(g) / std::norm(g);
     }
   }
   return true;
 }
 
-// y = Re(V a) into (q, qd) (real arithmetic, as modalEvaluate).
-template <class Q, class Qd>
-void evaluateAmplitudes(const ToothPropagator& p, int n, const Eigen::VectorXcd& a, Q q, Qd qd) {
-  const int n2 = 2 * n;
-  for (int r = 0; r < n2; ++r) {
-    double y = 0.0;
-    for (int i = 0; i < n2; ++i)
-      y += p.V(r, i).real() * a[i].real() - p.V(r, i).imag() * a[i].imag();
-    (r < n ? q[r] : qd[r - n]) = y;
+// The real and imaginary parts of V and of V^-1's velocity columns, for real matrix-vector
+// products (vectorised; the complex loops cost several times more at 20 modes). Rebuilt when the
+// propagator is (another drum speed).
+void realFactors(const ToothPropagator& p, int n, ModalSplitScratch* sc) {
+  if (sc->factors_omega_radps == p.omega_radps && sc->V_re.rows() == 2 * n) return;
+  sc->factors_omega_radps = p.omega_radps;
+  sc->V_re = p.V.real();
+  sc->V_im = p.V.imag();
+  sc->Vinv_u_re = p.V_inv.rightCols(n).real();
+  sc->Vinv_u_im = p.V_inv.rightCols(n).imag();
+  sc->a_re.resize(2 * n);
+  sc->a_im.resize(2 * n);
+  sc->N.resize(n);
+  sc->nk_re.resize(2 * n);
+  sc->nk_im.resize(2 * n);
+}
+
+// y = Re(V a) = V_re Re(a) - V_im Im(a) into (q, qd).
+void evaluateAmplitudes(ModalSplitScratch* sc, int n, const Eigen::VectorXcd& a, Eigen::Ref<VecX> q,
+                        Eigen::Ref<VecX> qd) {
+  for (int i = 0; i < 2 * n; ++i) {
+    sc->a_re[i] = a[i].real();
+    sc->a_im[i] = a[i].imag();
   }
+  q.noalias() = sc->V_re.topRows(n) * sc->a_re;
+  q.noalias() -= sc->V_im.topRows(n) * sc->a_im;
+  qd.noalias() = sc->V_re.bottomRows(n) * sc->a_re;
+  qd.noalias() -= sc->V_im.bottomRows(n) * sc->a_im;
 }
 
 // The static shift of each mode, a*_i = -n_0i / lambda_i (the amplitude at which the step
@@ -144,6 +185,7 @@ int beginModalSplit(const Ctx& c, double h, const VecX& z0, const VecX& u0) {
     sc.a.resize(n2);
     sc.shift.setZero(n2);
     for (Eigen::VectorXcd& v : sc.n_k) v.resize(n2);
+    realFactors(ws.ed.prop[k], tm.n_modes, &sc);
     modalAmplitudes(ws.ed.prop[k].V_inv, tm.n_modes, z0.segment(tm.dof_offset, tm.n_modes),
                     u0.segment(tm.dof_offset, tm.n_modes), sc.a0);
     ws.ed.tooth_split[k] = 1;
@@ -163,7 +205,7 @@ void modalSplitStageState(const Ctx& c, int s, double h) {
     interactionSum(&sc, 2 * n, kA[s], s, h);
     if (s > 0)
       for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[s - 1][i]) + sc.shift[i];
-    evaluateAmplitudes(ws.ed.prop[k], n, sc.a, ws.ed.zz.segment(tm.dof_offset, n),
+    evaluateAmplitudes(&sc, n, sc.a, ws.ed.zz.segment(tm.dof_offset, n),
                        ws.ed.uu.segment(tm.dof_offset, n));
   }
 }
@@ -176,22 +218,22 @@ void modalSplitStoreStage(const Ctx& c, int s, double omega_radps) {
     const ToothModel& tm = c.m.teeth[k];
     const int n = tm.n_modes;
     const int o = tm.dof_offset;
-    const ToothPropagator& p = ws.ed.prop[k];
-    const double* q = ws.ed.zz.data() + o;
-    const double* qd = ws.ed.uu.data() + o;
-    Eigen::VectorXcd& nk = ws.ed.split[k].n_k[s];
-    nk.setZero();
+    ModalSplitScratch& sc = ws.ed.split[k];
+    const auto q = ws.ed.zz.segment(o, n);
+    const auto qd = ws.ed.uu.segment(o, n);
+    // N: the stage's acceleration minus the free tooth's (smoothForces' terms at constant drum
+    // speed), the contact forces' modal acceleration; first K_G q into N.
+    sc.N.noalias() = tm.K_G * q;
     for (int i = 0; i < n; ++i) {
-      // N_i: the stage's acceleration minus the free tooth's (smoothForces' terms at constant
-      // drum speed), the contact forces' modal acceleration.
-      double kq = 0.0;
-      for (int j = 0; j < n; ++j) kq += tm.K_G(i, j) * q[j];
       const double free_i =
-          -w2 * kq + (-(tm.omega0_sq[i] - w2) * q[i] - tm.damping_coeff[i] * qd[i]);
-      const double N_i = ws.ed.udot[o + i] - free_i;
-      if (N_i == 0.0) continue;
-      for (int r = 0; r < 2 * n; ++r) nk[r] += p.V_inv(r, n + i) * N_i;
+          -w2 * sc.N[i] + (-(tm.omega0_sq[i] - w2) * q[i] - tm.damping_coeff[i] * qd[i]);
+      sc.N[i] = ws.ed.udot[o + i] - free_i;
     }
+    // n_s = V^-1 [0; N] by the real and imaginary parts of V^-1's velocity columns.
+    sc.nk_re.noalias() = sc.Vinv_u_re * sc.N;
+    sc.nk_im.noalias() = sc.Vinv_u_im * sc.N;
+    Eigen::VectorXcd& nk = sc.n_k[s];
+    for (int r = 0; r < 2 * n; ++r) nk[r] = std::complex<double>(sc.nk_re[r], sc.nk_im[r]);
   }
 }
 
@@ -213,7 +255,7 @@ void modalSplitError(const Ctx& c, double h) {
             b * (j == 0 ? shiftedTerm(sc, 0, i) : mul(sc.decay[j - 1][i], shiftedTerm(sc, j, i)));
     }
     for (int i = 0; i < 2 * n; ++i) sc.a[i] = mul(sc.a[i], sc.growth[5][i]);
-    evaluateAmplitudes(ws.ed.prop[k], n, sc.a, ws.ed.err_split.segment(tm.dof_offset, n),
+    evaluateAmplitudes(&sc, n, sc.a, ws.ed.err_split.segment(tm.dof_offset, n),
                        ws.ed.err_split.segment(nd + tm.dof_offset, n));
     std::fill_n(ws.ed.own_error.begin() + tm.dof_offset, n, 2);
   }
