@@ -31,6 +31,13 @@ namespace {
 // product G(c_s) G(-c_j) could overflow; such a tooth takes plain Dormand-Prince).
 constexpr double kMaxDecay = 300.0;
 
+// Smallest turn max_i |lambda_i| h [rad] of a tooth's fastest mode over a step for which it is
+// split: a slower tooth's modes are smooth over the step, plain Dormand-Prince resolves them at
+// no extra cost, and the transforms would only add theirs (the default strike's 4 modes over
+// its contact steps: about 0.15 rad). Below the explicit method's stability bound (3.3) on the
+// imaginary axis, so every step the modes would limit is split.
+constexpr double kMinTurn = 1.0;
+
 // Complex product and exponential written out in real arithmetic (the library's operators check
 // for infinities and NaNs in a call per product; the values here are finite by kMaxDecay).
 inline std::complex<double> mul(const std::complex<double>& a, const std::complex<double>& b) {
@@ -178,6 +185,7 @@ int beginModalSplit(const Ctx& c, double h, const VecX& z0, const VecX& u0) {
     if (tm.n_modes == 0 || (k < static_cast<int>(ws.ed.tooth_exact.size()) && ws.ed.tooth_exact[k]))
       continue;
     if (!buildToothPropagator(m, k, c.d.omega_radps, &ws.ed.prop[k])) continue;
+    if (ws.ed.prop[k].lambda.cwiseAbs().maxCoeff() * h < kMinTurn) continue;
     ModalSplitScratch& sc = ws.ed.split[k];
     if (!nodeFactors(ws.ed.prop[k], h, &sc)) continue;
     const int n2 = 2 * tm.n_modes;
