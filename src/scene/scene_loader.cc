@@ -466,8 +466,9 @@ const KeySpec kSchema[] = {
      "Event-driven: `exact` steps a modal tooth in contact, while the drum turns at constant "
      "speed, by a Lawson (integrating-factor) Dormand-Prince: its free modal equations by their "
      "exact propagator (as `free_teeth: exact`), the contact force as the only integrated term, "
-     "so that the step follows the contact, not the highest mode; `none` integrates it with "
-     "plain Dormand-Prince. A drum ramp or a large-deflection rod always takes `none`.",
+     "so that the step follows the contact, not the highest mode (over the trial steps in which "
+     "its fastest mode turns by a radian or more); `none` integrates it with plain "
+     "Dormand-Prince. A drum ramp or a large-deflection rod always takes `none`.",
      "exact, none"},
     {"integrator.islands", KeyKind::kValue, "word", "", kNoRange,
      [](const SchemaDefaults& d) -> std::string { return trueFalse(d.model.integrator.islands); },
