@@ -26,6 +26,7 @@ import tempfile
 
 from tslib import ROOT
 from tslib.binaries import BIN_DIR
+from tslib.numbers import exit_velocity_error, rel_error
 
 
 def options(split, islands, tolerance, duration):
@@ -51,7 +52,7 @@ def run(simulate, scene, opts):
     return result
 
 
-def stepping_instructions(simulate, scene, opts):
+def advance_instructions(simulate, scene, opts):
     """Instructions (callgrind Ir) of advancePast (the stepping loop) in one run."""
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "callgrind.out")
@@ -64,20 +65,6 @@ def stepping_instructions(simulate, scene, opts):
                 if m:
                     return int(m.group(1))
     sys.exit("compare_modal_split: no instruction count in the callgrind output")
-
-
-def rel(x, ref):
-    return abs(x - ref) / max(abs(ref), 1e-12)
-
-
-def exit_velocity_error(r, ref):
-    """Largest exit velocity difference over the kernels, relative to that kernel's speed."""
-    worst = 0.0
-    for k, kr in zip(r["kernels"], ref["kernels"]):
-        dv = math.hypot(k["velocity_mps"][0] - kr["velocity_mps"][0],
-                        k["velocity_mps"][1] - kr["velocity_mps"][1])
-        worst = max(worst, dv / max(math.hypot(*kr["velocity_mps"]), 1e-12))
-    return worst
 
 
 def steps(r):
@@ -117,12 +104,12 @@ def main():
                 row = "| %s | %s | %s | %d | %d | %d (%d) | %.2g | %.2g | %.2g | %.2g |" % (
                     os.path.relpath(scene, ROOT), islands, split, steps(r), r["rejected_steps"],
                     r["impacts"], ref["impacts"],
-                    rel(r["peak_normal_force_N"], ref["peak_normal_force_N"]),
-                    rel(r["peak_tangential_force_N"], ref["peak_tangential_force_N"]),
-                    rel(r["total_normal_impulse_Ns"], ref["total_normal_impulse_Ns"]),
+                    rel_error(r["peak_normal_force_N"], ref["peak_normal_force_N"]),
+                    rel_error(r["peak_tangential_force_N"], ref["peak_tangential_force_N"]),
+                    rel_error(r["total_normal_impulse_Ns"], ref["total_normal_impulse_Ns"]),
                     exit_velocity_error(r, ref))
                 if args.callgrind:
-                    row += " %.4g M |" % (stepping_instructions(args.simulate, scene, opts) / 1e6)
+                    row += " %.4g M |" % (advance_instructions(args.simulate, scene, opts) / 1e6)
                 print(row, flush=True)
 
 
