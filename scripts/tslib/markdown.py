@@ -17,6 +17,7 @@ SECTIONS = {
     "profile": "docs/performance.md",       # scripts/profile_core.sh
     "profile-streams": "docs/performance.md",  # scripts/profile_core.sh --streams
     "free-teeth": "docs/performance.md",    # scripts/compare_free_teeth.py --callgrind
+    "modal-split": "docs/performance.md",   # scripts/compare_modal_split.py --callgrind
     "islands-table": "docs/architecture.md",  # scripts/bench.py --part islands
     "stage-profile": "docs/bench_islands.md",  # scripts/stage_profile.py --docs
     # scripts/stage_profile.py --docs --section stage-profile-before --simulate <main's build>

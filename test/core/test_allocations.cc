@@ -223,6 +223,14 @@ TEST(Allocations, KneadEventDriven) {
   EXPECT_EQ(allocationsAfterWarmUp(m, 20, 800, 2), 0);
 }
 
+// The same with the Lawson split of the tooth in contact (its 20 modes: the split engages).
+TEST(Allocations, KneadEventDrivenModalSplit) {
+  const Model m = loadConfig(
+      "config/scenes/knead.yaml",
+      {"integrator.type=event_driven", "integrator.modal_split=exact", "deflection_validity=1"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 20, 800, 2), 0);
+}
+
 TEST(Allocations, KneadTimeStepping) {
   const Model m =
       loadConfig("config/scenes/knead.yaml",

@@ -223,6 +223,11 @@ struct IntegratorParams {
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
              // is advanced by the exact solution of its linear modal equations, outside the
              // error control (false: every tooth by Dormand-Prince) [-]
+  bool modal_split =
+      false;  // event-driven: a modal tooth in contact while the drum turns at constant speed is
+              // stepped by a Lawson (integrating-factor) Dormand-Prince: its free modal
+              // equations exactly, the contact force as the only integrated term (false: every
+              // tooth in contact by plain Dormand-Prince) [-]
 };
 
 struct Model {
