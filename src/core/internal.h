@@ -49,6 +49,23 @@ inline constexpr double kA[7][6] = {
 inline constexpr double kE[7] = {71. / 57600,      0,         -71. / 16695, 71. / 1920,
                                  -17253. / 339200, 22. / 525, -1. / 40};
 
+// Work budget of one advanceTo() call, in work units: kBaseWork plus kWorkPerSecond per second
+// of simulated time the call covers. A unit is one integrator step (time stepping) or one
+// Dormand-Prince trial step (event-driven: accepted, rejected, or one of an event's bisection).
+// The scenes of config/ average 1e4-1e6 per simulated second (simulate's steps +
+// rejected_steps), but the threshing streams of scripts/compare_teeth.py (600-1500 rpm, every
+// tooth) have stretches of 1e-4 s that need 5e7 per second: kernels sliding on each other or on
+// a tooth at 2-18 m/s while they bounce at mm/s, a contact event every 0.1 us (issue 12). The
+// rate allows six times that, an average trial step of 3.3 ns; a call whose steps collapse (a
+// body inside another: ~1e-11 s, 1e11 per second) still fails, on its 2,000 units however short
+// it is (a trial step near a contact costs ~1e6 instructions: about a second of wall time).
+constexpr double kBaseWork = 2e3;
+constexpr double kWorkPerSecond = 3e8;
+// The island scheme (src/core/async/) counts a scheduling window, an island's step or trial step
+// and a lone kernel's own-clock step (accepted or rejected) as one unit each, and gives each lone
+// kernel's clock kWorkPerSecond per second of its own time integrated step by step (a clock's
+// catch-up over a long lazy span is paid for by that span, not by the call's interval).
+
 // Grow-only sizing of scratch storage: the size rises to the largest request seen and stays,
 // so that steady stepping allocates nothing; callers use the leading n entries (head, block).
 inline void growTo(VecX* v, Eigen::Index n) {

@@ -158,18 +158,6 @@ StepStatus step(const Model& model, Data* data) {
 
 namespace {
 
-// Work budget of one advanceTo() call, in work units: kBaseWork plus kWorkPerSecond per second
-// of simulated time the call covers. A unit is one integrator step (time stepping) or one
-// Dormand-Prince trial step (event-driven: accepted, rejected, or one of an event's bisection).
-// The scenes of config/ average 1e4-1e6 per simulated second (simulate's steps +
-// rejected_steps), but the threshing streams of scripts/compare_teeth.py (600-1500 rpm, every
-// tooth) have stretches of 1e-4 s that need 5e7 per second: kernels sliding on each other or on
-// a tooth at 2-18 m/s while they bounce at mm/s, a contact event every 0.1 us (issue 12). The
-// rate allows six times that, an average trial step of 3.3 ns; a call whose steps collapse (a
-// body inside another: ~1e-11 s, 1e11 per second) still fails, on its 2,000 units however short
-// it is (a trial step near a contact costs ~1e6 instructions: about a second of wall time).
-constexpr double kBaseWork = 2e3;
-constexpr double kWorkPerSecond = 3e8;
 // Accepted steps in a row that leave t_s unchanged before the call fails as kTimeStalled.
 constexpr int kMaxStalledSteps = 100;
 
@@ -192,8 +180,8 @@ namespace {
 StepStatus advanceGlobal(const Model& model, Data* data, double t_end_s, double t_stop_s) {
   StepStatus worst = StepStatus::kOk;
   const double h = model.integrator.dt_s;
-  const long budget = static_cast<long>(
-      std::min(1e15, kBaseWork + kWorkPerSecond * std::max(0.0, t_end_s - data->t_s)));
+  const long budget = static_cast<long>(std::min(
+      1e15, internal::kBaseWork + internal::kWorkPerSecond * std::max(0.0, t_end_s - data->t_s)));
   const long steps_start = data->steps, trials_start = data->ws->ed.trial_steps;
   int stalled = 0;
   while (true) {
@@ -329,7 +317,8 @@ std::string describe(const FailureInfo& f) {
   char text[256];
   std::snprintf(text, sizeof(text), "%s [%s] at t = %.9g s (target %.9g s, %ld of %ld work units)",
                 what, toString(f.cause), f.t_s, f.t_target_s, f.work, f.budget);
-  return text;
+  if (f.scope == nullptr) return text;
+  return std::string(text) + " in " + f.scope;
 }
 
 Vec2 toothPointWorld(const Model& model, const Data& data, int tooth, double x_m) {

@@ -139,5 +139,91 @@ TEST(WorkBudget, OrdinaryRunStaysInsideBudget) {
   }
 }
 
+// Under the island scheme (issue 22): n kernels swinging on their pedicels (hung 2 mm aside), 12 mm
+// apart, far from anything (no teeth), event-driven at tolerance 1e-6 with max_step max_step_s.
+// Their own clocks integrate step by step (their swing is beyond the pedicel's closed form).
+Model swingingPedicels(int n, double max_step_s) {
+  Model m = testutil::bareModel(kED);
+  m.integrator.islands = true;
+  m.integrator.tolerance = 1e-6;
+  m.integrator.max_step_s = max_step_s;
+  const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
+  for (int i = 0; i < n; ++i) {
+    const Vec2 anchor(0.012 * i, 0.0);
+    const double hang_m = rest + mass * testutil::kG / k_Npm + a;
+    KernelModel k =
+        testutil::makeKernel(a, 1.3e-3, anchor - Vec2(2e-3, hang_m), Vec2::Zero(), kPi / 2, mass);
+    k.pedicel.present = true;
+    k.pedicel.p_WA_W = anchor;
+    k.pedicel.p_KP_K = Vec2(a, 0.0);
+    k.pedicel.stiffness_Npm = k_Npm;
+    k.pedicel.damping_Nspm = 0.002;
+    k.pedicel.rest_length_m = rest;
+    k.pedicel.detachment_force_N = 1.6;
+    m.kernels.push_back(k);
+  }
+  compileModel(&m);
+  return m;
+}
+
+// test_stream's failing bounded run under islands (max_step 1e-9 s): the windows and the lone
+// kernels' clocks take 1e-9 s steps, 1e5 of each per 1e-4 s. Before, the island scheme had no
+// budget over its windows and lone clocks: this call ran them all (1e5 windows, 1e6 clock steps)
+// and returned kOk, and the stream in the node ran for minutes. Now the call fails on its budget
+// (2,000 + 3e8/s x 1e-4 s, plus 0.3 per clock step of its clocks' own spans), naming the cause.
+TEST(WorkBudget, IslandsWithATinyMaxStepFailOnTheCallsBudget) {
+  const Model m = swingingPedicels(10, 1e-9);
+  Data d;
+  resetData(m, &d);
+  StepStatus s;
+  {
+    Watchdog watchdog(60.0);
+    s = advanceTo(m, &d, 1e-4);
+  }
+  const FailureInfo& f = d.stats.failure;
+  ASSERT_EQ(s, StepStatus::kFailed);
+  EXPECT_EQ(f.cause, FailureCause::kWorkBudget) << describe(f);
+  ASSERT_NE(f.scope, nullptr);
+  EXPECT_NE(std::string(f.scope).find("island scheme"), std::string::npos);
+  EXPECT_NE(describe(f).find("[work_budget]"), std::string::npos) << describe(f);
+  EXPECT_LT(d.t_s, 1e-4);
+  // Bounded: the work done is within one unit of the budget, and the budget within twice the
+  // interval's (the clocks' spans add 0.3 per 1e-9 s step); the windows are within it.
+  EXPECT_GE(f.budget, 32000);
+  EXPECT_LE(f.budget, 2 * 32000);
+  EXPECT_LE(f.work, f.budget + 1);
+  EXPECT_LE(d.stats.scheduler.windows, f.budget + 1);
+  EXPECT_TRUE(d.z.allFinite() && d.u.allFinite());
+}
+
+// A lone kernel's clock catching up a long lazy span in one call: advanceToLazy leaves the
+// swinging kernels on their own clocks, then a sync must bring them over that span with 1e-9 s
+// steps (the model's max_step lowered). Before, a clock could take 1e7 steps per call (10 kernels
+// x up to 1e6 steps here, then kOk); now its steps are spent from the sync's budget (2,000 plus
+// 3e8/s x each clock's span: a clock that completes spends more than its span brings, so the
+// budget stays below (2,000 + 3e5) / 0.7) and the sync fails on it, naming the pedicel clock.
+TEST(WorkBudget, IslandsLoneKernelClockIsBounded) {
+  Model m = swingingPedicels(10, 1e-4);
+  Data d;
+  resetData(m, &d);
+  ASSERT_EQ(advanceToLazy(m, &d, 1e-3), StepStatus::kOk) << describe(d.stats.failure);
+  ASSERT_GT(d.stats.scheduler.pedicel_steps, 0);  // the clocks integrate step by step
+  m.integrator.max_step_s = 1e-9;
+  const long clock_steps_before = d.stats.scheduler.pedicel_steps;
+  StepStatus s;
+  {
+    Watchdog watchdog(60.0);
+    s = syncBodies(m, &d);
+  }
+  const FailureInfo& f = d.stats.failure;
+  ASSERT_EQ(s, StepStatus::kFailed);
+  EXPECT_EQ(f.cause, FailureCause::kWorkBudget) << describe(f);
+  ASSERT_NE(f.scope, nullptr);
+  EXPECT_NE(std::string(f.scope).find("pedicel clock"), std::string::npos) << f.scope;
+  EXPECT_LE(d.stats.scheduler.pedicel_steps - clock_steps_before, 440000);
+  EXPECT_LE(f.budget, 440000);
+  EXPECT_LE(f.work, f.budget + 1);
+}
+
 }  // namespace
 }  // namespace threshing_sim

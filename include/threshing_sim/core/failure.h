@@ -32,6 +32,9 @@ struct FailureInfo {
   long work = 0;          // work units used by the call (steps + rejected steps + weighted
                           // events) [-]
   long budget = 0;        // the call's budget of work units [-]
+  // What ran out or stalled, a static string naming the scheme's part, e.g. "island scheme: a
+  // lone kernel's pedicel clock"; nullptr: the global scheme's step loop.
+  const char* scope = nullptr;
 };
 
 // "work_budget", "non_finite", ... (stable names, for logs and diagnostics).

@@ -220,6 +220,11 @@ struct AsyncState {
   std::vector<ContactInfo> observed_contacts;
   std::vector<ContactEvent> observed_events;
   SchedulerStats counters;  // work by kind (copied to RunStats::scheduler)
+  // The work budget of the running call (advanceTo, advancePast, step, syncBodies; kBaseWork in
+  // internal.h): windows, islands' steps and trial steps and lone kernels' own-clock steps.
+  long work_used = 0;        // units the call has used [-]
+  double work_allowed = 0;   // units it may use: its interval's and its lone clocks' spans' [-]
+  double work_target_s = 0;  // the call's target time, reported with a failure [s]
 
   // Closed forms of idle pedicel kernels, per class, built on first need and kept across resets
   // (a class is its parameters: a new model finds its own).
@@ -248,10 +253,24 @@ struct AsyncState {
 
 constexpr std::int64_t kEmptyCell = kEmptyCellKey;
 
+// --- async_step.cc: the call's work budget ---------------------------------------------------
+// A call over span_s [s] to t_target_s [s] may use kBaseWork + kWorkPerSecond x span_s units.
+void beginWork(AsyncState* as, double span_s, double t_target_s);
+// Spends units of the call's budget; false once it is exceeded.
+inline bool spendWork(AsyncState* as, long units) {
+  as->work_used += units;
+  return static_cast<double>(as->work_used) <= as->work_allowed;
+}
+// Records in d->stats.failure a failure of the call with cause, at the data's time, naming the
+// part of the scheme (scope: a static string) and the call's work and budget.
+void recordFailure(Data* d, const AsyncState& as, FailureCause cause, const char* scope);
+
 // --- body_motion.cc: closed-form and own-clock motion of lone bodies -----------------------
 // Brings lazy kernel i to time t_s (free: closed form; pedicel: the closed form about its
 // hanging equilibrium within its validity, else its own integrator, which may break the pedicel
-// and then continue in free flight). Returns false on a numerical failure.
+// and then continue in free flight). Returns false on a numerical failure or when its steps
+// exceed the call's work budget (spent step by step; the clock's span adds kWorkPerSecond per
+// second to it), with the cause recorded (recordFailure).
 bool advanceLazyKernel(const Model& m, Data* d, AsyncState* as, int i, double t_s);
 // Whether lazy kernel i, on its pedicel, is at rest over horizon_s (it moves by less than the
 // error scale; see atRest in body_motion.cc).

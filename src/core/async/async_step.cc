@@ -148,6 +148,13 @@ bool formIslands(const Model& m, Data* d, AsyncState* as) {
   return ok;
 }
 
+constexpr const char* kIslandScope = "island scheme: an island's integrator";
+
+// An island's work so far: its steps and its trial steps [work units].
+long islandWork(const Data& island_data) {
+  return island_data.steps + island_data.ws->ed.trial_steps;
+}
+
 // Stage: every island advances to t1 by the global integrator on its sub-system.
 StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) {
   StepStatus worst = StepStatus::kOk;
@@ -157,15 +164,19 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
     isl.data().omega_target_radps = d->omega_target_radps;
     const long steps_before = isl.data().steps;
     // advanceTo's work budget scales with the interval; an island's interval is one window, so
-    // a budget spent while time still advances is renewed, a bounded number of times.
+    // a budget spent while time still advances is renewed, a bounded number of times, while the
+    // call's own budget lasts (each advance's work is spent from it).
     StepStatus st = StepStatus::kOk;
+    bool within_call = true;
     beginIslandObservation(m, d, as, static_cast<int>(s), t1);
     for (int renewal = 0; renewal <= kMaxBudgetRenewals; ++renewal) {
       const double t_before = isl.data().t_s;
+      const long work_before = islandWork(isl.data());
       st = advanceTo(isl.model(), &isl.data(), t1);
+      within_call = spendWork(as, islandWork(isl.data()) - work_before);
       if (st != StepStatus::kFailed ||
           isl.data().stats.failure.cause != FailureCause::kWorkBudget ||
-          !(isl.data().t_s > t_before))
+          !(isl.data().t_s > t_before) || !within_call)
         break;
     }
     endIslandObservation(as, static_cast<int>(s));
@@ -176,6 +187,10 @@ StepStatus integrateIslands(const Model& m, Data* d, AsyncState* as, double t1) 
     storeIslandState(m, d, *as, static_cast<int>(s));
     if (st == StepStatus::kFailed) {
       d->stats.failure = isl.data().stats.failure;  // the island's cause, where it stalled
+      d->stats.failure.scope = kIslandScope;
+      // A budget renewal refused: the call's budget is what ran out.
+      if (d->stats.failure.cause == FailureCause::kWorkBudget && !within_call)
+        recordFailure(d, *as, FailureCause::kWorkBudget, kIslandScope);
       return st;
     }
     if (st == StepStatus::kRecovered) worst = st;
@@ -387,12 +402,33 @@ void publishContacts(Data* d, const AsyncState& as) {
 
 }  // namespace
 
+void beginWork(AsyncState* as, double span_s, double t_target_s) {
+  as->work_used = 0;
+  as->work_allowed = std::min(1e15, kBaseWork + kWorkPerSecond * std::max(0.0, span_s));
+  as->work_target_s = t_target_s;
+}
+
+void recordFailure(Data* d, const AsyncState& as, FailureCause cause, const char* scope) {
+  d->stats.failure = {cause,
+                      d->t_s,
+                      as.work_target_s,
+                      as.work_used,
+                      static_cast<long>(std::min(as.work_allowed, 1e15)),
+                      scope};
+}
+
 StepStatus asyncWindow(const Model& m, Data* d, double t_end_s) {
   AsyncState& as = asyncState(m, d);
   const double t0 = d->t_s;
   const double t1 = windowEnd(m, *d, as, t_end_s);
   if (!(t1 > t0)) {  // no progress: a window of zero length
-    d->stats.failure = {FailureCause::kTimeStalled, t0, t_end_s, 0, 0};
+    d->stats.failure = {FailureCause::kTimeStalled, t0, t_end_s, 0, 0, "island scheme: a window"};
+    return StepStatus::kFailed;
+  }
+  // The call's budget, before the window: each window is a unit of it.
+  if (!spendWork(&as, 1)) {
+    recordFailure(d, as, FailureCause::kWorkBudget,
+                  "island scheme: windows, islands' steps and lone kernels' clocks");
     return StepStatus::kFailed;
   }
   ++as.counters.windows;
@@ -426,6 +462,7 @@ StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync, do
   // end; advanceTo: t_end_s itself).
   if (std::isnan(t_stop_s)) t_stop_s = t_end_s;
   AsyncState& as = asyncState(m, d);
+  beginWork(&as, t_end_s - d->t_s, t_end_s);
   restoreSynced(m, d, &as);
   for (long w = 0; d->t_s < t_end_s - half_step; ++w) {
     const StepStatus s = asyncWindow(m, d, t_stop_s);
@@ -435,7 +472,14 @@ StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync, do
     }
     if (s == StepStatus::kRecovered) worst = s;
   }
-  if (sync && !syncLazyKernels(m, d, &as)) worst = StepStatus::kFailed;
+  if (sync) {
+    // After a failure the sync has a budget of its own, and the window's failure is the call's.
+    const bool failed = worst == StepStatus::kFailed;
+    const FailureInfo failure = d->stats.failure;
+    if (failed) beginWork(&as, 0.0, t_end_s);
+    if (!syncLazyKernels(m, d, &as)) worst = StepStatus::kFailed;
+    if (failed) d->stats.failure = failure;
+  }
   publishContacts(d, as);
   d->stats.scheduler = as.counters;
   return worst;
@@ -443,6 +487,7 @@ StepStatus asyncAdvanceTo(const Model& m, Data* d, double t_end_s, bool sync, do
 
 StepStatus asyncSync(const Model& m, Data* d) {
   AsyncState& as = asyncState(m, d);
+  beginWork(&as, 0.0, d->t_s);  // the lone clocks' spans bring their own share
   const bool ok = syncLazyKernels(m, d, &as);
   d->stats.scheduler = as.counters;
   return ok ? StepStatus::kOk : StepStatus::kFailed;
@@ -450,6 +495,7 @@ StepStatus asyncSync(const Model& m, Data* d) {
 
 StepStatus asyncStep(const Model& m, Data* d) {
   AsyncState& as = asyncState(m, d);
+  beginWork(&as, m.integrator.max_step_s, d->t_s + m.integrator.max_step_s);  // one window
   restoreSynced(m, d, &as);
   StepStatus s = asyncWindow(m, d, std::numeric_limits<double>::infinity());
   if (!syncLazyKernels(m, d, &as)) s = StepStatus::kFailed;

@@ -130,6 +130,16 @@ const PedicelPropagator* closedFormOf(const Model& m, AsyncState* as, int i, con
   return prop.valid ? &prop : nullptr;
 }
 
+// What a lone kernel's clock failure names (FailureInfo::scope).
+constexpr const char* kClockScope = "island scheme: a lone kernel's pedicel clock";
+
+// Whether a lone kernel's clock ended finite (else the failure is recorded).
+bool finiteClock(Data* d, const AsyncState& as, const Vec6& y) {
+  if (y.allFinite()) return true;
+  recordFailure(d, as, FailureCause::kNonFinite, kClockScope);
+  return false;
+}
+
 // Advances of at most this many closed-form spans per call; then the numerical clock takes over.
 constexpr int kMaxClosedFormSpans = 64;
 
@@ -154,8 +164,9 @@ bool pedicelClosedForm(const Model& m, AsyncState* as, int i, double t_s, Vec6* 
   return kc.t_s >= t_s;
 }
 
-// The pedicel kernel's own clock from kc->t_s to t_s. Returns false on a numerical failure or
-// the step bound; sets *broke_at_s when the pedicel broke (the kernel is then at that time).
+// The pedicel kernel's own clock from kc->t_s to t_s. Returns false, the cause recorded, on a
+// numerical failure or when its steps exceed the call's work budget (its span adds its share);
+// sets *broke_at_s when the pedicel broke (the kernel is then at that time).
 bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, double* broke_at_s) {
   const KernelModel& k = m.kernels[i];
   KernelClock& kc = as->kernels[i];
@@ -169,17 +180,24 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
   }
   if (pedicelClosedForm(m, as, i, t_s, &y)) {
     setKernelState(d, k, y);
-    return y.allFinite();
+    return finiteClock(d, *as, y);
   }
+  as->work_allowed += kWorkPerSecond * (t_s - kc.t_s);  // the span's share of the budget
   Vec6 f0 = pedicelRhs(k, m.gravity_mps2, y), f1;
-  for (long n = 0; kc.t_s < t_s; ++n) {
-    if (n > 10000000) return false;  // the work bound: no lone kernel takes 1e7 steps
+  while (kc.t_s < t_s) {
+    if (!spendWork(as, 1)) {  // each trial step, accepted or rejected, is a unit
+      recordFailure(d, *as, FailureCause::kWorkBudget, kClockScope);
+      return false;
+    }
     const double h_try = std::min({h, m.integrator.max_step_s, t_s - kc.t_s});
     const double err = pedicelDopri(k, m.gravity_mps2, tol, y, f0, h_try, &y1, &f1);
     if (!(err <= 1.0)) {
       ++as->counters.pedicel_rejected;
       h = h_try * std::max(0.1, 0.9 * std::pow(std::isfinite(err) ? err : 1e10, -0.2));
-      if (!(h > 1e-15)) return false;
+      if (!(h > 1e-15)) {
+        recordFailure(d, *as, FailureCause::kStepSizeLimit, kClockScope);
+        return false;
+      }
       continue;
     }
     ++as->counters.pedicel_steps;
@@ -196,7 +214,7 @@ bool pedicelClock(const Model& m, Data* d, AsyncState* as, int i, double t_s, do
   }
   kc.h_s = h;
   setKernelState(d, k, y);
-  return y.allFinite();
+  return finiteClock(d, *as, y);
 }
 
 }  // namespace
