@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -36,6 +37,10 @@ struct PairMemory {
   double warm_t_s = 0;        // the time it was found at [s]
   double warm_x_prev_m = -1;  // the closest point before it (-1 none) [m]
   double warm_t_prev_s = 0;   // and its time [s]
+  double warm_theta_rad =
+      std::numeric_limits<double>::quiet_NaN();  // kernel-kernel pairs:
+                                                 // separating direction of the last query
+                                                 // (ellipseEllipse's warm start; NaN none) [rad]
   int macro_index = -1;       // macro-collision counter of this pair
   int sub_index = -1;         // sub-collision index within the macro-collision
   double normal_force_N = 0;  // last force values (for ContactInfo) [N]

@@ -38,6 +38,21 @@ inline bool releasedAt(const PairMemory& mem, const ContactParams& p, double t) 
          mem.episode_start_s < t;
 }
 
+// The pair memory of candidate i (ws.candidates[i], the pair of ws.geoms[i]) by the pair-table
+// index prepareCandidates cached for it (a hash lookup per use cost 9 % of a stream's
+// instructions); by the lookup where the cache does not hold the pair.
+inline PairMemory& candidateMemory(Workspace& ws, size_t i) {
+  const std::uint64_t key = pairKey(ws.candidates[i]);
+  if (i < ws.ed.cand_entry.size()) {
+    const int index = ws.ed.cand_entry[i];
+    if (index >= 0 && static_cast<size_t>(index) < ws.memory.size()) {
+      PairTable::Entry& e = ws.memory.entry(index);
+      if (e.first == key) return e.second;
+    }
+  }
+  return ws.memory[key];
+}
+
 // Drum state at absolute time t (the target is fixed within a step).
 inline Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 
@@ -48,12 +63,23 @@ inline long attachedCount(const Data& d) {
 
 // How much of a separated pair evaluateAll computes.
 enum class SeparatedPairs {
-  kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts;
-          // kernel and obstacle pairs by the supporting-line bound)
-  kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within reach
-          // by the supporting-line bound (event functions; see evaluateAll)
-  kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
+  kNear,     // exact unless surely beyond a quarter of the broad-phase margin (reported contacts;
+             // kernel and obstacle pairs by the supporting-line bound)
+  kSign,     // the sign of the gap: tooth pairs as kNear, other pairs exact only within reach
+             // by the supporting-line bound (event functions; see evaluateAll)
+  kNone,     // nothing (Runge-Kutta stages: separated pairs exert no force)
+  kStepEnd,  // a step's end: kSign over the horizon and kNear together (every other pair exact
+             // within the larger of the two reaches); its results serve the statistics and the
+             // published contacts (kNear) and the next step's event functions (kSign over any
+             // horizon up to this one), so that the state between two steps is evaluated once
 };
+
+// Horizon [s] of the step-end evaluations (kStepEnd): the longest step the next one can take,
+// so that its event functions at the start find the end's results (planStep takes at most the
+// step-size proposal ws.ed.h, or the initial 1e-6 s before there is one).
+inline double stepEndHorizon(const Workspace& ws, double h_s) {
+  return std::max({h_s, ws.ed.h, ws.ed.h > 0 ? 0.0 : 1e-6});
+}
 
 // Arming of one event function over a step: off, fires on reaching zero, or fires on falling
 // below its value at the step start.
@@ -102,7 +128,8 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
 
 // --- events.cc: event functions, arming, detection, location --------------------------------
 void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals,
-                 std::vector<double>* rates = nullptr, double horizon_s = 0.0);
+                 std::vector<double>* rates = nullptr, double horizon_s = 0.0,
+                 SeparatedPairs separated = SeparatedPairs::kSign);
 double hermiteMinimum(double g0, double r0, double g1, double r1, double h, double* s_min);
 
 // --- peaks.cc: located maxima of the compliant forces ---------------------------------------
