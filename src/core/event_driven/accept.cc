@@ -65,6 +65,10 @@ void recordStepForces(const Ctx& c) {
     d->stats.total_normal_impulse_Ns += imp_n[i];
     if (mem.state == ContactState::kImpact && g.params->law == ContactLaw::kCompliant)
       mem.state = mem.slip_sign == 0 ? ContactState::kStick : ContactState::kSlip;
+    // A slip begun from stick whose slip velocity passed the velocity error scale reverses at
+    // zero from here (slipReversalScale).
+    if (mem.slip_from_stick && mem.slip_sign * g.vt > slipReversalScale(m.integrator))
+      mem.slip_from_stick = false;
   }
 }
 

@@ -60,8 +60,11 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
       v[0] = fn;
     }
     if (mu > 0) {
-      // Stick: the friction limit is reached. Slip: the sliding velocity reverses.
-      v[2] = mem.slip_sign == 0 ? mu * fn - std::abs(ft) : mem.slip_sign * g.vt;
+      // Stick: the friction limit is reached. Slip: the sliding velocity reverses (a slip begun
+      // from stick: past the velocity error scale, see slipReversalScale).
+      v[2] = mem.slip_sign == 0 ? mu * fn - std::abs(ft)
+                                : mem.slip_sign * g.vt +
+                                      (mem.slip_from_stick ? slipReversalScale(m.integrator) : 0.0);
     }
   }
   for (size_t i = 0; i < m.kernels.size(); ++i) {
