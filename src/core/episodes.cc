@@ -128,6 +128,7 @@ void endEpisode(const Model& m, Data* d, PairMemory* mem, const ContactGeom& g, 
   mem->state = ContactState::kSeparated;
   mem->closed = false;
   mem->slip_sign = 0;
+  mem->slip_from_stick = false;
   mem->normal_force_N = mem->tangential_force_N = 0;
 }
 

@@ -470,21 +470,11 @@ Proximity witnessPoints(const Ellipse& e1, const Ellipse& e2, const GapFunction&
 
 }  // namespace
 
-Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
-  // A circle on either side: offset point-ellipse distance (exact, also when overlapping).
-  if (e1.a_m == e1.b_m) return discEllipse(e1.center, e1.a_m, e2);
-  if (e2.a_m == e2.b_m) {
-    const Proximity swapped = discEllipse(e2.center, e2.a_m, e1);
-    Proximity out;
-    out.distance_m = swapped.distance_m;
-    out.point1 = swapped.point2;
-    out.point2 = swapped.point1;
-    out.normal = -swapped.normal;
-    out.radius2_m = e2.a_m;
-    return out;
-  }
-  // General pair: maximise the gap psi(theta) over directions (see GapFunction).
-  const GapFunction gap{EllipseShape(e1), EllipseShape(e2), e2.center - e1.center};
+namespace {
+
+// Direction [rad] of the global maximum of the general pair's gap psi (ellipses, neither a
+// circle), from a uniform ring of directions.
+double ringMaximum(const Ellipse& e1, const Ellipse& e2, const GapFunction& gap) {
   GapRing ring;
   sampleGapRing(gap, std::fmax(e1.a_m / e1.b_m, e2.a_m / e2.b_m), &ring);
   Candidate candidates[kMaxCandidates];
@@ -507,7 +497,68 @@ Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
         maximiseGap(gap, theta_rad - step_rad, theta_rad, theta_rad + step_rad);
     if (refined.value_m > best.value_m) best = refined;
   }
-  return witnessPoints(e1, e2, gap, best.theta_rad);
+  return best.theta_rad;
+}
+
+// Half-width of the bracket a warm-started query refines in [rad] (below kSmallTurn_rad: its
+// ends are turned from the warm direction without trigonometry).
+constexpr double kWarmBracket_rad = 0.05;
+
+// The general pair warm-started from direction theta_rad: the local maximum psi* of psi in
+// [theta - w, theta + w] if psi at theta is at least its values at both ends and psi* >= -R,
+// R = b1^2/a1 + b2^2/a2, else NaN. Such a local maximum is the global one. psi(n) = -h_K(n),
+// h_K the support function of the convex K = E1 - E2 - dc (the origin outside K: apart). If
+// psi* > 0, {n : psi(n) > c}, c >= 0, is the trace on the unit circle of the convex cone
+// {n : n.k + c |n| < 0 for all k in K}: one arc, one local maximum. If -R <= psi* <= 0 (overlap
+// of depth d = -psi* <= R): at the local maximum n*, p = d n* is a point of K's boundary with
+// outward normal n*, and K contains the disc of radius R inside it at p (each ellipse rolls a
+// disc of its least curvature radius b^2/a inside, their Minkowski sum the sum), whose centre
+// is (d - R) n*; the origin lies in that disc at depth d, so the distance from the origin to
+// K's boundary, the global minimum of h_K, is d.
+double warmMaximum(const Ellipse& e1, const Ellipse& e2, const GapFunction& gap, double theta_rad) {
+  const Vec2 n = axisOf(theta_rad);
+  const auto psi = [&](const Vec2& m) { return m.dot(gap.dc_m) - gap.support(m); };
+  const double mid_m = psi(n);
+  if (!(mid_m >= psi(turned(n, theta_rad, -kWarmBracket_rad))) ||
+      !(mid_m >= psi(turned(n, theta_rad, kWarmBracket_rad))))
+    return std::numeric_limits<double>::quiet_NaN();
+  const GapMaximum refined =
+      maximiseGap(gap, theta_rad - kWarmBracket_rad, theta_rad, theta_rad + kWarmBracket_rad);
+  const double rolling_radius_m = e1.b_m * e1.b_m / e1.a_m + e2.b_m * e2.b_m / e2.a_m;
+  return refined.value_m >= -rolling_radius_m ? refined.theta_rad
+                                              : std::numeric_limits<double>::quiet_NaN();
+}
+
+// A circle on either side: offset point-ellipse distance (exact, also when overlapping).
+Proximity discPair(const Ellipse& e1, const Ellipse& e2) {
+  if (e1.a_m == e1.b_m) return discEllipse(e1.center, e1.a_m, e2);
+  const Proximity swapped = discEllipse(e2.center, e2.a_m, e1);
+  Proximity out;
+  out.distance_m = swapped.distance_m;
+  out.point1 = swapped.point2;
+  out.point2 = swapped.point1;
+  out.normal = -swapped.normal;
+  out.radius2_m = e2.a_m;
+  return out;
+}
+
+}  // namespace
+
+Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2) {
+  if (e1.a_m == e1.b_m || e2.a_m == e2.b_m) return discPair(e1, e2);
+  // General pair: maximise the gap psi(theta) over directions (see GapFunction).
+  const GapFunction gap{EllipseShape(e1), EllipseShape(e2), e2.center - e1.center};
+  return witnessPoints(e1, e2, gap, ringMaximum(e1, e2, gap));
+}
+
+Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2, double* warm_theta_rad) {
+  if (e1.a_m == e1.b_m || e2.a_m == e2.b_m) return discPair(e1, e2);
+  const GapFunction gap{EllipseShape(e1), EllipseShape(e2), e2.center - e1.center};
+  double theta_rad = std::isfinite(*warm_theta_rad) ? warmMaximum(e1, e2, gap, *warm_theta_rad)
+                                                    : std::numeric_limits<double>::quiet_NaN();
+  if (!std::isfinite(theta_rad)) theta_rad = ringMaximum(e1, e2, gap);
+  *warm_theta_rad = theta_rad;
+  return witnessPoints(e1, e2, gap, theta_rad);
 }
 
 Proximity planeEllipse(const Vec2& p, const Vec2& n, const Ellipse& e) {

@@ -166,8 +166,9 @@ struct EventDrivenScratch {
   // Accelerations at a peak probe [m/s^2 or modal 1/s^2].
   VecX pk_udot;
   // The candidates' narrow-phase warm starts (PairMemory::warm_*) before the probes, restored
-  // after them: 4 values per candidate pair.
+  // after them: 5 values per candidate pair.
   std::vector<double> pk_warm;
+  std::vector<int> cand_entry;       // pair-table index of each candidate (candidateMemory)
   internal::RhsMemo memo;            // the last right-hand side's inputs
   internal::StateValues end_values;  // momentum at the last step end (the energy slot unused)
 };

@@ -469,6 +469,36 @@ TEST(EllipseEllipse, SwappingBodiesFlipsTheNormal) {
   }
 }
 
+// The warm-started query (the narrow phase's, from the pair's last separating direction) gives
+// the ring search's answer whatever the warm direction: near the true one (within and beyond
+// the 0.05 rad bracket), opposite to it, or none, for separated and overlapping pairs (the
+// distance to rounding, 1e-12; the normal to the refinement's angle tolerance, 1e-9); and it
+// returns the direction of the normal it found.
+TEST(EllipseEllipse, WarmStartedQueryMatchesTheRingSearch) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> offset(-0.2, 0.2);
+  const double aspects[] = {1.3, 3.85, 8.0, 30.0};
+  int n_overlapping = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Ellipse e1 = randomEllipse(&rng, aspects[i % 4], 0.0);
+    const Ellipse e2 = randomEllipse(&rng, aspects[(i / 4) % 4], i % 3 == 0 ? 0.8 : 3.0);
+    const Proximity ring = ellipseEllipse(e1, e2);
+    n_overlapping += ring.distance_m < 0 ? 1 : 0;
+    const double theta_rad = std::atan2(ring.normal.y(), ring.normal.x());
+    const double warm_starts[] = {theta_rad + 0.5 * offset(rng), theta_rad + offset(rng),
+                                  theta_rad + kPi, std::nan("")};
+    for (double warm_rad : warm_starts) {
+      const Proximity r = ellipseEllipse(e1, e2, &warm_rad);
+      EXPECT_NEAR(r.distance_m, ring.distance_m, 1e-12 * (1.0 + std::abs(ring.distance_m)))
+          << "pair " << i;
+      EXPECT_LT((r.normal - ring.normal).norm(), 1e-9) << "pair " << i;
+      EXPECT_LT((Vec2(std::cos(warm_rad), std::sin(warm_rad)) - r.normal).norm(), 1e-12)
+          << "pair " << i;
+    }
+  }
+  EXPECT_GT(n_overlapping, 20);
+}
+
 // A circle on either side reduces to the circle query (exact, overlapping or not).
 TEST(EllipseEllipse, CircleAgainstEllipse) {
   const Ellipse e = makeEllipse(0.0, 0.0, 0.6, 1.0, 0.3);

@@ -99,6 +99,14 @@ void simulateStream(const std::string& duration_s, double* impacts, double* peak
   *peak_N = jsonNumber(*summary, "peak_normal_force_N");
 }
 
+// Whether a node has run to its end time end_s: its status summary says "finished" unless a
+// warning takes its place (a tooth deflection outside the small-deflection range: the stream's
+// tooth 0 reaches 0.1 L at 6.7 ms with the evcost changes), so the simulation time tells.
+bool ranTo(const std::string& node, double end_s) {
+  const std::string t = diag(node, "simulation time [s]");
+  return !t.empty() && std::stod(t) >= end_s - 1e-12;
+}
+
 void start(const std::string& node) {
   std_srvs::SetBool run_srv;
   run_srv.request.data = false;
@@ -154,7 +162,7 @@ TEST(Stream, WholeRunEndsWithSimulatesImpactsAndPeak) {
   ASSERT_TRUE(waitFor(
       [] {
         const std::string failure = diag("stream_long", "failure");
-        return g_summary[statusOf("stream_long")] == "finished" ||
+        return g_summary[statusOf("stream_long")] == "finished" || ranTo("stream_long", 0.008) ||
                (!failure.empty() && failure != "none");
       },
       400.0))

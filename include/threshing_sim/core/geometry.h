@@ -36,6 +36,12 @@ Proximity segmentEllipse(const Vec2& p0, const Vec2& p1, const Ellipse& e);
 
 // Ellipse e1 (body 1) against ellipse e2 (body 2).
 Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2);
+// The same warm-started from the separating direction of the pair's last query (the angle of
+// the normal, *warm_theta_rad; NaN: none), which receives this query's: while that direction
+// moved by less than 0.05 rad and the ellipses are apart or overlap by less than the sum of
+// their least curvature radii (b^2/a), a local refinement around it replaces the search over
+// all directions (else the search runs). [rad]
+Proximity ellipseEllipse(const Ellipse& e1, const Ellipse& e2, double* warm_theta_rad);
 
 // Half-plane {x : n.(x - p) <= 0} bounded by the line through p with outward unit normal n
 // (body 1) against the ellipse (body 2).

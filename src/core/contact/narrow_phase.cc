@@ -75,6 +75,7 @@ struct NarrowInput {
   double far_m;               // a pair whose gap bound exceeds it is far [m]
   bool tight_bound;           // supporting-line bounds for exact shapes [-]
   double* warm_x_m;           // tooth pairs: warm start, receives the closest point [m]
+  double* warm_theta_rad;     // kernel pairs: warm start of ellipseEllipse, or nullptr [rad]
   const KernelModel& kern;    // the kernel of the pair (body 1)
   const Ellipse& e;           // its ellipse
   const EllipseWidth& width;  // and its support function
@@ -509,7 +510,8 @@ bool kernelKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
           : (dist_ab > 0.0 ? dist_ab - in.width(d_ab / dist_ab) - EllipseWidth(ea)(d_ab / dist_ab)
                            : -e.a_m - ea.a_m);
   if (isFar(bound, in.far_m, g)) return false;
-  const Proximity p = ellipseEllipse(ea, e);
+  const Proximity p =
+      in.warm_theta_rad ? ellipseEllipse(ea, e, in.warm_theta_rad) : ellipseEllipse(ea, e);
   setContactFrame(p, g);
   BodyJac& s = g->side[0];
   s.body = kernelBody(in.m, in.pair.a);
@@ -636,7 +638,7 @@ void kernelSide(const Model& m, const VecX& u, int kb, const Ellipse& e, Contact
 
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
-                     bool tight_bound, double* warm_x_m) {
+                     bool tight_bound, double* warm_x_m, double* warm_theta_rad) {
   g->pair = pair;
   g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
@@ -652,8 +654,8 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   const int kb = pair.kind == PairKind::kKernelObstacle ? pair.a : pair.b;
   const Ellipse e = kernelEllipse(m, z, kb);
   const EllipseWidth width(e);
-  const NarrowInput in{m,           z,        drive,         pair, ws,   far_m,
-                       tight_bound, warm_x_m, m.kernels[kb], e,    width};
+  const NarrowInput in{m,           z,        drive,          pair,          ws, far_m,
+                       tight_bound, warm_x_m, warm_theta_rad, m.kernels[kb], e,  width};
   HertzInputs h;
   if (!kPairFunctions[pairFunctionIndex(m, pair)](in, g, &h)) return;
   kernelSide(m, u, kb, e, g);

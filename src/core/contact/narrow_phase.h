@@ -69,10 +69,13 @@ struct NarrowPhaseScratch {};
 // material coordinate of an earlier evaluation, from which the refinement on the deformed
 // centreline starts instead of the polyline search (that search remains the fallback should
 // the refinement not converge); receives the closest point found (left alone when far).
+// warm_theta_rad (kernel-kernel pairs, or nullptr): the separating direction of the pair's last
+// query, the warm start of ellipseEllipse, which receives this one's (left alone when far).
 void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                      const PairId& pair, Workspace* ws, ContactGeom* g,
                      double far_m = std::numeric_limits<double>::infinity(),
-                     bool tight_bound = false, double* warm_x_m = nullptr);
+                     bool tight_bound = false, double* warm_x_m = nullptr,
+                     double* warm_theta_rad = nullptr);
 
 }  // namespace internal
 }  // namespace threshing_sim

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -19,6 +20,9 @@ struct PairMemory {
   ContactState state = ContactState::kSeparated;
   bool closed = false;           // rigid law: normal constraint active
   int slip_sign = 0;             // slip direction while sliding (sign of dg_T/dt)
+  bool slip_from_stick = false;  // sliding since its stick reached the friction limit, its slip
+                                 // velocity not yet past the velocity error scale (the event-
+                                 // driven integrator's slipReversalScale) [-]
   double v_in_mps = 0;           // compliant: approach speed at first touch [m/s]
   double hertz_K = 0;            // compliant: Hertz constant frozen at first touch, so that the
                                  // force of one episode derives from a potential [N/m^{3/2}]
@@ -36,9 +40,13 @@ struct PairMemory {
   double warm_t_s = 0;        // the time it was found at [s]
   double warm_x_prev_m = -1;  // the closest point before it (-1 none) [m]
   double warm_t_prev_s = 0;   // and its time [s]
-  int macro_index = -1;       // macro-collision counter of this pair
-  int sub_index = -1;         // sub-collision index within the macro-collision
-  double normal_force_N = 0;  // last force values (for ContactInfo) [N]
+  double warm_theta_rad =
+      std::numeric_limits<double>::quiet_NaN();  // kernel-kernel pairs:
+                                                 // separating direction of the last query
+                                                 // (ellipseEllipse's warm start; NaN none) [rad]
+  int macro_index = -1;                          // macro-collision counter of this pair
+  int sub_index = -1;                            // sub-collision index within the macro-collision
+  double normal_force_N = 0;                     // last force values (for ContactInfo) [N]
   double tangential_force_N = 0;
   double impulse_n_acc = 0;  // running sums of the impulses since reset [N s]
   double impulse_t_acc = 0;

@@ -48,12 +48,13 @@ void recordStepForces(const Ctx& c) {
   Workspace& ws = c.ws;
   const double t = d->t_s;
   double torque1 = 0;
+  // (Unless an event moved the end, the end's event functions evaluated it: kStepEnd serves.)
   rhs(c, t, d->z, d->u, &ws.ed.udot_end, &torque1, true);
   const VecX& imp_n = ws.ed.imp_n_step;
   const VecX& imp_t = ws.ed.imp_t_step;
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
-    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    PairMemory& mem = candidateMemory(ws, i);
     if (!isActive(mem)) continue;
     recordForce(m, d, g, mem.normal_force_N, mem.tangential_force_N, t);
     mem.episode_peak_N = std::max(mem.episode_peak_N, mem.normal_force_N);
@@ -64,6 +65,10 @@ void recordStepForces(const Ctx& c) {
     d->stats.total_normal_impulse_Ns += imp_n[i];
     if (mem.state == ContactState::kImpact && g.params->law == ContactLaw::kCompliant)
       mem.state = mem.slip_sign == 0 ? ContactState::kStick : ContactState::kSlip;
+    // A slip begun from stick whose slip velocity passed the velocity error scale reverses at
+    // zero from here (slipReversalScale).
+    if (mem.slip_from_stick && mem.slip_sign * g.vt > slipReversalScale(m.integrator))
+      mem.slip_from_stick = false;
   }
 }
 
@@ -81,7 +86,7 @@ bool projectConstraints(const Ctx& c, double t) {
   const Drive dr = driveAtTime(c, t);
   for (int pass = 0; pass < 3; ++pass) {
     for (size_t i = 0; i < ws.candidates.size(); ++i) {
-      const PairMemory& mem = ws.memory[pairKey(ws.candidates[i])];
+      const PairMemory& mem = candidateMemory(ws, i);
       if (!isActive(mem)) continue;
       const ContactParams& cp = m.contact[static_cast<int>(ws.candidates[i].kind)];
       const bool normal = cp.law == ContactLaw::kRigid && mem.closed;
@@ -130,7 +135,8 @@ void finishStep(const Ctx& c, const StepPlan& plan, long attached_before) {
   const bool projected = projectConstraints(c, d->t_s);
   double torque1 = 0;
   if (plan.event || projected || attached_before != attachedCount(*d))
-    rhs(c, d->t_s, d->z, d->u, &ws.ed.udot_end, &torque1, true);
+    rhs(c, d->t_s, d->z, d->u, &ws.ed.udot_end, &torque1, true, SeparatedPairs::kStepEnd,
+        stepEndHorizon(ws, 0.0));
   publishContacts(d, &ws);
 }
 

@@ -38,6 +38,38 @@ inline bool releasedAt(const PairMemory& mem, const ContactParams& p, double t) 
          mem.episode_start_s < t;
 }
 
+// The pair memory of candidate i (ws.candidates[i], the pair of ws.geoms[i]) by the pair-table
+// index prepareCandidates cached for it (a hash lookup per use cost 9 % of a stream's
+// instructions); by the lookup where the cache does not hold the pair.
+inline PairMemory& candidateMemory(Workspace& ws, size_t i) {
+  const std::uint64_t key = pairKey(ws.candidates[i]);
+  if (i < ws.ed.cand_entry.size()) {
+    const int index = ws.ed.cand_entry[i];
+    if (index >= 0 && static_cast<size_t>(index) < ws.memory.size()) {
+      PairTable::Entry& e = ws.memory.entry(index);
+      if (e.first == key) return e.second;
+    }
+  }
+  return ws.memory[key];
+}
+
+// How far the slip velocity of a slip begun from stick (PairMemory::slip_from_stick) must go
+// past zero, against its slip sign, before its reversal counts [m/s]: the integrator's velocity
+// error scale, tolerance x 1 m/s (the absolute floor of the error norm, as tolerance x 1e-2 m is
+// the position one that a graze must dip below). Such a slip starts from zero slip velocity at
+// the friction limit; one whose slip velocity turns back before it passes this scale is below
+// what the step resolves, and compared with zero it cost two located events for nothing: in the
+// stream scene (global scheme, the evcost changes, t = 7.16 ms) a kernel pressed on a grate bar
+// by a pile of kernels, whose Hunt-Crossley contacts made its stick force jitter by 2 % from
+// step to step (1.3e-8 s), reached the limit nearly every step, slipped, and its slip velocity
+// turned back at 1e-14 m/s within a picosecond: 1124 slips under 1e-11 s, until simulate's work
+// budget ran out at 7.18 ms. A slip begun otherwise (from an impact, or where a slip velocity
+// reached zero at the limit: hard case 9) and one whose slip velocity passed the scale once
+// reverse at zero itself.
+inline double slipReversalScale(const IntegratorParams& integrator) {
+  return integrator.tolerance * 1.0;
+}
+
 // Drum state at absolute time t (the target is fixed within a step).
 inline Drive driveAtTime(const Ctx& c, double t) { return driveAt(c.m, c.d, t - c.d.t_s); }
 
@@ -48,12 +80,23 @@ inline long attachedCount(const Data& d) {
 
 // How much of a separated pair evaluateAll computes.
 enum class SeparatedPairs {
-  kNear,  // exact unless surely beyond a quarter of the broad-phase margin (reported contacts;
-          // kernel and obstacle pairs by the supporting-line bound)
-  kSign,  // the sign of the gap: tooth pairs as kNear, other pairs exact only within reach
-          // by the supporting-line bound (event functions; see evaluateAll)
-  kNone,  // nothing (Runge-Kutta stages: separated pairs exert no force)
+  kNear,     // exact unless surely beyond a quarter of the broad-phase margin (reported contacts;
+             // kernel and obstacle pairs by the supporting-line bound)
+  kSign,     // the sign of the gap: tooth pairs as kNear, other pairs exact only within reach
+             // by the supporting-line bound (event functions; see evaluateAll)
+  kNone,     // nothing (Runge-Kutta stages: separated pairs exert no force)
+  kStepEnd,  // a step's end: kSign over the horizon and kNear together (every other pair exact
+             // within the larger of the two reaches); its results serve the statistics and the
+             // published contacts (kNear) and the next step's event functions (kSign over any
+             // horizon up to this one), so that the state between two steps is evaluated once
 };
+
+// Horizon [s] of the step-end evaluations (kStepEnd): the longest step the next one can take,
+// so that its event functions at the start find the end's results (planStep takes at most the
+// step-size proposal ws.ed.h, or the initial 1e-6 s before there is one).
+inline double stepEndHorizon(const Workspace& ws, double h_s) {
+  return std::max({h_s, ws.ed.h, ws.ed.h > 0 ? 0.0 : 1e-6});
+}
 
 // Arming of one event function over a step: off, fires on reaching zero, or fires on falling
 // below its value at the step start.
@@ -115,7 +158,8 @@ void modalSplitError(const Ctx& c, double h);
 
 // --- events.cc: event functions, arming, detection, location --------------------------------
 void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals,
-                 std::vector<double>* rates = nullptr, double horizon_s = 0.0);
+                 std::vector<double>* rates = nullptr, double horizon_s = 0.0,
+                 SeparatedPairs separated = SeparatedPairs::kSign);
 double hermiteMinimum(double g0, double r0, double g1, double r1, double h, double* s_min);
 
 // --- peaks.cc: located maxima of the compliant forces ---------------------------------------

@@ -33,7 +33,8 @@ double warmStart(const Model& m, const PairMemory& mem, const PairId& p, double 
 // within twice what its bodies can cover in horizon_s [s] at their present speeds: a pair
 // whose gap falls to zero and rises again inside a step of that length (a spinning kernel
 // grazing a wall) is then exact, with its rate, at both ends of the step, as the graze check
-// needs; a pair beyond that reach cannot close within the step.
+// needs; a pair beyond that reach cannot close within the step. kStepEnd: exact within the
+// larger of the kSign and the kNear reaches.
 void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
                  SeparatedPairs separated, double horizon_s) {
   c.ws.ed.memo.valid = false;  // ws.geoms and the stations change
@@ -43,10 +44,11 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   // none: the warm start computes the two stations around its points itself.
   layoutStations(c.m, &c.ws);
   int last_tooth = -1;
-  for (const PairId& p : c.ws.candidates) {
+  for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
+    const PairId& p = c.ws.candidates[i];
     if (p.kind != PairKind::kToothKernel) break;
     if (p.a == last_tooth) continue;
-    const PairMemory& mem = c.ws.memory[pairKey(p)];
+    const PairMemory& mem = candidateMemory(c.ws, i);
     const bool separated_pair = mem.state == ContactState::kSeparated;
     if (separated == SeparatedPairs::kNone && separated_pair) continue;
     if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0 &&
@@ -62,7 +64,7 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     ContactGeom& g = c.ws.geoms[i];
     double far_m = kInf;
     bool tight = false;
-    PairMemory& mem = c.ws.memory[pairKey(p)];
+    PairMemory& mem = candidateMemory(c.ws, i);
     // Tooth pairs in contact start the narrow phase from their last closest point (moved on
     // in time by the rate between the last two); a separated one records its closest point for
     // when its contact begins.
@@ -80,16 +82,18 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
         continue;
       }
       const bool tooth = p.kind == PairKind::kToothKernel;
-      if (separated == SeparatedPairs::kSign && !tooth) {
+      if ((separated == SeparatedPairs::kSign || separated == SeparatedPairs::kStepEnd) && !tooth) {
         double speed_mps = kernelSpeedBound(c.m, u, p.a);
         if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
         far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);
+        if (separated == SeparatedPairs::kStepEnd) far_m = std::max(far_m, near_m);
       } else {
         far_m = near_m;
       }
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm);
+    double* warm_theta = p.kind == PairKind::kKernelKernel ? &mem.warm_theta_rad : nullptr;
+    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm, warm_theta);
     if (warm && !g.far) {
       mem.warm_x_prev_m = mem.warm_x_m;
       mem.warm_t_prev_s = mem.warm_t_s;

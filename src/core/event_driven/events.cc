@@ -18,18 +18,19 @@ namespace event_driven {
 // derivative of each function where it is known cheaply (the gap functions: +-dg_N/dt of a
 // pair whose geometry was evaluated in full) and NaN elsewhere [unit of the function / s].
 // horizon_s is the length of the step these values bound [s]: every separated pair that could
-// close within it gets its exact gap and rate (evaluateAll).
+// close within it gets its exact gap and rate (evaluateAll). separated: kSign, or kStepEnd at a
+// step's end (the same values for every pair kSign evaluates exactly).
 void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals,
-                 std::vector<double>* rates, double horizon_s) {
+                 std::vector<double>* rates, double horizon_s, SeparatedPairs separated) {
   const Model& m = c.m;
   Workspace& ws = c.ws;
   double torque;
-  rhs(c, t, z, u, &ws.ed.udot_ev, &torque, true, SeparatedPairs::kSign, horizon_s);
+  rhs(c, t, z, u, &ws.ed.udot_ev, &torque, true, separated, horizon_s);
   vals->assign(4 * ws.geoms.size() + m.kernels.size(), 1.0);
   if (rates) rates->assign(vals->size(), std::numeric_limits<double>::quiet_NaN());
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     const ContactGeom& g = ws.geoms[i];
-    const PairMemory& mem = ws.memory[pairKey(g.pair)];
+    const PairMemory& mem = candidateMemory(ws, i);
     double* v = &(*vals)[4 * i];
     if (!isActive(mem)) {
       // Separated: the gap closes (a rigid contact released at the step start: below the
@@ -59,8 +60,11 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
       v[0] = fn;
     }
     if (mu > 0) {
-      // Stick: the friction limit is reached. Slip: the sliding velocity reverses.
-      v[2] = mem.slip_sign == 0 ? mu * fn - std::abs(ft) : mem.slip_sign * g.vt;
+      // Stick: the friction limit is reached. Slip: the sliding velocity reverses (a slip begun
+      // from stick: past the velocity error scale, see slipReversalScale).
+      v[2] = mem.slip_sign == 0 ? mu * fn - std::abs(ft)
+                                : mem.slip_sign * g.vt +
+                                      (mem.slip_from_stick ? slipReversalScale(m.integrator) : 0.0);
     }
   }
   for (size_t i = 0; i < m.kernels.size(); ++i) {
@@ -263,8 +267,7 @@ void detectGrazes(const Ctx& c, StepPlan* plan) {
   double et, tq;
   for (size_t i = 0; i < ws.geoms.size() && !plan->event; ++i) {
     const size_t j = 4 * i;
-    if (static_cast<Arm>(ws.ed.arm[j]) != Arm::kAtZero ||
-        isActive(ws.memory[pairKey(ws.geoms[i].pair)]))
+    if (static_cast<Arm>(ws.ed.arm[j]) != Arm::kAtZero || isActive(candidateMemory(ws, i)))
       continue;
     if (!(ws.ed.rate0[j] < 0 && ws.ed.rate1[j] > 0)) continue;  // no interior minimum
     double s_min = 0;
@@ -290,11 +293,15 @@ void detectGrazes(const Ctx& c, StepPlan* plan) {
 }
 
 // Stage 6: did any event function fire over the step (a sign change at the end, or a graze
-// inside)?
+// inside)? The end is evaluated as a step end (kStepEnd) over the longest next step, so that,
+// when no event moves it, the statistics, the published contacts and the next step's event
+// functions at its start reuse this evaluation.
 void detectEvents(const Ctx& c, StepPlan* plan) {
   Workspace& ws = c.ws;
   const int n = c.m.n_dof;
-  eventValues(c, c.d.t_s + plan->h_s, ws.ed.z1, ws.ed.u1, &ws.ed.ev1, &ws.ed.rate1, plan->h_s);
+  const double horizon_s = stepEndHorizon(ws, std::max(plan->h_s, plan->h_next_s));
+  eventValues(c, c.d.t_s + plan->h_s, ws.ed.z1, ws.ed.u1, &ws.ed.ev1, &ws.ed.rate1, horizon_s,
+              SeparatedPairs::kStepEnd);
   plan->h_take_s = plan->h_s;
   plan->h_fired_s = plan->h_s;
   plan->event = anyFired(ws, ws.ed.ev1);

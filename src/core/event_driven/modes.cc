@@ -42,6 +42,7 @@ void assembleModeRows(const Ctx& c, const std::vector<int>& forced_slip) {
       row.slip_sign = mem.slip_sign;
     } else {
       row.slip_sign = std::abs(g.vt) > v_eps ? (g.vt > 0 ? 1 : -1) : 0;
+      mem.slip_from_stick = false;  // the mode problem decides afresh
     }
     if (row.mu == 0) row.slip_sign = 0;
     ws.active.push_back(static_cast<int>(i));
@@ -210,6 +211,7 @@ void switchPair(const Ctx& c, size_t i, double e_net, bool* rigid_impact,
     if (mem.slip_sign == 0) {
       // Stick -> slip against the friction force.
       mem.slip_sign = mem.tangential_force_N > 0 ? -1 : 1;
+      mem.slip_from_stick = true;
       forced_slip->push_back(static_cast<int>(i));
       emitTransition(d, g.pair, mem.state, ContactState::kSlip, t, g);
       mem.state = ContactState::kSlip;

@@ -55,24 +55,26 @@ double compliantForceRate(const Ctx& c, const ContactGeom& g, const PairMemory& 
 // phase's tolerance and with them the step sequence).
 void saveWarmStarts(Workspace* ws) {
   std::vector<double>& w = ws->ed.pk_warm;
-  w.resize(4 * ws->candidates.size());
+  w.resize(5 * ws->candidates.size());
   for (size_t i = 0; i < ws->candidates.size(); ++i) {
     const PairMemory& mem = ws->memory[pairKey(ws->candidates[i])];
-    w[4 * i] = mem.warm_x_m;
-    w[4 * i + 1] = mem.warm_t_s;
-    w[4 * i + 2] = mem.warm_x_prev_m;
-    w[4 * i + 3] = mem.warm_t_prev_s;
+    w[5 * i] = mem.warm_x_m;
+    w[5 * i + 1] = mem.warm_t_s;
+    w[5 * i + 2] = mem.warm_x_prev_m;
+    w[5 * i + 3] = mem.warm_t_prev_s;
+    w[5 * i + 4] = mem.warm_theta_rad;
   }
 }
 
 void restoreWarmStarts(Workspace* ws) {
   const std::vector<double>& w = ws->ed.pk_warm;
-  for (size_t i = 0; i < ws->candidates.size() && 4 * i + 3 < w.size(); ++i) {
+  for (size_t i = 0; i < ws->candidates.size() && 5 * i + 4 < w.size(); ++i) {
     PairMemory& mem = ws->memory[pairKey(ws->candidates[i])];
-    mem.warm_x_m = w[4 * i];
-    mem.warm_t_s = w[4 * i + 1];
-    mem.warm_x_prev_m = w[4 * i + 2];
-    mem.warm_t_prev_s = w[4 * i + 3];
+    mem.warm_x_m = w[5 * i];
+    mem.warm_t_s = w[5 * i + 1];
+    mem.warm_x_prev_m = w[5 * i + 2];
+    mem.warm_t_prev_s = w[5 * i + 3];
+    mem.warm_theta_rad = w[5 * i + 4];
   }
   ws->ed.memo.valid = false;  // ws.geoms hold the last probe
 }
@@ -98,7 +100,7 @@ bool compliantForceSnapshot(const Ctx& c, double t, const VecX& z, const VecX& u
   bool any = false;
   for (size_t i = 0; i < n_geoms; ++i) {
     const ContactGeom& g = ws.geoms[i];
-    const PairMemory& mem = ws.memory[pairKey(g.pair)];
+    const PairMemory& mem = candidateMemory(ws, i);
     if (!inCompliantContact(g, mem)) continue;
     any = true;
     (*on)[i] = 1;

@@ -80,7 +80,7 @@ double finishRhs(const Ctx& c, bool store_forces) {
         torque += residualForceFactor(g, ws.lambda[2 * i]) * g.residual_dtheta_mpNprad;
     }
     if (store_forces) {
-      PairMemory& mem = ws.memory[pairKey(g.pair)];
+      PairMemory& mem = candidateMemory(ws, ws.active[i]);
       mem.normal_force_N = ws.lambda[2 * i];
       mem.tangential_force_N = ws.lambda[2 * i + 1];
     }
@@ -97,7 +97,7 @@ void collectActiveRows(const Ctx& c) {
   ws.rows.clear();
   for (size_t i = 0; i < ws.geoms.size(); ++i) {
     ContactGeom& g = ws.geoms[i];
-    PairMemory& mem = ws.memory[pairKey(g.pair)];
+    PairMemory& mem = candidateMemory(ws, i);
     if (!isActive(mem)) continue;
     ContactRow row;
     row.mu = g.params->friction;

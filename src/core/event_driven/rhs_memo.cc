@@ -42,12 +42,17 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   if (!mm.valid || mm.model != &c.m || mm.t_s != dr.t_s || mm.theta_rad != dr.theta_rad ||
       mm.omega_radps != dr.omega_radps || mm.alpha_radps2 != dr.alpha_radps2)
     return false;
-  // kNear and kSign differ only on separated kernel-kernel and kernel-obstacle pairs (tooth
-  // pairs are evaluated alike, whatever the horizon).
+  // kNear, kSign and kStepEnd differ only on separated kernel-kernel and kernel-obstacle pairs
+  // (tooth pairs are evaluated alike, whatever the horizon). A step end over a horizon serves
+  // kNear and kSign or kStepEnd over a horizon up to it: it evaluates exactly every pair those
+  // do (and perhaps more: their exact gaps are positive beyond either reach).
   const bool memo_none = mm.separated == static_cast<int>(SeparatedPairs::kNone);
+  const bool memo_end = mm.separated == static_cast<int>(SeparatedPairs::kStepEnd);
+  const bool served_by_end =
+      memo_end && (separated == SeparatedPairs::kNear || horizon_s <= mm.horizon_s);
   const bool mode_ok =
       separated == SeparatedPairs::kNone || mm.n_separated == 0 ||
-      (!memo_none && (mm.n_separated_other == 0 ||
+      (!memo_none && (mm.n_separated_other == 0 || served_by_end ||
                       (static_cast<int>(separated) == mm.separated &&
                        (separated != SeparatedPairs::kSign || horizon_s == mm.horizon_s))));
   if (!mode_ok || !bitsEqual(z, mm.z) || !bitsEqual(u, mm.u) ||
@@ -55,7 +60,7 @@ bool rhsMemoHit(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
       c.ws.geoms.size() != c.ws.candidates.size())
     return false;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
-    const RhsMemo::PairState p = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
+    const RhsMemo::PairState p = pairStateOf(candidateMemory(c.ws, i));  // (the same list)
     const RhsMemo::PairState& q = mm.pairs[i];
     if (p.state != q.state || p.closed != q.closed || p.slip_sign != q.slip_sign ||
         p.v_in_mps != q.v_in_mps || p.hertz_K != q.hertz_K)
@@ -81,7 +86,7 @@ void rhsMemoStore(const Ctx& c, const Drive& dr, const VecX& z, const VecX& u,
   mm.n_separated = 0;
   mm.n_separated_other = 0;
   for (size_t i = 0; i < mm.candidates.size(); ++i) {
-    mm.pairs[i] = pairStateOf(c.ws.memory[pairKey(mm.candidates[i])]);
+    mm.pairs[i] = pairStateOf(candidateMemory(c.ws, i));
     const bool apart = mm.pairs[i].state == static_cast<int>(ContactState::kSeparated);
     mm.n_separated += apart ? 1 : 0;
     mm.n_separated_other += apart && mm.candidates[i].kind != PairKind::kToothKernel ? 1 : 0;

@@ -36,9 +36,11 @@ void prepareCandidates(const Ctx& c, StepPlan* plan) {
   // (Stations only of the teeth that a kernel can reach: evaluateAll computes what it needs.)
   layoutStations(m, &ws);
   broadPhase(m, d->z, 2.0 * plan->margin_m, &ws, &d->theta_rad);
-  for (const PairId& p : ws.candidates) ws.memory[pairKey(p)];
+  ws.ed.cand_entry.resize(ws.candidates.size());
+  for (size_t i = 0; i < ws.candidates.size(); ++i)
+    ws.ed.cand_entry[i] = ws.memory.indexOf(pairKey(ws.candidates[i]));
   for (auto& kv : ws.memory) kv.second.seen = false;
-  for (const PairId& p : ws.candidates) ws.memory[pairKey(p)].seen = true;
+  for (size_t i = 0; i < ws.candidates.size(); ++i) candidateMemory(ws, i).seen = true;
   for (auto& kv : ws.memory) {
     PairMemory& mem = kv.second;
     if (mem.seen || !isActive(mem)) continue;
