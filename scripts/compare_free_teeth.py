@@ -25,6 +25,7 @@ import tempfile
 
 from tslib import ROOT
 from tslib.binaries import BIN_DIR
+from tslib.numbers import exit_velocity_error
 
 
 def run_point(bench, scene, free_teeth, tolerance, reps, samples, cpu):
@@ -60,16 +61,6 @@ def stepping_instructions(bench, scene, free_teeth, tolerance, duration=None):
                 if m:
                     return int(m.group(1))
     sys.exit("compare_free_teeth: no instruction count in the callgrind output")
-
-
-def exit_velocity_error(run_, ref):
-    """Largest velocity difference over the kernels, relative to the reference speed."""
-    worst = 0.0
-    for k, kr in zip(run_["kernels"], ref["kernels"]):
-        dv = math.hypot(k["velocity_mps"][0] - kr["velocity_mps"][0],
-                        k["velocity_mps"][1] - kr["velocity_mps"][1])
-        worst = max(worst, dv / max(math.hypot(*kr["velocity_mps"]), 1e-12))
-    return worst
 
 
 def tip_error(run_, ref):

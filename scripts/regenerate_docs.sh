@@ -7,6 +7,7 @@
 #   node-rtf         scripts/measure_node_rtf.sh               (docs/ros_interface.md)
 #   profile          scripts/profile_core.sh [--streams]       (docs/performance.md)
 #   free-teeth       scripts/compare_free_teeth.py --callgrind  (docs/performance.md)
+#   modal-split      scripts/compare_modal_split.py --callgrind (docs/performance.md)
 #   stability        scripts/stability_table.py                (docs/numerical_stability.md +
 #                                                               docs/stability.md)
 #   stability-full   the same, scene 10 for 10 000 revolutions (docs/numerical_stability.md +
@@ -32,11 +33,12 @@ PY=/usr/bin/python3
 BIN="$ROOT/.build/ws/devel/lib/threshing_sim"
 parts=("$@")
 [ ${#parts[@]} -gt 0 ] ||
-  parts=(scene-reference default-timing default-output node-rtf profile free-teeth stability findings bench)
+  parts=(scene-reference default-timing default-output node-rtf profile free-teeth modal-split stability
+    findings bench)
 
 bash scripts/setup.sh
 # The instruction counts need valgrind (not part of the build's set-up).
-if printf '%s\n' "${parts[@]}" | grep -qx 'profile\|free-teeth\|stage-profile\|islands' &&
+if printf '%s\n' "${parts[@]}" | grep -qx 'profile\|free-teeth\|modal-split\|stage-profile\|islands' &&
   ! command -v valgrind >/dev/null; then
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends valgrind >/dev/null
 fi
@@ -53,6 +55,8 @@ for part in "${parts[@]}"; do
       bash scripts/profile_core.sh --streams | $PY scripts/readme_section.py profile-streams ;;
     free-teeth) $PY scripts/compare_free_teeth.py --callgrind |
                   $PY scripts/readme_section.py "$part" --fence "" ;;
+    modal-split) $PY scripts/compare_modal_split.py --callgrind |
+                   $PY scripts/readme_section.py "$part" --fence "" ;;
     stability) $PY scripts/stability_table.py --simulate "$BIN/simulate" \
                  --output docs/stability.md --summary docs/numerical_stability.md ;;
     stability-full)

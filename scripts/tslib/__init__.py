@@ -1,8 +1,9 @@
 """The scripts' shared library: binary lookup (binaries), runs and caching (cache), markdown
 splicing and the page of every regenerated section (markdown), plots (plots), the scene schema
 of simulate --print-schema (schema), table formats and relative differences (numbers); the
-benchmark (bench), the tooth comparison (teeth), the convergence study (convergence) and the
-stability table (stability), each behind a thin entry point of scripts/ with the same options.
+benchmark (bench), the tooth comparison (teeth), the convergence study (convergence), the
+static correction study (correction) and the stability table (stability), each behind a thin
+entry point of scripts/ with the same options.
 The paths of the repository are here (ROOT and its folders).
 
 Entry points import it as `tslib` with scripts/ on sys.path (a script in scripts/ has it there).

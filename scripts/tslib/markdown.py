@@ -17,6 +17,7 @@ SECTIONS = {
     "profile": "docs/performance.md",       # scripts/profile_core.sh
     "profile-streams": "docs/performance.md",  # scripts/profile_core.sh --streams
     "free-teeth": "docs/performance.md",    # scripts/compare_free_teeth.py --callgrind
+    "modal-split": "docs/performance.md",   # scripts/compare_modal_split.py --callgrind
     "islands-table": "docs/architecture.md",  # scripts/bench.py --part islands
     "stage-profile": "docs/bench_islands.md",  # scripts/stage_profile.py --docs
     # scripts/stage_profile.py --docs --section stage-profile-before --simulate <main's build>
@@ -27,6 +28,7 @@ SECTIONS = {
     "stability-full": "docs/numerical_stability.md",   # scripts/stability_table.py --full
     "findings": "docs/threshing_findings.md",  # scripts/compare_teeth.py --findings
     "convergence": "README.md",             # scripts/convergence_table.py
+    "correction-table": "docs/convergence.md",  # scripts/correction_table.py --docs
     # scripts/sweep report out/sweeps/stream_statistics --stream-docs docs/convergence.md
     "stream-statistics": "docs/convergence.md",
     "sweep-overhead": "docs/sweeps.md",     # scripts/sweep_overhead.py --docs

@@ -42,3 +42,14 @@ def rel_error(a, b):
 def rel_change(a, b):
     """Relative change from a to b: |b - a| / |a| (|a| floored at 1e-12)."""
     return abs(b - a) / max(abs(a), 1e-12)
+
+
+def exit_velocity_error(run, ref):
+    """Largest exit velocity difference over the kernels of two runs (their "kernels" lists with
+    "velocity_mps"), relative to the reference kernel's speed."""
+    worst = 0.0
+    for k, kr in zip(run["kernels"], ref["kernels"]):
+        dv = math.hypot(k["velocity_mps"][0] - kr["velocity_mps"][0],
+                        k["velocity_mps"][1] - kr["velocity_mps"][1])
+        worst = max(worst, dv / max(math.hypot(*kr["velocity_mps"]), 1e-12))
+    return worst

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/core/tooth_cache.h"
 #include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
@@ -88,9 +89,11 @@ using BaseTexts = std::map<std::string, std::string>;
 
 // Loads, overrides, validates and compiles the scene as a run would, and returns the resolved
 // scene as one line of flow-style YAML. With bases and base given, *base points to the base
-// scene's text (before the --set overrides; kept in *bases). Throws SceneError.
+// scene's text (before the --set overrides; kept in *bases). With teeth given, the teeth are
+// compiled through it (core/tooth_cache.h). Throws SceneError.
 std::string resolvedScene(const Options& options, TreeCache* cache = nullptr,
-                          BaseTexts* bases = nullptr, const std::string** base = nullptr);
+                          BaseTexts* bases = nullptr, const std::string** base = nullptr,
+                          ToothCache* teeth = nullptr);
 
 // --check-batch: one line of tab-separated arguments per run; prints
 // "ok<TAB>resolved scene<TAB>base scene" or "error<TAB>message" per line. Returns 0 when

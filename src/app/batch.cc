@@ -46,10 +46,12 @@ constexpr size_t kMaxCachedTrees = 64;
 // Hashes of the inline scenes seen, kept at most (then forgotten).
 constexpr size_t kMaxSeenScenes = 4096;
 
-// Parsed scene trees (with their override files applied), and the inline scenes seen once.
+// Parsed scene trees (with their override files applied), the inline scenes seen once, and
+// the compiled teeth (the runs of a sweep share few teeth).
 struct SceneCache {
   TreeCache trees;
   std::unordered_set<size_t> seen;
+  ToothCache teeth;
 };
 
 // The scene path shown in messages for a line whose scene is "scene_yaml".
@@ -219,7 +221,7 @@ Model lineModel(const BatchLine& line, const Options& options, SceneCache* cache
     throw SceneError(options.scene_path + ": expected a mapping of sections at the top level");
   for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
   try {
-    Model model = modelFromYaml(root);
+    Model model = modelFromYaml(root, &cache->teeth);
     *damage = damageFromYaml(root);
     return model;
   } catch (const SceneError& e) {

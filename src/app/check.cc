@@ -94,7 +94,7 @@ void skipRestitutionFit(YAML::Node* root) {
 }  // namespace
 
 std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* bases,
-                          const std::string** base) {
+                          const std::string** base, ToothCache* teeth) {
   YAML::Node root = sceneWithFiles(options, cache);
   if (bases != nullptr && base != nullptr) {
     std::string key = options.scene_path;
@@ -113,7 +113,7 @@ std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* b
   writeFlow(root, &text);  // before the restitutions are set aside
   skipRestitutionFit(&root);
   try {
-    modelFromYaml(root);
+    modelFromYaml(root, teeth);
     damageFromYaml(root);
   } catch (const SceneError& e) {
     throw SceneError(options.scene_path + ": " + e.what());
@@ -134,6 +134,7 @@ int checkBatch(const std::string& path) {
   int status = 0;
   TreeCache cache;
   BaseTexts bases;
+  ToothCache teeth;  // the combinations share few teeth
   for (std::string line; std::getline(in, line);) {
     std::vector<std::string> args = {"simulate"};
     for (size_t start = 0, tab = 0; tab != std::string::npos; start = tab + 1) {
@@ -145,7 +146,7 @@ int checkBatch(const std::string& path) {
     try {
       const std::string* base = nullptr;
       const std::string scene = resolvedScene(
-          parseOptions(static_cast<int>(argv.size()), argv.data()), &cache, &bases, &base);
+          parseOptions(static_cast<int>(argv.size()), argv.data()), &cache, &bases, &base, &teeth);
       std::cout << "ok\t" << scene << "\t" << *base << "\n";
     } catch (const std::exception& e) {
       std::string message = e.what();

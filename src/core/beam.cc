@@ -119,6 +119,8 @@ void validateTooth(double drum_radius_m, const ToothModel& tooth) {
     throwInvalid("tooth.n_modes", "must be in [0, 64]", tooth.n_modes);
   }
   if (tooth.n_stations < 2) throwInvalid("tooth.n_stations", "must be >= 2", tooth.n_stations);
+  if (!(tooth.quasi_static_speedup >= 1.0))
+    throwInvalid("tooth.quasi_static_speedup", "must be >= 1", tooth.quasi_static_speedup);
 }
 
 }  // namespace
@@ -168,7 +170,8 @@ struct ModeTerms {
   double a, b, sigma;                       // (1 - sigma) / 2, (1 + sigma) / 2, sigma [-]
 };
 
-ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m, const double* half_one_minus_sigma) {
+ModeTerms modeTerms(const ToothModel& tooth, int i, double x_m,
+                    const double* half_one_minus_sigma) {
   const double z = tooth.beta_per_m[i] * x_m;
   ModeTerms m;
   m.exp_z = std::exp(z);
@@ -245,9 +248,10 @@ void integrateModes(double R, ToothModel* tooth) {
           // (A rounding that gave this interval another sub-interval count: exact terms.)
           const bool nominal = (point + 1) * n <= offsets.size();
           for (int i = 0; i < n; ++i) {
-            const ModeTerms m = nominal ? advanced(start[i], offsets[point * n + i])
-                                        : modeTerms(t, i, x_m, table);
-            phi[i] = t.norm_C[i] * (m.a * m.exp_z + m.b * m.exp_minus_z - m.cos_z + m.sigma * m.sin_z);
+            const ModeTerms m =
+                nominal ? advanced(start[i], offsets[point * n + i]) : modeTerms(t, i, x_m, table);
+            phi[i] =
+                t.norm_C[i] * (m.a * m.exp_z + m.b * m.exp_minus_z - m.cos_z + m.sigma * m.sin_z);
             dphi[i] = t.norm_C[i] * t.beta_per_m[i] *
                       (m.a * m.exp_z - m.b * m.exp_minus_z + m.sin_z + m.sigma * m.cos_z);
           }
@@ -306,6 +310,11 @@ void compileTooth(double drum_radius_m, ToothModel* tooth) {
     t.sigma[i] = (std::cosh(beta_L) + std::cos(beta_L)) / (std::sinh(beta_L) + std::sin(beta_L));
     t.norm_C[i] = 1.0 / std::sqrt(rhoA * L);
     t.omega0_sq[i] = std::pow(beta_L, 4) * EI / (rhoA * std::pow(L, 4));
+    if (t.quasi_static_from_mode > 0 && i >= t.quasi_static_from_mode) {
+      // Shape times s, omega^2 times s^2: phi phi^T / omega^2 kept, modal mass over s^2.
+      t.norm_C[i] *= t.quasi_static_speedup;
+      t.omega0_sq[i] *= t.quasi_static_speedup * t.quasi_static_speedup;
+    }
     t.damping_coeff[i] = 2 * t.damping_ratio * std::sqrt(t.omega0_sq[i]);
   }
   t.rotation_factor.resize(n);
@@ -363,8 +372,9 @@ void evaluateModesOnGrid(const ToothModel& tooth, int n_points, MatX* phi, MatX*
   std::array<ModeTerms, kMaxModes> terms;
   for (int s = 0; s < n_points; ++s) {
     for (int i = 0; i < n; ++i) {
-      terms[i] = s % kExactEvery == 0 ? modeTerms(tooth, i, n_points > 1 ? L * s / (n_points - 1) : 0.0, table)
-                                      : advanced(terms[i], step[i]);
+      terms[i] = s % kExactEvery == 0
+                     ? modeTerms(tooth, i, n_points > 1 ? L * s / (n_points - 1) : 0.0, table)
+                     : advanced(terms[i], step[i]);
       const ModeTerms& t = terms[i];
       (*phi)(s, i) =
           tooth.norm_C[i] * (t.a * t.exp_z + t.b * t.exp_minus_z - t.cos_z + t.sigma * t.sin_z);

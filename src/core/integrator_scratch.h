@@ -67,6 +67,29 @@ struct ToothPropagator {
   Eigen::VectorXcd c;       // scratch: modal amplitudes V^-1 y, then scaled, 2n [mixed]
 };
 
+// One tooth's Lawson (integrating-factor) Dormand-Prince step (IntegratorParams::modal_split):
+// its modal state y = [q; qdot] in the interaction picture of its free propagator, in modal
+// amplitudes a = V^-1 y, where the propagator is diagonal (exp(lambda t)). Stage s is
+// a_s = G(c_s) a_0 + h sum_j a_sj G(c_s - c_j) n_j with n_j = V^-1 [0; N_j], N_j the stage's
+// acceleration minus the free tooth's (the contact force), G(x) = exp(lambda x h). Scratch, sized
+// 2n on the first use and reused.
+struct ModalSplitScratch {
+  Eigen::VectorXcd a0;         // amplitudes of the step start [mixed]
+  Eigen::VectorXcd n_k[7];     // V^-1 [0; N_j] of each stage [mixed / s]
+  Eigen::VectorXcd growth[6];  // exp(lambda c_s h) of the nodes c_1..c_6 (growth[0]: c_1) [-]
+  Eigen::VectorXcd decay[6];   // exp(-lambda c_s h) likewise [-]
+  Eigen::VectorXcd shift;      // static shift a* of each mode (0: none) [mixed]
+  Eigen::VectorXcd a;          // scratch amplitudes [mixed]
+  // Real and imaginary parts of the propagator's V and of V^-1's velocity columns (real
+  // matrix-vector products), built at the drum speed factors_omega_radps.
+  double factors_omega_radps = std::numeric_limits<double>::quiet_NaN();  // [rad/s]
+  MatX V_re, V_im;                                                        // 2n x 2n [mixed]
+  MatX Vinv_u_re, Vinv_u_im;                                              // 2n x n [mixed]
+  VecX a_re, a_im;    // scratch: amplitudes' parts, 2n [mixed]
+  VecX N;             // scratch: contact modal acceleration, n [1/s^2 sqrt(kg) m]
+  VecX nk_re, nk_im;  // scratch: V^-1 [0; N] parts, 2n [mixed / s]
+};
+
 // The inputs of the event-driven integrator's last right-hand side evaluation, so that a call
 // with the same inputs (the step end, evaluated again as the next step's start, by the event
 // functions and the statistics) reuses its results, which stay in the workspace until any
@@ -130,7 +153,12 @@ struct EventDrivenScratch {
   // Exact propagation of free teeth (IntegratorParams::exact_free_teeth).
   std::vector<internal::ToothPropagator> prop;  // per tooth, keyed on the drum speed
   std::vector<std::uint8_t> tooth_exact;        // per tooth: exact over the current trial [-]
-  std::vector<std::uint8_t> own_error;          // per dof: counted in the error estimate [-]
+  std::vector<std::uint8_t> own_error;  // per dof: 0 out of the error estimate, 1 the Runge-Kutta
+                                        // estimate, 2 the modal split's (err_split) [-]
+  // Lawson split of the modal teeth in contact (IntegratorParams::modal_split).
+  std::vector<std::uint8_t> tooth_split;           // per tooth: split over the current trial [-]
+  std::vector<internal::ModalSplitScratch> split;  // per tooth
+  VecX err_split;                                  // error estimate of split dofs [z; u]
   // Located force peaks: per geom, the compliant normal force [N] and its rate [N/s] at the
   // step start (f0, r0) and end (f1, r1), and whether the pair is in compliant contact there.
   std::vector<double> pk_f0, pk_r0, pk_f1, pk_r1;

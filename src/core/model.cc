@@ -12,6 +12,7 @@
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/constants.h"
 #include "threshing_sim/core/large_deflection.h"
+#include "threshing_sim/core/tooth_cache.h"
 
 namespace threshing_sim {
 namespace {
@@ -179,7 +180,8 @@ bool copyTwin(Model* model, size_t k) {
         o.density_kgpm3 != t.density_kgpm3 || o.n_modes != t.n_modes ||
         o.damping_ratio != t.damping_ratio || o.n_stations != t.n_stations ||
         o.static_correction != t.static_correction || o.section_rotation != t.section_rotation ||
-        o.modes_auto != t.modes_auto)
+        o.modes_auto != t.modes_auto || o.quasi_static_from_mode != t.quasi_static_from_mode ||
+        o.quasi_static_speedup != t.quasi_static_speedup)
       continue;
     const double angle_rad = t.mount_angle_rad;
     t = o;
@@ -193,9 +195,9 @@ bool copyTwin(Model* model, size_t k) {
 }
 
 // Tooth k: checked, its mode count chosen (automatic modes), its modal data and residual
-// flexibility compiled. Moduli above 1e13 Pa (50x diamond) only make the modes uselessly stiff:
-// use modes: 0.
-void compileToothAt(Model* model, size_t k) {
+// flexibility compiled (compileTooth through *cache when given). Moduli above 1e13 Pa (50x
+// diamond) only make the modes uselessly stiff: use modes: 0.
+void compileToothAt(Model* model, size_t k, ToothCache* cache) {
   Model& m = *model;
   if (m.teeth[k].n_stations > 65)
     fail("teeth." + std::to_string(k) + ".stations", "must be <= 65", m.teeth[k].n_stations);
@@ -219,7 +221,10 @@ void compileToothAt(Model* model, size_t k) {
   t.residual_contact_time_s = t.residual_modes > 0 ? shortestContactTime(m, t, true) : 0.0;
   try {
     if (!copyTwin(&m, k)) {
-      compileTooth(m.drum.radius_m, &m.teeth[k]);
+      if (cache != nullptr)
+        cache->compile(m.drum.radius_m, &m.teeth[k]);
+      else
+        compileTooth(m.drum.radius_m, &m.teeth[k]);
       compileResidual(m.drum.radius_m, m.drum.initial_speed_radps, m.drum.speed_bound_radps,
                       &m.teeth[k]);
     }
@@ -232,12 +237,12 @@ void compileToothAt(Model* model, size_t k) {
 }
 
 // Teeth: modal data, and their modal coordinates first in the generalised vector, from
-// *offset on (advanced past them).
-void compileTeeth(Model* model, int* offset) {
+// *offset on (advanced past them); compileTooth through *cache when given.
+void compileTeeth(Model* model, int* offset, ToothCache* cache) {
   Model& m = *model;
   m.has_large_deflection = false;
   for (size_t k = 0; k < m.teeth.size(); ++k) {
-    compileToothAt(model, k);
+    compileToothAt(model, k, cache);
     m.teeth[k].dof_offset = *offset;
     *offset += m.teeth[k].n_modes;
     if (m.teeth[k].beam_model == ToothBeamModel::kLargeDeflection) m.has_large_deflection = true;
@@ -331,13 +336,15 @@ void compileContactLaws(Model* model) {
 
 }  // namespace
 
-void compileModel(Model* model) {
+void compileModel(Model* model) { compileModel(model, nullptr); }
+
+void compileModel(Model* model, ToothCache* teeth) {
   Model& m = *model;
   checkGlobals(m);
   m.drum.speed_bound_radps = std::max(m.drum.max_speed_radps, std::abs(m.drum.initial_speed_radps));
   // Generalised coordinates: the teeth's modal coordinates first, then the kernels'.
   int offset = 0;
-  compileTeeth(model, &offset);
+  compileTeeth(model, &offset, teeth);
   compileKernels(model, &offset);
   m.n_dof = offset;
   compileObstacles(model);

@@ -87,6 +87,28 @@ inline KernelModel makeKernel(double a_m, double b_m, const Vec2& position_m,
   return k;
 }
 
+// The bench stream's kernel on its pedicel: 5 x 1.3 mm, 28 mg, a 3 mm stem of 1600 N/m and
+// 0.002 N s/m that breaks at 1.6 N, attached at the end of the major axis, which hangs vertical.
+constexpr double kHangRest_m = 3e-3, kHangStiffness_Npm = 1600.0, kHangMass_kg = 2.8e-5;
+// The anchor's height above the centre at the static equilibrium [m].
+constexpr double kHangDepth_m = kHangRest_m + kHangMass_kg * kG / kHangStiffness_Npm + 5e-3;
+
+// That kernel under the anchor p_WA_W, its centre offset_x_m sideways from the static
+// equilibrium (0: at rest; otherwise it swings), at rest.
+inline KernelModel hangingKernel(const Vec2& p_WA_W, double offset_x_m = 0.0) {
+  const double a_m = 5e-3;
+  const Vec2 centre = p_WA_W - Vec2(offset_x_m, kHangDepth_m);
+  KernelModel k = makeKernel(a_m, 1.3e-3, centre, Vec2::Zero(), kPi / 2, kHangMass_kg);
+  k.pedicel.present = true;
+  k.pedicel.p_WA_W = p_WA_W;
+  k.pedicel.p_KP_K = Vec2(a_m, 0.0);
+  k.pedicel.stiffness_Npm = kHangStiffness_Npm;
+  k.pedicel.damping_Nspm = 0.002;
+  k.pedicel.rest_length_m = kHangRest_m;
+  k.pedicel.detachment_force_N = 1.6;
+  return k;
+}
+
 // A model with no drum motion and no teeth: kernels and obstacles only.
 inline Model bareModel(IntegratorType type) {
   Model m;

@@ -215,20 +215,9 @@ Model pedicelPatch(int n) {
   Model m = testutil::bareModel(IntegratorType::kEventDriven);
   m.integrator.islands = true;
   m.integrator.tolerance = 1e-6;
-  const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
   for (int i = 0; i < n; ++i) {
     const Vec2 anchor(0.004 * (i % 12), -0.015625 * (i / 12));
-    const double hang_m = rest + mass * testutil::kG / k_Npm + a;
-    const Vec2 centre = anchor - Vec2(i % 4 == 1 ? 2e-3 : 0.0, hang_m);
-    KernelModel k = testutil::makeKernel(a, 1.3e-3, centre, Vec2::Zero(), kPi / 2, mass);
-    k.pedicel.present = true;
-    k.pedicel.p_WA_W = anchor;
-    k.pedicel.p_KP_K = Vec2(a, 0.0);
-    k.pedicel.stiffness_Npm = k_Npm;
-    k.pedicel.damping_Nspm = 0.002;
-    k.pedicel.rest_length_m = rest;
-    k.pedicel.detachment_force_N = 1.6;
-    m.kernels.push_back(k);
+    m.kernels.push_back(testutil::hangingKernel(anchor, i % 4 == 1 ? 2e-3 : 0.0));
   }
   compileModel(&m);
   return m;
@@ -596,21 +585,10 @@ Model hangingField(bool islands) {
   Model m = testutil::bareModel(IntegratorType::kEventDriven);
   m.integrator.islands = islands;
   m.integrator.tolerance = 1e-8;
-  const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
   for (int i = 0; i < 41; ++i) {
     const bool swinging = i == 40;  // the last one, 5 cm away, pushed sideways
     const Vec2 anchor(swinging ? 0.53 : 0.012 * i, 0.0);
-    const double hang_m = rest + mass * testutil::kG / k_Npm + a;
-    const Vec2 centre = anchor - Vec2(swinging ? 2e-3 : 0.0, hang_m);
-    KernelModel k = testutil::makeKernel(a, 1.3e-3, centre, Vec2::Zero(), kPi / 2, mass);
-    k.pedicel.present = true;
-    k.pedicel.p_WA_W = anchor;
-    k.pedicel.p_KP_K = Vec2(a, 0.0);
-    k.pedicel.stiffness_Npm = k_Npm;
-    k.pedicel.damping_Nspm = 0.002;
-    k.pedicel.rest_length_m = rest;
-    k.pedicel.detachment_force_N = 1.6;
-    m.kernels.push_back(k);
+    m.kernels.push_back(testutil::hangingKernel(anchor, swinging ? 2e-3 : 0.0));
   }
   compileModel(&m);
   return m;
@@ -681,7 +659,6 @@ TEST(BodyMotion, AFieldAtRestOutOfReachIsNotLookedAtPerWindow) {
   for (const IntegratorType type : {IntegratorType::kEventDriven, IntegratorType::kTimeStepping}) {
     Model m = testutil::defaultSceneModel(type);
     m.integrator.islands = true;
-    const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
     m.kernels.clear();
     for (int row = 0; row < 4; ++row) {
       for (int col = 0; col < 25; ++col) {
@@ -689,16 +666,7 @@ TEST(BodyMotion, AFieldAtRestOutOfReachIsNotLookedAtPerWindow) {
         // along them, over the angles the tooth sweeps and beyond: beside its path, not in it.
         const double rho = 0.305 + 0.015 * row, phi = -0.05 + 0.012 * col / rho;
         const Vec2 centre(rho * std::cos(phi), rho * std::sin(phi));
-        const Vec2 anchor = centre + Vec2(0.0, rest + mass * testutil::kG / k_Npm + a);
-        KernelModel k = testutil::makeKernel(a, 1.3e-3, centre, Vec2::Zero(), kPi / 2, mass);
-        k.pedicel.present = true;
-        k.pedicel.p_WA_W = anchor;
-        k.pedicel.p_KP_K = Vec2(a, 0.0);
-        k.pedicel.stiffness_Npm = k_Npm;
-        k.pedicel.damping_Nspm = 0.002;
-        k.pedicel.rest_length_m = rest;
-        k.pedicel.detachment_force_N = 1.6;
-        m.kernels.push_back(k);
+        m.kernels.push_back(testutil::hangingKernel(centre + Vec2(0.0, testutil::kHangDepth_m)));
       }
     }
     compileModel(&m);

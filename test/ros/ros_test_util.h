@@ -1,5 +1,6 @@
-// Helpers shared by the rostests that watch processes: a node's process id, whether a process
-// has ended, and a shell command's exit status and output.
+// Helpers shared by the rostests: a node's process id, whether a process has ended, a shell
+// command's exit status and output, subscriptions whose callbacks run under a test's lock, and
+// a bounded wait for a condition under that lock.
 #pragma once
 
 #include <ros/master.h>
@@ -12,6 +13,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <mutex>
 #include <string>
 
 namespace threshing_sim {
@@ -50,6 +53,33 @@ inline int run(const std::string& cmd, std::string* output) {
   while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) output->append(buf.data(), n);
   const int status = pclose(pipe);
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Waits (wall time) until pred() holds under mutex, looking every poll_s, or until timeout_s
+// passes; whether it held.
+inline bool waitUnder(std::mutex& mutex, const std::function<bool()>& pred, double timeout_s,
+                      double poll_s) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < end) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (pred()) return true;
+    }
+    ros::WallDuration(poll_s).sleep();
+  }
+  return false;
+}
+
+// Subscribes f to topic (queue messages deep); f runs under mutex.
+template <typename M>
+ros::Subscriber listenUnder(ros::NodeHandle* nh, std::mutex& mutex, const std::string& topic,
+                            std::uint32_t queue, const std::function<void(const M&)>& f) {
+  return nh->subscribe<M>(topic, queue,
+                          boost::function<void(const typename M::ConstPtr&)>(
+                              [f, &mutex](const typename M::ConstPtr& m) {
+                                std::lock_guard<std::mutex> lock(mutex);
+                                f(*m);
+                              }));
 }
 
 }  // namespace test

@@ -45,15 +45,7 @@ double g_clock_s = 0;
 std::atomic<long> g_contact_messages{0};
 
 bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < end) {
-    {
-      std::lock_guard<std::mutex> lock(g_mutex);
-      if (pred()) return true;
-    }
-    ros::WallDuration(0.02).sleep();
-  }
-  return false;
+  return threshing_sim::test::waitUnder(g_mutex, pred, timeout_s, 0.02);
 }
 
 std::string diag(const std::string& node, const std::string& key) {

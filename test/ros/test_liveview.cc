@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "ros_test_util.h"
 #include "threshing_sim/DrumState.h"
 #include "threshing_sim/KernelContactForces.h"
 #include "threshing_sim/KernelStateArray.h"
@@ -44,24 +45,11 @@ ros::NodeHandle* g_nh = nullptr;
 
 template <typename M>
 ros::Subscriber listen(const std::string& topic, const std::function<void(const M&)>& f) {
-  return g_nh->subscribe<M>(
-      topic, 10000,
-      boost::function<void(const typename M::ConstPtr&)>([f](const typename M::ConstPtr& m) {
-        std::lock_guard<std::mutex> lock(g_seen.mutex);
-        f(*m);
-      }));
+  return threshing_sim::test::listenUnder<M>(g_nh, g_seen.mutex, topic, 10000, f);
 }
 
 bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < end) {
-    {
-      std::lock_guard<std::mutex> lock(g_seen.mutex);
-      if (pred()) return true;
-    }
-    ros::WallDuration(0.01).sleep();
-  }
-  return false;
+  return threshing_sim::test::waitUnder(g_seen.mutex, pred, timeout_s, 0.01);
 }
 
 // The peak normal force `simulate` reports for the default scene (its --summary JSON) [N].

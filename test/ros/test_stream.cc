@@ -49,15 +49,7 @@ std::map<std::string, std::string> g_summary;                      // status nam
 std::map<std::string, std::vector<threshing_sim::StrikeHistory>> g_strikes;  // by node
 
 bool waitFor(const std::function<bool()>& pred, double timeout_s) {
-  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-  while (ros::WallTime::now() < end) {
-    {
-      std::lock_guard<std::mutex> lock(g_mutex);
-      if (pred()) return true;
-    }
-    ros::WallDuration(0.02).sleep();
-  }
-  return false;
+  return threshing_sim::test::waitUnder(g_mutex, pred, timeout_s, 0.02);
 }
 
 // The diagnostic status of a node ("<node>: simulation", its name with or without namespace).

@@ -98,6 +98,45 @@ std::string refined(const SceneRun& g) {
 
 class IslandScenes : public ::testing::TestWithParam<const char*> {};
 
+// The impacts of a run, in order (pair and kind).
+std::vector<PairId> impactsOf(const SceneRun& r) {
+  std::vector<PairId> out;
+  for (const ContactEvent& e : r.d.events)
+    if (e.is_impact || e.to == ContactState::kImpact) out.push_back(e.pair);
+  return out;
+}
+
+// The global scheme (g) and the island scheme (a), each also run with the knob refined (f,
+// af): the same impacts in the same order, and every output within the two schemes' error
+// estimates (knob refined) together: each takes its own steps, so at one knob either may be
+// the more accurate; or for the event-driven integrator ten times its tolerance relative to
+// the value, whichever is larger. Schemes that converged to different answers fail it: their
+// refined runs then differ as much as they do. With a tag, each output is printed.
+void expectSchemesAgree(const SceneRun& g, const SceneRun& a, const SceneRun& f, const SceneRun& af,
+                        std::vector<double> (*outputs_of)(const SceneRun&),
+                        const char* tag = nullptr) {
+  for (const SceneRun* r : {&g, &a, &f, &af}) ASSERT_NE(r->status, StepStatus::kFailed);
+  EXPECT_EQ(a.d.stats.impacts, g.d.stats.impacts);
+  const std::vector<PairId> ga = impactsOf(g), aa = impactsOf(a);
+  EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
+  const std::vector<double> og = outputs_of(g), oa = outputs_of(a), of = outputs_of(f),
+                            oaf = outputs_of(af);
+  for (size_t q = 0; q < og.size(); ++q) {
+    const double estimate = std::abs(og[q] - of[q]) + std::abs(oa[q] - oaf[q]);
+    const double tol = g.m.integrator.type == IntegratorType::kEventDriven
+                           ? 10.0 * g.m.integrator.tolerance * std::abs(og[q])
+                           : 0.0;
+    const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
+    const double bound = std::max({3.0 * estimate, tol, floor});
+    if (tag != nullptr)
+      std::printf("%s output %zu: global %.9g islands %.9g (rel %+.2e, bound %.2e)\n", tag, q,
+                  og[q], oa[q], (oa[q] - og[q]) / (std::abs(og[q]) + 1e-300), bound);
+    EXPECT_LE(std::abs(oa[q] - og[q]), bound)
+        << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined " << of[q]
+        << " and " << oaf[q];
+  }
+}
+
 TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
   for (const Case& c : kCases) {
     SCOPED_TRACE(std::string(c.file) + ", " + GetParam());
@@ -105,33 +144,7 @@ TEST_P(IslandScenes, SameImpactsAndOutputsWithinTheErrorEstimate) {
     const SceneRun a = runScene(c.file, settings(c, GetParam(), true));
     const SceneRun f = runScene(c.file, settings(c, GetParam(), false, refined(g)));
     const SceneRun af = runScene(c.file, settings(c, GetParam(), true, refined(g)));
-    ASSERT_NE(g.status, StepStatus::kFailed);
-    ASSERT_NE(a.status, StepStatus::kFailed);
-    ASSERT_NE(f.status, StepStatus::kFailed);
-    ASSERT_NE(af.status, StepStatus::kFailed);
-    EXPECT_EQ(a.d.stats.impacts, g.d.stats.impacts);
-    // The impacts in the same order.
-    std::vector<PairId> ga, aa;
-    for (const ContactEvent& e : g.d.events)
-      if (e.is_impact || e.to == ContactState::kImpact) ga.push_back(e.pair);
-    for (const ContactEvent& e : a.d.events)
-      if (e.is_impact || e.to == ContactState::kImpact) aa.push_back(e.pair);
-    EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
-    const std::vector<double> og = outputs(g), oa = outputs(a), of = outputs(f), oaf = outputs(af);
-    for (size_t q = 0; q < og.size(); ++q) {
-      // The two schemes' error estimates (knob refined) together: each takes its own steps,
-      // so at one knob either may be the more accurate; or for the event-driven integrator ten
-      // times its tolerance relative to the value, whichever is larger. Schemes that converged
-      // to different answers fail it: their refined runs then differ as much as they do.
-      const double estimate = std::abs(og[q] - of[q]) + std::abs(oa[q] - oaf[q]);
-      const double tol = g.m.integrator.type == IntegratorType::kEventDriven
-                             ? 10.0 * g.m.integrator.tolerance * std::abs(og[q])
-                             : 0.0;
-      const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
-      EXPECT_LE(std::abs(oa[q] - og[q]), std::max({3.0 * estimate, tol, floor}))
-          << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined "
-          << of[q] << " and " << oaf[q];
-    }
+    expectSchemesAgree(g, a, f, af, outputs);
   }
 }
 
@@ -178,36 +191,11 @@ TEST_P(IslandScenes, RodScenesSameImpactsAndOutputsWithinTheErrorEstimate) {
     const SceneRun a = run(c, true, "");
     const SceneRun f = run(c, false, refined(g));
     const SceneRun af = run(c, true, refined(g));
-    ASSERT_NE(g.status, StepStatus::kFailed);
-    ASSERT_NE(a.status, StepStatus::kFailed);
-    ASSERT_NE(f.status, StepStatus::kFailed);
-    ASSERT_NE(af.status, StepStatus::kFailed);
     ASSERT_EQ(a.m.teeth[0].beam_model, ToothBeamModel::kLargeDeflection);
     EXPECT_GT(a.d.stats.scheduler.islands_built, 0);
     EXPECT_GE(g.d.stats.impacts, 1);
-    EXPECT_EQ(a.d.stats.impacts, g.d.stats.impacts);
-    std::vector<PairId> ga, aa;
-    for (const ContactEvent& e : g.d.events)
-      if (e.is_impact || e.to == ContactState::kImpact) ga.push_back(e.pair);
-    for (const ContactEvent& e : a.d.events)
-      if (e.is_impact || e.to == ContactState::kImpact) aa.push_back(e.pair);
-    EXPECT_TRUE(ga == aa) << ga.size() << " against " << aa.size() << " impact events";
-    const std::vector<double> og = rodOutputs(g), oa = rodOutputs(a), of = rodOutputs(f),
-                              oaf = rodOutputs(af);
-    for (size_t q = 0; q < og.size(); ++q) {
-      const double estimate = std::abs(og[q] - of[q]) + std::abs(oa[q] - oaf[q]);
-      const double tol = g.m.integrator.type == IntegratorType::kEventDriven
-                             ? 10.0 * g.m.integrator.tolerance * std::abs(og[q])
-                             : 0.0;
-      const double floor = 1e-9 * (std::abs(og[q]) + 1e-3);
-      const double bound = std::max({3.0 * estimate, tol, floor});
-      std::printf(
-          "ROD_ISLANDS %s %s output %zu: global %.9g islands %.9g (rel %+.2e, bound %.2e)\n",
-          c.file, GetParam(), q, og[q], oa[q], (oa[q] - og[q]) / (std::abs(og[q]) + 1e-300), bound);
-      EXPECT_LE(std::abs(oa[q] - og[q]), bound)
-          << "output " << q << ": global " << og[q] << ", islands " << oa[q] << ", refined "
-          << of[q] << " and " << oaf[q];
-    }
+    const std::string tag = std::string("ROD_ISLANDS ") + c.file + " " + GetParam();
+    expectSchemesAgree(g, a, f, af, rodOutputs, tag.c_str());
   }
 }
 

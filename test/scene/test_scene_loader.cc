@@ -618,9 +618,9 @@ std::string fingerprint(const YAML::Node& root) {
   const IntegratorParams& i = m.integrator;
   o << m.hc_min_impact_speed_mps << ' ' << static_cast<int>(i.type) << ' ' << i.tolerance << ' '
     << i.dt_s << ' ' << i.theta << ' ' << i.zeno_velocity_mps << ' ' << i.max_step_s << ' '
-    << i.exact_free_teeth << ' ' << i.islands << ' ' << m.duration_s << ' ' << m.broadphase_margin_m
-    << ' ' << m.macro_collision_gap_s << ' ' << m.deflection_validity_fraction << ' '
-    << dmg.plastic_force_N << ' ' << dmg.fracture_force_N;
+    << i.exact_free_teeth << ' ' << i.modal_split << ' ' << i.islands << ' ' << m.duration_s << ' '
+    << m.broadphase_margin_m << ' ' << m.macro_collision_gap_s << ' '
+    << m.deflection_validity_fraction << ' ' << dmg.plastic_force_N << ' ' << dmg.fracture_force_N;
   return o.str();
 }
 

@@ -237,6 +237,8 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(len({r["worker"] for r in table}), 2)
         stats = json.loads((out / "run_stats.json").read_text())
         self.assertEqual(stats["batches"], 6)  # 30 distinct runs in batches of 5
+        # One simulate --batch process per thread takes its batches one after the other.
+        self.assertEqual(stats["processes"], 2)
 
     def test_sweep_on_dask_scheduler(self):
         out = self.out / "cluster"

@@ -74,6 +74,13 @@ struct ToothModel {
                                   // the contact (docs/model.md §9b); false: modes only [-]
   // teeth.*.section_rotation: what turns the sections in the contact (docs/model.md §9b) [-]
   ToothSectionRotation section_rotation = ToothSectionRotation::kShearCorrected;
+  // Diagnostic, not a scene key (docs/convergence.md, "Static correction against the mode
+  // count"): a modal tooth's modes from index quasi_static_from_mode on get their frequency
+  // times quasi_static_speedup and their modal mass over its square (shape times the speedup),
+  // so that each keeps its static flexibility phi phi^T / omega^2 and, as the speedup grows,
+  // tends to the massless spring that the static correction assumes. 0: off.
+  int quasi_static_from_mode = 0;     // [-]
+  double quasi_static_speedup = 1.0;  // [-]
 
   // --- derived by compileModel() ---
   double area_m2 = 0;               // A = pi d^2 / 4 [m^2]
@@ -217,6 +224,11 @@ struct IntegratorParams {
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
              // is advanced by the exact solution of its linear modal equations, outside the
              // error control (false: every tooth by Dormand-Prince) [-]
+  bool modal_split =
+      false;  // event-driven: a modal tooth in contact while the drum turns at constant speed is
+              // stepped by a Lawson (integrating-factor) Dormand-Prince: its free modal
+              // equations exactly, the contact force as the only integrated term (false: every
+              // tooth in contact by plain Dormand-Prince) [-]
 };
 
 struct Model {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "threshing_sim/core/model.h"
+#include "threshing_sim/core/tooth_cache.h"
 #include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
@@ -41,8 +42,9 @@ std::vector<std::string> overridesFromFile(const std::string& path);
 // Validates the tree (unknown keys, missing keys, types, ranges, NaN/inf, semi-axes order,
 // kernels overlapping at start), expands a kernel `stream` into kernels appended after the
 // listed ones (deterministic from its seed; docs/scene_reference.md) and returns the
-// compiled model. Throws SceneError.
-Model modelFromYaml(const YAML::Node& root);
+// compiled model (its teeth compiled through *tooth_cache when given). Throws
+// SceneError.
+Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache = nullptr);
 
 // The outcome settings of a scene (section `damage`; defaults for rice when absent). The tree
 // must have passed modelFromYaml, which validates the section. Throws SceneError.

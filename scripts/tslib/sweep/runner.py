@@ -27,8 +27,15 @@ VOLATILE_COLUMNS = {"wall_s", "cpu_s", "worker"}
 CACHED_STATUSES = {"ok", "failed"}
 
 
+# Results are committed to the cache, and their rows written to runs.csv, in groups at most
+# this far apart [s] (and at the end): a commit per result cost a tenth of the runner's CPU.
+SYNC_S = 0.5
+
+
 class Cache:
-    """Run results by key, in SQLite (WAL, one commit per result)."""
+    """Run results by key, in SQLite (WAL). store() keeps a result until commit(), which the
+    runner calls before it writes the results' rows (Table.write), so that an interrupted
+    sweep's runs.csv holds no run its cache lacks."""
 
     def __init__(self, path):
         self.db = sqlite3.connect(str(path), timeout=30)
@@ -36,6 +43,7 @@ class Cache:
         self.db.execute("PRAGMA synchronous=NORMAL")
         self.db.execute("CREATE TABLE IF NOT EXISTS cache (key TEXT PRIMARY KEY, result TEXT)")
         self.db.commit()
+        self.unsaved = []  # (key, result as JSON) not yet committed
 
     def load(self, keys):
         found = {}
@@ -50,9 +58,13 @@ class Cache:
 
     def store(self, result):
         if result["status"] in CACHED_STATUSES:
-            self.db.execute("INSERT OR REPLACE INTO cache VALUES (?, ?)",
-                            (result["key"], json.dumps(result)))
+            self.unsaved.append((result["key"], json.dumps(result)))
+
+    def commit(self):
+        if self.unsaved:
+            self.db.executemany("INSERT OR REPLACE INTO cache VALUES (?, ?)", self.unsaved)
             self.db.commit()
+            self.unsaved = []
 
 
 def _lookup(summary, path):
@@ -68,7 +80,8 @@ def _lookup(summary, path):
 
 
 class Table:
-    """Turns results into rows and writes them: CSV (incrementally) and SQLite."""
+    """Turns results into rows and writes them: CSV (incrementally: write() appends the rows
+    added since) and SQLite."""
 
     def __init__(self, sweep, out, db):
         self.sweep = sweep
@@ -81,8 +94,9 @@ class Table:
         self.rows = {}        # run index -> row
         self.kernels = {}     # run index -> list of per-kernel rows
         self.file = open(self.csv_path, "w", newline="")
-        self.writer = csv.DictWriter(self.file, self.columns, extrasaction="ignore")
-        self.writer.writeheader()
+        self.writer = csv.writer(self.file)
+        self.writer.writerow(self.columns)
+        self.unwritten = []   # rows added, not yet in the CSV file
 
     def row(self, run, result):
         row = {"run": run.index, **run.labels, "status": result["status"],
@@ -107,8 +121,7 @@ class Table:
     def add(self, run, result):
         row = self.row(run, result)
         self.rows[run.index] = row
-        self.writer.writerow(row)
-        self.file.flush()
+        self.unwritten.append(row)
         if result["outcomes"]:
             reader = csv.DictReader(io.StringIO(result["outcomes"]))
             self.kernels[run.index] = [{"run": run.index, **run.labels, **k} for k in reader]
@@ -122,6 +135,12 @@ class Table:
                 if text is not None:
                     (folder / name).write_text(text)
         return row
+
+    def write(self):
+        """Appends the rows added since the last call to the CSV file."""
+        self.writer.writerows([[r.get(c, "") for c in self.columns] for r in self.unwritten])
+        self.file.flush()
+        self.unwritten = []
 
     def finish(self):
         """Rewrites the CSV files and the SQLite tables in sweep order."""
@@ -148,15 +167,11 @@ def _write_sqlite(db, name, columns, rows):
     quoted = ", ".join(f'"{c}"' for c in columns)
     db.execute(f'DROP TABLE IF EXISTS "{name}"')
     db.execute(f'CREATE TABLE "{name}" ({quoted})')
-    db.executemany(f'INSERT INTO "{name}" VALUES ({", ".join("?" * len(columns))})',
-                   [[_sql_value(r.get(c)) for c in columns] for r in rows])
+    scalar = (type(None), int, float, str, bool)
+    values = [[v if type(v) in scalar else json.dumps(v) for v in map(r.get, columns)]
+              for r in rows]
+    db.executemany(f'INSERT INTO "{name}" VALUES ({", ".join("?" * len(columns))})', values)
     db.commit()
-
-
-def _sql_value(value):
-    if value is None or isinstance(value, (int, float, str)):
-        return value
-    return json.dumps(value)
 
 
 # ------------------------------------------------------------------------------------------
@@ -256,6 +271,7 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     for run in runs:
         if run.key in cached:
             table.add(run, cached[run.key])
+    table.write()
     todo = [key for key in by_key if key not in cached]
     log(f"sweep {sweep.name}: {len(runs)} runs, {len(runs) - sum(len(by_key[k]) for k in todo)}"
         f" from the cache, {sum(len(by_key[k]) for k in todo)} to run -> {out}")
@@ -270,6 +286,7 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
                          "keep": by_key[key][0].keep}
                    for key in todo}
         pending = set(todo)
+        synced = [time.monotonic()]
 
         def accept(result):
             if result["key"] not in pending:
@@ -279,6 +296,10 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
             for run in by_key[result["key"]]:
                 table.add(run, result)
                 progress.update(result["status"])
+            if time.monotonic() - synced[0] >= SYNC_S:
+                synced[0] = time.monotonic()
+                cache.commit()
+                table.write()
 
         work = [payload[key] for key in todo]
         if scheduler or processes:
@@ -286,6 +307,8 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
                       stats)
         else:
             _dispatch_local(work, workers or os.cpu_count() or 1, batch, accept, pending, stats)
+        cache.commit()
+        table.write()
     stats["dispatch_s"] = time.monotonic() - started
     table.finish()
     rows = [table.rows[i] for i in sorted(table.rows)]
@@ -293,18 +316,21 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     return rows, stats
 
 
-# Largest batch: a simulate --batch process costs a few ms to start (exec, dynamic linking, a
-# Dask task); 64 runs spread that over about a second of runs.
+# Largest batch of the local threads: their processes take one batch after another, so a
+# batch only sets how finely the runs are shared out.
 MAX_BATCH = 64
+# Largest batch of a Dask task: each task costs a simulate --batch process start (exec,
+# dynamic linking: about 3 ms of CPU) and the task's own round trips to the scheduler.
+MAX_TASK_BATCH = 128
 
 
-def batch_sizes(n_runs, workers, fixed=None):
-    """Runs per batch, in order: `fixed` each, or guided (each batch a quarter of the remaining
-    runs' share per worker, at most MAX_BATCH), so that the first batches spread the
-    process start over many runs and the last ones, of one or two runs, balance the workers."""
+def batch_sizes(n_runs, workers, fixed=None, parts=4, largest=MAX_BATCH):
+    """Runs per batch, in order: `fixed` each, or guided (each batch 1 / parts of the remaining
+    runs' share per worker, at most `largest`), so that the first batches spread the process
+    start over many runs and the last ones, of one or two runs, balance the workers."""
     sizes, left = [], n_runs
     while left > 0:
-        k = fixed or max(1, min(MAX_BATCH, math.ceil(left / (4 * max(workers, 1)))))
+        k = fixed or max(1, min(largest, math.ceil(left / (parts * max(workers, 1)))))
         k = min(k, left)
         sizes.append(k)
         left -= k
@@ -325,9 +351,11 @@ def _add_stats(stats, batch_stats):
 
 
 def _dispatch_local(work, workers, batch, accept, pending, stats):
-    """Threads of this process, each taking the next batch and running it in simulate --batch
-    processes (task.run_tasks); results arrive on a queue as each run ends. No Dask: its import
-    and cluster start cost more than the threads need (docs/sweeps.md, "Overhead")."""
+    """Threads of this process, each taking the next batch when its simulate --batch process
+    is on the last run of the one before (task.run_tasks with `more`: one process per thread
+    unless a run crashes or times out); results arrive on a queue as each run ends. No Dask:
+    its import and cluster start cost more than the threads need (docs/sweeps.md,
+    "Overhead")."""
     import queue
     import socket
     import threading
@@ -340,15 +368,20 @@ def _dispatch_local(work, workers, batch, accept, pending, stats):
     results, lock = queue.Queue(), threading.Lock()
     prefix = f"{socket.gethostname()}:{os.getpid()}"
 
+    def next_batch():
+        try:
+            return batches.get_nowait()
+        except queue.Empty:
+            return []
+
     def worker(i):
-        while True:
-            try:
-                b = batches.get_nowait()
-            except queue.Empty:
-                return
-            batch_stats = task_module.run_tasks(b, results.put, f"{prefix}:thread-{i}")
-            with lock:
-                _add_stats(stats, batch_stats)
+        # One simulate --batch process takes this thread's batches one after the other (a new
+        # one only after a crash or a timeout): one process start per thread, and its scene
+        # trees and compiled teeth serve all its batches.
+        batch_stats = task_module.run_tasks([], results.put, f"{prefix}:thread-{i}",
+                                            more=next_batch)
+        with lock:
+            _add_stats(stats, batch_stats)
 
     threads = [threading.Thread(target=worker, args=(i,), daemon=True) for i in range(workers)]
     for t in threads:
@@ -391,7 +424,8 @@ def _dispatch(work, scheduler, workers, batch, accept, pending, stats):
         departures = queue.Queue()
         client.subscribe_topic("all", lambda event: departures.put(event)
                                if event[1].get("action") == "remove-worker" else None)
-        sizes = batch_sizes(len(work), threads, batch)
+        # Half of each worker's remaining share: about half the tasks of a quarter.
+        sizes = batch_sizes(len(work), threads, batch, parts=2, largest=MAX_TASK_BATCH)
         stats.update(batch=max(sizes), batches=len(sizes))
         batches = _split(work, sizes)
         # One map call: every submit call would read the caller's source (Dask records it).

@@ -105,12 +105,64 @@ def _batch_line(task):
                        "return": ["summary", "outcomes", *task["keep"]]}) + "\n"
 
 
-def _feed(proc, tasks):
-    """Writes the tasks' lines to the batch process (in a thread: the process answers while it
-    reads, and both pipes are bounded)."""
+class _Runs:
+    """The runs of one caller of run_tasks, in order: those it was given, then the batches
+    that `more` hands over while its processes work. The next batch is fetched when a process
+    is on its last run (every run before it answered), so that the process never waits for a
+    line and a thread holds at most one batch that another thread could have taken."""
+
+    def __init__(self, tasks, more):
+        self.tasks = list(tasks)
+        self.more = more
+        self.ended = more is None  # no batch will follow
+        self.stopped = False       # the current process ended: its feeder stops
+        self.cond = threading.Condition()
+
+    def fetch(self):
+        """Appends the next batch (or marks the end)."""
+        if self.ended:
+            return
+        batch = self.more()
+        with self.cond:
+            if batch:
+                self.tasks.extend(batch)
+            else:
+                self.ended = True
+            self.cond.notify_all()
+
+    def due(self, i):
+        """Run i, fetching the next batch when i is the last one known; None when none is
+        left."""
+        if i >= len(self.tasks) - 1:
+            self.fetch()
+        return self.tasks[i] if i < len(self.tasks) else None
+
+    def to_feed(self, i):
+        """Run i once it is known; None at the end or when the process stopped."""
+        with self.cond:
+            while i >= len(self.tasks) and not self.ended and not self.stopped:
+                self.cond.wait()
+            return self.tasks[i] if i < len(self.tasks) and not self.stopped else None
+
+    def stop(self, stopped=True):
+        with self.cond:
+            self.stopped = stopped
+            self.cond.notify_all()
+
+
+def _feed(proc, runs, first):
+    """Writes the lines of runs[first:] to the batch process as they become known (in a
+    thread: the process answers while it reads, and both pipes are bounded)."""
     try:
-        for task in tasks:
+        i = first
+        while True:
+            task = runs.to_feed(i)
+            if task is None:
+                break
             proc.stdin.write(_batch_line(task).encode())
+            i += 1
+            if i >= len(runs.tasks):  # the process may be waiting for this line
+                proc.stdin.flush()
         proc.stdin.close()
     except (BrokenPipeError, OSError, ValueError):
         pass  # the process died or was killed: its reader records why
@@ -144,17 +196,17 @@ def _line_result(task, line, worker):
 class _BatchProcess:
     """One simulate --batch process over a list of tasks, read as it answers."""
 
-    def __init__(self, tasks, folder):
-        self.tasks = tasks
+    def __init__(self, runs, first, folder):
+        self.runs = runs
         self.err = open(os.path.join(folder, "stderr.txt"), "w+")
         try:
-            self.proc = subprocess.Popen([tasks[0]["simulate"], "--batch", "-"],
+            self.proc = subprocess.Popen([runs.tasks[first]["simulate"], "--batch", "-"],
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                          stderr=self.err)
         except OSError:
             self.err.close()
             raise
-        self.feeder = threading.Thread(target=_feed, args=(self.proc, tasks), daemon=True)
+        self.feeder = threading.Thread(target=_feed, args=(self.proc, runs, first), daemon=True)
         self.feeder.start()
         self.chunks = []  # output read but not yet returned; only the last may hold a newline
         self.eof = False
@@ -185,6 +237,7 @@ class _BatchProcess:
         and reaps it: (exit code, its CPU time [s], the end of its stderr)."""
         if kill or not _wait_exit(self.proc, EXIT_WAIT_S):
             self.proc.kill()
+        self.runs.stop()
         _, status, usage = os.wait4(self.proc.pid, 0)
         self.proc.returncode = os.waitstatus_to_exitcode(status)
         self.feeder.join(timeout=EXIT_WAIT_S)
@@ -216,61 +269,70 @@ def _error_result_for(task, worker, message=""):
             "outcomes": None, "files": {}, "wall_s": 0.0, "cpu_s": 0.0, "worker": worker}
 
 
-def _run_process(tasks, worker, publish, stats):
-    """Runs tasks in one batch process until it ends; a run past its timeout or the end of the
-    process before a result stops it, with that run recorded. Returns how many tasks it
-    consumed (at least one)."""
-    batch = _BatchProcess(tasks, _thread_folder())
-    done, timed_out = 0, False
+def _run_process(runs, first, worker, publish, stats):
+    """Runs runs[first:] in one batch process until it ends; a run past its timeout or the
+    end of the process before a result stops it, with that run recorded. Returns the index
+    after the last run it consumed (at least first + 1)."""
+    runs.stop(False)
+    batch = _BatchProcess(runs, first, _thread_folder())
+    i, timed_out = first, False
     started = time.perf_counter()
-    while done < len(tasks):
-        line = batch.next_line(tasks[done]["timeout_s"])
+    while True:
+        task = runs.due(i)
+        if task is None:
+            break
+        line = batch.next_line(task["timeout_s"])
         if line is False:
             timed_out = True
             break
         if line is None:
             break
-        result = _line_result(tasks[done], line, worker)
-        publish(result)
-        done += 1
+        publish(_line_result(task, line, worker))
+        i += 1
     code, cpu_s, stderr = batch.finish(kill=timed_out)
     stats["process_cpu_s"] += cpu_s
     stats["process_wall_s"] += time.perf_counter() - started
     stats["processes"] += 1
-    if done < len(tasks):
-        publish(_end_result(tasks[done], worker, code, stderr, timed_out))
-        done += 1
-    return done
+    if i < len(runs.tasks):
+        publish(_end_result(runs.tasks[i], worker, code, stderr, timed_out))
+        i += 1
+    return i
 
 
-def run_tasks(tasks, publish, worker=None):
+def run_tasks(tasks, publish, worker=None, more=None):
     """Runs the tasks (dicts: key, scene, simulate, sha, timeout_s, keep) in simulate --batch
     processes, calling publish(result) for each run as it ends (result: key, status, message,
-    summary, outcomes, files, wall_s, cpu_s, worker). A run that crashes the process or passes
-    its timeout is recorded so, and a new process takes the runs after it. worker: the name in
-    the results (default host:pid:Dask worker name). Returns the batch processes' statistics:
-    processes, process_cpu_s (user + system, wait4), process_wall_s."""
+    summary, outcomes, files, wall_s, cpu_s, worker); then, given `more` (a function returning
+    the next list of tasks, empty when there are none), the batches it returns, in the same
+    process. A run that crashes the process or passes its timeout is recorded so, and a new
+    process takes the runs after it. worker: the name in the results (default host:pid:Dask
+    worker name). Returns the batch processes' statistics: processes, process_cpu_s (user +
+    system, wait4), process_wall_s."""
     stats = {"processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
-    if not tasks:
+    runs = _Runs(tasks, more)
+    if runs.due(0) is None:
         return stats
     worker = worker or _worker_name()
+    first = runs.tasks[0]
     try:
-        sha = _binary_sha(tasks[0]["simulate"])
+        sha = _binary_sha(first["simulate"])
     except OSError as e:
-        sha, message = None, f"cannot read simulate at {tasks[0]['simulate']}: {e.strerror}"
-    if sha is not None and sha != tasks[0]["sha"]:
-        message = (f"simulate at {tasks[0]['simulate']} on this worker is not the client's "
-                   f"binary (sha256 {sha[:12]} != {tasks[0]['sha'][:12]})")
-    if sha is None or sha != tasks[0]["sha"]:
-        for task in tasks:
-            publish(_error_result_for(task, worker, message))
+        sha, message = None, f"cannot read simulate at {first['simulate']}: {e.strerror}"
+    if sha is not None and sha != first["sha"]:
+        message = (f"simulate at {first['simulate']} on this worker is not the client's "
+                   f"binary (sha256 {sha[:12]} != {first['sha'][:12]})")
+    if sha is None or sha != first["sha"]:
+        i = 0
+        while runs.due(i) is not None:
+            publish(_error_result_for(runs.tasks[i], worker, message))
+            i += 1
         return stats
     position = 0
-    while position < len(tasks):  # each process consumes at least one task
+    while runs.due(position) is not None:  # each process consumes at least one task
         try:
-            position += _run_process(tasks[position:], worker, publish, stats)
+            position = _run_process(runs, position, worker, publish, stats)
         except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
-            publish(_error_result_for(tasks[position], worker, f"{type(e).__name__}: {e}"))
+            publish(_error_result_for(runs.tasks[position], worker, f"{type(e).__name__}: {e}"))
             position += 1
     return stats
 

@@ -39,6 +39,7 @@ bool buildSubModel(const Model& m, IslandSystem* sys, const std::vector<int>& ke
   bool alike = true;
   if (sys->teeth_of != &m) {
     alike = sm.integrator.type == m.integrator.type && sm.integrator.theta == m.integrator.theta &&
+            sm.integrator.modal_split == m.integrator.modal_split &&
             sm.teeth.size() == sys->teeth.size();
     sm.drum = m.drum;
     for (int p = 0; p < 3; ++p) sm.contact[p] = m.contact[p];

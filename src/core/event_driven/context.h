@@ -100,6 +100,19 @@ bool rhs(const Ctx& c, double t, const VecX& z, const VecX& u, VecX* udot, doubl
 bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0, VecX* z1,
                VecX* u1, double* err, double* torque1);
 
+// --- modal_split.cc: the Lawson split of the modal teeth in contact (within dopriStep) -------
+// Marks in ws.ed.tooth_split the teeth the trial step of length h from (z0, u0) splits: the
+// option is on, the drum at its target speed, the tooth modal (not a rod) with a valid
+// propagator and not advanced as a free tooth (ws.ed.tooth_exact); their start amplitudes and
+// node factors. Returns the number marked.
+int beginModalSplit(const Ctx& c, double h, const VecX& z0, const VecX& u0);
+// Overwrites the split teeth's stage s state in ws.ed.zz, ws.ed.uu.
+void modalSplitStageState(const Ctx& c, int s, double h);
+// Their stage s contact term from ws.ed.udot at the stage state ws.ed.zz, ws.ed.uu.
+void modalSplitStoreStage(const Ctx& c, int s, double omega_radps);
+// Their error estimate into ws.ed.err_split, their dofs marked 2 in ws.ed.own_error.
+void modalSplitError(const Ctx& c, double h);
+
 // --- events.cc: event functions, arming, detection, location --------------------------------
 void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vector<double>* vals,
                  std::vector<double>* rates = nullptr, double horizon_s = 0.0);

@@ -1,5 +1,6 @@
 // The event-driven integrator's trial step: one Dormand-Prince 5(4) step (tableau kA, kC, kE
-// in internal.h) with its error estimate; free teeth advanced exactly.
+// in internal.h) with its error estimate; free teeth advanced exactly, teeth in contact optionally
+// by the Lawson split (modal_split.cc).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -96,23 +97,20 @@ void storeStage(const Ctx& c, int s, double h, int n_pairs, double torque) {
   }
 }
 
-// Free teeth: the exact end state replaces the Runge-Kutta one in (z1, u1); their dofs are
-// left out of the error estimate (ws.ed.own_error = 0).
-void propagateExactTeeth(const Ctx& c, double h, const VecX& z0, const VecX& u0, VecX* z1,
-                         VecX* u1) {
+// Free teeth (marked by markExactTeeth): the exact end state replaces the Runge-Kutta one in
+// (z1, u1); their dofs are left out of the error estimate (ws.ed.own_error = 0).
+void propagateExactTeeth(const Ctx& c, int n_exact, double h, const VecX& z0, const VecX& u0,
+                         VecX* z1, VecX* u1) {
   Workspace& ws = c.ws;
   std::vector<std::uint8_t>& own_error = ws.ed.own_error;  // per dof: in the error estimate
-  own_error.assign(c.m.n_dof, 1);
-  const int n_exact = markExactTeeth(c);
-  if (n_exact > 0) {
-    for (size_t k = 0; k < c.m.teeth.size(); ++k) {
-      if (!ws.ed.tooth_exact[k]) continue;
-      const ToothModel& tm = c.m.teeth[k];
-      propagateTooth(&ws.ed.prop[k], h, z0.segment(tm.dof_offset, tm.n_modes),
-                     u0.segment(tm.dof_offset, tm.n_modes), z1->segment(tm.dof_offset, tm.n_modes),
-                     u1->segment(tm.dof_offset, tm.n_modes));
-      std::fill_n(own_error.begin() + tm.dof_offset, tm.n_modes, 0);
-    }
+  if (n_exact == 0) return;
+  for (size_t k = 0; k < c.m.teeth.size(); ++k) {
+    if (!ws.ed.tooth_exact[k]) continue;
+    const ToothModel& tm = c.m.teeth[k];
+    propagateTooth(&ws.ed.prop[k], h, z0.segment(tm.dof_offset, tm.n_modes),
+                   u0.segment(tm.dof_offset, tm.n_modes), z1->segment(tm.dof_offset, tm.n_modes),
+                   u1->segment(tm.dof_offset, tm.n_modes));
+    std::fill_n(own_error.begin() + tm.dof_offset, tm.n_modes, 0);
   }
 }
 
@@ -128,11 +126,16 @@ double errorNorm(const Ctx& c, double h, const VecX& z0, const VecX& u0) {
   double e2 = 0.0;
   int n_err = 0;
   for (int i = 0; i < 2 * n; ++i) {
-    if (!own_error[i < n ? i : i - n]) continue;
+    const std::uint8_t own = own_error[i < n ? i : i - n];
+    if (!own) continue;
     ++n_err;
     double ei = 0.0;
-    for (int s = 0; s < 7; ++s) ei += kE[s] * ws.ed.rk_k[s][i];
-    ei *= h;
+    if (own == 2) {
+      ei = ws.ed.err_split[i];  // the modal split's estimate (already times h)
+    } else {
+      for (int s = 0; s < 7; ++s) ei += kE[s] * ws.ed.rk_k[s][i];
+      ei *= h;
+    }
     const double y = i < n ? std::max(std::abs(z0[i]), std::abs(zz[i]))
                            : std::max(std::abs(u0[i - n]), std::abs(uu[i - n]));
     const double scale = c.m.integrator.tolerance * ((i < n ? 1e-2 : 1.0) + y);
@@ -145,7 +148,8 @@ double errorNorm(const Ctx& c, double h, const VecX& z0, const VecX& u0) {
 
 // One Dormand-Prince step of length h from (t0, y0 = [z; u]); y1 and its error estimate.
 // Teeth marked by markExactTeeth take the exact solution of their free modal equations at the
-// step end instead, and stay out of the error estimate (their stages affect no other body).
+// step end instead, and stay out of the error estimate (their stages affect no other body);
+// teeth marked by beginModalSplit take the Lawson step of modal_split.cc, stages included.
 bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0, VecX* z1,
                VecX* u1, double* err, double* torque1) {
   const int n = c.m.n_dof;
@@ -169,16 +173,23 @@ bool dopriStep(const Ctx& c, double t0, double h, const VecX& z0, const VecX& u0
   ws.ed.torque_impulse = 0;
   zz.resize(n);
   uu.resize(n);
+  // Free teeth advanced exactly; teeth in contact split (modal_split.cc).
+  ws.ed.own_error.assign(n, 1);
+  const int n_exact = markExactTeeth(c);
+  const int n_split = beginModalSplit(c, h, z0, u0);
   for (int s = 0; s < 7; ++s) {
     stageState(c, s, h, z0, u0);
+    if (n_split > 0) modalSplitStageState(c, s, h);
     if (!rhs(c, t0 + kC[s] * h, zz, uu, &udot, &torque, false, SeparatedPairs::kNone)) return false;
     storeStage(c, s, h, n_pairs, torque);
+    if (n_split > 0) modalSplitStoreStage(c, s, c.d.omega_radps);
   }
   // Stage 7 is the 5th-order solution (FSAL).
   *z1 = zz;
   *u1 = uu;
   *torque1 = torque;
-  propagateExactTeeth(c, h, z0, u0, z1, u1);
+  propagateExactTeeth(c, n_exact, h, z0, u0, z1, u1);
+  if (n_split > 0) modalSplitError(c, h);
   *err = errorNorm(c, h, z0, u0);
   return z1->allFinite() && u1->allFinite();
 }
