@@ -98,24 +98,12 @@ double Pace::next(const Model& model, const Data& data, double requested_rtf,
 // ---------------------------------------------------------------------------------------------
 // StrikeFrames
 
-void StrikeFrames::copy(const Data& data, State* s) {
-  s->t_s = data.t_s;
-  s->theta_rad = data.theta_rad;
-  s->omega_radps = data.omega_radps;
-  s->z = data.z;
-  s->u = data.u;
-  s->contacts = data.contacts;
-  s->closed = std::any_of(data.contacts.begin(), data.contacts.end(), [](const ContactInfo& c) {
-    return c.pair.kind == PairKind::kToothKernel && c.state != ContactState::kSeparated;
-  });
-}
-
-void StrikeFrames::start(const Data& data) { copy(data, &prev_); }
+void StrikeFrames::start(const Data& data) { copyStepState(data, &prev_); }
 
 void StrikeFrames::sample(const Data& data, const std::function<void(const FrameState&)>& emit) {
-  copy(data, &next_);
-  const State& a = prev_;
-  const State& b = next_;
+  copyStepState(data, &next_);
+  const StepState& a = prev_;
+  const StepState& b = next_;
   const double h_s = b.t_s - a.t_s;
   if (!a.closed && !b.closed) episode_frames_ = 0;
   if ((a.closed || b.closed) && h_s > 0 && a.z.size() == b.z.size()) {
@@ -132,33 +120,8 @@ void StrikeFrames::sample(const Data& data, const std::function<void(const Frame
       if (!a.closed && t_s < b.t_s - kTailFrames * kFrame_ns * 1e-9) continue;
       if (!b.closed && t_s > a.t_s + kTailFrames * kFrame_ns * 1e-9) break;
       ++episode_frames_;
-      // Cubic Hermite on positions with their derivatives u = dz/dt (drum: theta, omega).
-      const double x = (t_s - a.t_s) / h_s, x2 = x * x, x3 = x2 * x;
-      const double h00 = 2 * x3 - 3 * x2 + 1, h10 = x3 - 2 * x2 + x, h01 = 3 * x2 - 2 * x3,
-                   h11 = x3 - x2;
       frame_.t_ns = t_ns;
-      frame_.t_s = t_s;
-      frame_.z = h00 * a.z + (h10 * h_s) * a.u + h01 * b.z + (h11 * h_s) * b.u;
-      frame_.u = (1 - x) * a.u + x * b.u;
-      frame_.theta_rad = h00 * a.theta_rad + h10 * h_s * a.omega_radps + h01 * b.theta_rad +
-                         h11 * h_s * b.omega_radps;
-      frame_.omega_radps = (1 - x) * a.omega_radps + x * b.omega_radps;
-      // The contacts of the nearer step; a pair closed at both ends has its point and forces
-      // interpolated.
-      const State& near = x < 0.5 ? a : b;
-      const State& far = x < 0.5 ? b : a;
-      const double w = x < 0.5 ? x : 1 - x;  // weight of the far step
-      frame_.contacts = near.contacts;
-      for (ContactInfo& c : frame_.contacts) {
-        const auto o = std::find_if(far.contacts.begin(), far.contacts.end(),
-                                    [&](const ContactInfo& f) { return f.pair == c.pair; });
-        if (o == far.contacts.end() || c.state == ContactState::kSeparated ||
-            o->state == ContactState::kSeparated)
-          continue;
-        c.p_W = (1 - w) * c.p_W + w * o->p_W;
-        c.normal_force_N = (1 - w) * c.normal_force_N + w * o->normal_force_N;
-        c.tangential_force_N = (1 - w) * c.tangential_force_N + w * o->tangential_force_N;
-      }
+      interpolateStep(a, b, t_s, &frame_);
       emit(frame_);
     }
   }
@@ -310,8 +273,20 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
                           : bounded              ? end_step * timing_.dt_s
                                                  : std::numeric_limits<double>::infinity();
   const bool final = bounded && k >= end_step;
-  const StepStatus status =
-      log_.advance(*model_, &data_, final ? t_stop_s : k * timing_.dt_s, t_stop_s, sample);
+  const double t_target_s = final ? t_stop_s : k * timing_.dt_s;
+  // Island scheme at a live factor: the states the sampler hands over on the way (after the
+  // islands' accepted steps near a strike, and the end), so that every boundary this advance
+  // passes is published at its own time (one window can hold a whole strike; StepHistory).
+  const bool live_islands = model_->integrator.islands && counters_.requested_rtf > 0;
+  if (!live_islands) history_.clear();
+  if (live_islands && !sample && data_.t_s < t_target_s) {
+    // Lone kernels at the start's time too (a snapshot would bring them there as well: no step
+    // changes), so that the history's first state is the whole state at one time.
+    if (syncBodies(*model_, &data_) == StepStatus::kFailed) flags_.failed = true;
+    history_.begin(data_);
+    sample = [this](const Data& d) { history_.add(d); };
+  }
+  const StepStatus status = log_.advance(*model_, &data_, t_target_s, t_stop_s, sample);
   step_meter_.end();
   counters_.advance_started_s = -1;
   flags_.step = k;
@@ -328,6 +303,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   if (framed) streams |= kMarkerStream;
   if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_.wanted) requestReset(0);
   if (demo_.due(data_) && demo_.reseedIfClear(*model_, &data_)) {
+    history_.clear();
     log_.clearStrikes();
     log_.clearPeaks();
     pending_reset_ = true;
@@ -478,6 +454,7 @@ void PhysicsLoop::applyConfig(const ThreshingSimConfig& config) {
 
 void PhysicsLoop::resetBodies() {
   resetBodiesKeepTime(*model_, &data_);
+  history_.clear();
   log_.clearPeaks();
   pending_reset_ = true;
   flags_.failed = false;
@@ -512,6 +489,8 @@ Snapshot PhysicsLoop::runFields() const {
 void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   // The island scheme leaves lone kernels on their own clocks between snapshots.
   if (syncBodies(*model_, &data_) == StepStatus::kFailed) flags_.failed = true;
+  // The history's last state is this one: now with the lone kernels brought to it as well.
+  if (history_.size() > 0 && history_.lastTime() == data_.t_s) history_.add(data_);
   Snapshot s = runFields();
   // After a failure the state is the last good one, inside the failed physics step (the time
   // /diagnostics reports too).
@@ -525,9 +504,18 @@ void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   s.theta_rad =
       data_.theta_rad - data_.omega_radps * late_s + 0.5 * data_.alpha_radps2 * late_s * late_s;
   s.omega_radps = data_.omega_radps - data_.alpha_radps2 * late_s;
-  s.z = data_.z;
-  s.u = data_.u;
-  s.contacts = data_.contacts;
+  // Island scheme at a live factor, the advance past this boundary's time: the bodies and
+  // contacts at the boundary itself, interpolated between the accepted steps around it.
+  if (late_s > 0 && history_.stateAt(s.t_s, &boundary_)) {
+    s.z = boundary_.z;
+    s.u = boundary_.u;
+    s.contacts = boundary_.contacts;
+    ++counters_.interpolated_boundaries;
+  } else {
+    s.z = data_.z;
+    s.u = data_.u;
+    s.contacts = data_.contacts;
+  }
   s.streams = streams;
   log_.fill(*model_, data_, &s);
   s.reset = std::exchange(pending_reset_, false);

@@ -260,6 +260,8 @@ void RosInterface::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
   stat.add("resets deferred (overlap)", counters_.resets_deferred.load());
   stat.add("resets skipped (overlap)", counters_.resets_skipped.load());
   stat.add("refused reconfigure requests", counters_.refused_reconfigures.load());
+  stat.add("boundaries interpolated between island steps",
+           counters_.interpolated_boundaries.load());
 }
 
 }  // namespace threshing_sim

@@ -11,6 +11,7 @@
 
 #include "threshing_sim/ros/live_view.h"
 #include "threshing_sim/ros/physics_loop.h"
+#include "threshing_sim/ros/step_history.h"
 #include "threshing_sim/ros/step_sampler.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -291,6 +292,106 @@ void expectDefaultStrikeFrames(bool islands) {
 TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecond) { expectDefaultStrikeFrames(false); }
 TEST(StrikeFrames, DefaultStrikeHasAFrameEveryMicrosecondUnderIslands) {
   expectDefaultStrikeFrames(true);
+}
+
+bool toothKernelClosed(const std::vector<ContactInfo>& contacts) {
+  return std::any_of(contacts.begin(), contacts.end(), [](const ContactInfo& c) {
+    return c.pair.kind == PairKind::kToothKernel && c.state != ContactState::kSeparated;
+  });
+}
+
+// The live node under islands (StepHistory): at 1 us boundaries (rviz.test's slow motion) the
+// default strike lies inside one scheduling window, so the state after the advance is past every
+// boundary inside it. Each such boundary's state is the cubic Hermite interpolant between the
+// two accepted steps the sampler handed over around it (a step's own end gives that step's state
+// exactly), and the boundaries show the strike: the tooth-kernel pair closed at more than 20 of
+// them (the window's end, what the node published before, shows it at none).
+TEST(StepHistory, BoundariesInsideAWindowAreTheInterpolantUnderIslands) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  model.integrator.islands = true;
+  constexpr double kDt_s = 1e-6, kEnd_s = 1e-3;
+  Data data;
+  resetData(model, &data);
+  StepSampler sampler(model, true, 3 * kDt_s);
+  StepHistory history;
+  std::vector<StepState> seen;  // the states handed over since the advance began
+  FrameState f;
+  long inside = 0, exact = 0, closed = 0, closed_at_end = 0;
+  for (long k = 1; k * kDt_s < kEnd_s + 1e-12; ++k) {
+    const double t_b = k * kDt_s;
+    if (data.t_s < t_b) {
+      ASSERT_EQ(syncBodies(model, &data), StepStatus::kOk);
+      history.begin(data);
+      seen.assign(1, StepState());
+      copyStepState(data, &seen.back());
+      ASSERT_NE(sampler.advance(model, &data, t_b, kEnd_s,
+                                [&](const Data& d) {
+                                  history.add(d);
+                                  if (d.t_s < seen.back().t_s) return;
+                                  if (d.t_s > seen.back().t_s) seen.emplace_back();
+                                  copyStepState(d, &seen.back());
+                                }),
+                StepStatus::kFailed);
+      data.events.clear();
+      // A step's own end gives that step's state, bit for bit.
+      for (const StepState& s : seen) {
+        ASSERT_TRUE(history.stateAt(s.t_s, &f));
+        EXPECT_TRUE(f.z == s.z && f.u == s.u && f.theta_rad == s.theta_rad &&
+                    f.contacts.size() == s.contacts.size());
+        ++exact;
+      }
+    }
+    if (data.t_s <= t_b) continue;
+    ASSERT_TRUE(history.stateAt(t_b, &f)) << t_b;
+    ++inside;
+    closed += toothKernelClosed(f.contacts) ? 1 : 0;
+    closed_at_end += toothKernelClosed(data.contacts) ? 1 : 0;
+    // The interpolant between the two handed-over states around t_b.
+    size_t j = 1;
+    while (seen[j].t_s < t_b) ++j;
+    const StepState& a = seen[j - 1];
+    const StepState& b = seen[j];
+    ASSERT_LE(a.t_s, t_b);
+    if (b.t_s == t_b) {
+      EXPECT_TRUE(f.z == b.z && f.u == b.u);
+      continue;
+    }
+    const double h = b.t_s - a.t_s, x = (t_b - a.t_s) / h;
+    const double h00 = 2 * x * x * x - 3 * x * x + 1, h10 = x * x * x - 2 * x * x + x,
+                 h01 = 3 * x * x - 2 * x * x * x, h11 = x * x * x - x * x;
+    const VecX z = h00 * a.z + h10 * h * a.u + h01 * b.z + h11 * h * b.u;
+    const VecX u = (1 - x) * a.u + x * b.u;
+    EXPECT_LT((f.z - z).cwiseAbs().maxCoeff(), 1e-12) << t_b;
+    EXPECT_LT((f.u - u).cwiseAbs().maxCoeff(), 1e-9) << t_b;
+    EXPECT_EQ(f.contacts.size(), (x < 0.5 ? a : b).contacts.size());
+  }
+  std::printf(
+      "%ld boundaries inside windows, %ld exact step ends, contact at %ld (window end: %ld)\n",
+      inside, exact, closed, closed_at_end);
+  EXPECT_GT(inside, 100);
+  EXPECT_GE(closed, 20);
+  EXPECT_EQ(closed_at_end, 0);
+}
+
+// Full: every other state is dropped (the first kept), and the history still spans its states.
+TEST(StepHistory, KeepsAtMostItsCapacity) {
+  Model model = loadScene(scene("config/default_scene.yaml"));
+  Data data;
+  resetData(model, &data);
+  StepHistory history;
+  history.begin(data);
+  const double t_last_s = 1000 * 1e-6;
+  for (int i = 1; i <= 1000; ++i) {
+    data.t_s = i * 1e-6;
+    data.z[0] = i;
+    history.add(data);
+  }
+  EXPECT_LE(history.size(), StepHistory::kCapacity);
+  FrameState f;
+  ASSERT_TRUE(history.stateAt(0.0, &f));
+  ASSERT_TRUE(history.stateAt(t_last_s, &f));
+  EXPECT_EQ(f.z[0], 1000);
+  EXPECT_FALSE(history.stateAt(1001 * 1e-6, &f));
 }
 
 }  // namespace

@@ -216,9 +216,10 @@ struct IntegratorParams {
              // time stepping: dt x this is the slop of a pressed rigid contact, how far it
              // may sink below its impact depth or open before it is moved back) [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
-  bool islands = false;      // event-driven and time stepping: the asynchronous island-local scheme
+  bool islands = true;       // event-driven and time stepping: the asynchronous island-local scheme
                              // (per-kernel clocks, islands of bodies that can touch, an event
-                             // calendar); false: every body advances together (the reference) [-]
+                             // calendar), the default; false: every body advances together (the
+                             // reference) [-]
   bool exact_free_teeth =
       true;  // event-driven: a tooth touching nothing while the drum turns at constant speed
              // is advanced by the exact solution of its linear modal equations, outside the

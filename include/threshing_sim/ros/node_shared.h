@@ -48,9 +48,11 @@ struct RunCounters {
   std::atomic<long> rejected_commands{0}, impacts{0}, recoveries{0};
   std::atomic<long> overruns{0}, resyncs{0};
   std::atomic<long> resets_deferred{0}, resets_skipped{0};  // resets that would overlap
-  std::atomic<long> refused_reconfigures{0};  // requests with a value NaN, inf or out of range
-  std::atomic<double> advance_started_s{-1};  // steady time the running advanceTo() began,
-                                              // < 0 when none runs (the watchdog's input) [s]
+  std::atomic<long> refused_reconfigures{0};     // requests with a value NaN, inf or out of range
+  std::atomic<long> interpolated_boundaries{0};  // boundaries published between two accepted
+                                                 // steps (island scheme, live factor) [-]
+  std::atomic<double> advance_started_s{-1};     // steady time the running advanceTo() began,
+                                                 // < 0 when none runs (the watchdog's input) [s]
   std::atomic<double> measured_rtf{0}, step_rate_hz{0}, peak_force_N{0};
   std::atomic<double> longest_step_s{0};         // longest step since the last drum command [CPU s]
   std::atomic<long> steps_since_command{0};      // physics steps since then [-]

@@ -30,6 +30,7 @@
 #include "threshing_sim/ros/node_shared.h"
 #include "threshing_sim/ros/pacer.h"
 #include "threshing_sim/ros/recording.h"
+#include "threshing_sim/ros/step_history.h"
 
 namespace threshing_sim {
 
@@ -72,13 +73,6 @@ class Pace {
 // accepted steps around it, which the sampler hands over; the integrator's steps are not
 // changed. A frame is only drawn strictly between two step boundaries (the boundary's own
 // snapshot draws the state there), so the frames' stamps increase.
-struct FrameState {
-  std::int64_t t_ns = 0;  // the frame's time [ns]
-  double t_s = 0, theta_rad = 0, omega_radps = 0;
-  VecX z, u;
-  std::vector<ContactInfo> contacts;  // those of the nearer accepted step, forces interpolated
-};
-
 class StrikeFrames {
  public:
   static constexpr std::int64_t kFrame_ns = 1000;  // frame spacing in simulated time [ns]
@@ -94,14 +88,7 @@ class StrikeFrames {
   void sample(const Data& data, const std::function<void(const FrameState&)>& emit);
 
  private:
-  struct State {
-    double t_s = 0, theta_rad = 0, omega_radps = 0;
-    VecX z, u;
-    std::vector<ContactInfo> contacts;
-    bool closed = false;  // a tooth-kernel pair is closed
-  };
-  static void copy(const Data& data, State* s);
-  State prev_, next_;
+  StepState prev_, next_;
   FrameState frame_;
   long episode_frames_ = 0;  // frames of the current stretch of closed contact
 };
@@ -171,11 +158,13 @@ class PhysicsLoop {
   bool pending_reset_ = false;            // the next snapshot starts the markers over
   StrikeFrames frames_;                   // the strike's frames at factor 0
   std::vector<Snapshot> frames_pending_;  // frames for the next snapshot
-  ThreadCpuClock cpu_clock_;              // the physics thread's CPU time
-  StepMeter step_meter_{cpu_clock_};      // longest step since the last drum command
-  double start_wall_s_ = 0;               // steady time the stepping began [s]
-  double run_wall_s_ = 0;                 // wall time from then until the thread ended [s]
-  double last_paused_publish_s_ = 0;      // steady time of the last paused republish [s]
+  StepHistory history_;       // island scheme, live factor: the last advance's accepted steps
+  FrameState boundary_;       // a boundary's state interpolated from history_
+  ThreadCpuClock cpu_clock_;  // the physics thread's CPU time
+  StepMeter step_meter_{cpu_clock_};  // longest step since the last drum command
+  double start_wall_s_ = 0;           // steady time the stepping began [s]
+  double run_wall_s_ = 0;             // wall time from then until the thread ended [s]
+  double last_paused_publish_s_ = 0;  // steady time of the last paused republish [s]
 };
 
 }  // namespace threshing_sim
