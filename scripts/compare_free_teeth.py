@@ -16,7 +16,6 @@ Usage: scripts/compare_free_teeth.py [--scene FILE] [--tolerance X] [--ref-toler
 """
 import argparse
 import json
-import math
 import os
 import re
 import subprocess

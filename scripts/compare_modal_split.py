@@ -17,7 +17,6 @@ needs valgrind for --callgrind)
 """
 import argparse
 import json
-import math
 import os
 import re
 import subprocess
@@ -39,7 +38,7 @@ def options(split, islands, tolerance, duration):
     return out
 
 
-def run(simulate, scene, opts):
+def run_setting(simulate, scene, opts):
     """One run's summary (simulate --summary)."""
     with tempfile.TemporaryDirectory() as tmp:
         summary = os.path.join(tmp, "summary.json")
@@ -95,12 +94,12 @@ def main():
     print(head)
     print("|" + "---|" * (head.count("|") - 1))
     for scene in scenes:
-        ref = run(args.simulate, scene, options("none", "false", args.ref_tolerance,
+        ref = run_setting(args.simulate, scene, options("none", "false", args.ref_tolerance,
                                                 args.duration))
         for islands in ("false", "true"):
             for split in ("none", "exact"):
                 opts = options(split, islands, args.tolerance, args.duration)
-                r = run(args.simulate, scene, opts)
+                r = run_setting(args.simulate, scene, opts)
                 row = "| %s | %s | %s | %d | %d | %d (%d) | %.2g | %.2g | %.2g | %.2g |" % (
                     os.path.relpath(scene, ROOT), islands, split, steps(r), r["rejected_steps"],
                     r["impacts"], ref["impacts"],

@@ -35,7 +35,7 @@ PARTS = [
 ]
 
 
-def instructions(simulate, lines_path, work):
+def check_batch_instructions(simulate, lines_path, work):
     """{label: instructions} of simulate --check-batch on the lines, and the total."""
     out = pathlib.Path(work) / "callgrind.out"
     proc = subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}",
@@ -85,7 +85,7 @@ def main():
         print(f"simulate --check-batch on the {len(runs)} combinations of "
               f"{pathlib.Path(args.sweep).resolve().relative_to(ROOT)}, callgrind "
               f"(instructions, inclusive):\n")
-        results = [instructions(b, lines, work) for b in binaries]
+        results = [check_batch_instructions(b, lines, work) for b in binaries]
         print("| | " + " | ".join(str(b) for b in binaries) + " |")
         print("|---|" + "---|" * len(binaries))
         for label in ["total"] + [label for label, _ in PARTS]:

@@ -36,7 +36,7 @@ CORRECTION_SCENES = [
 CORRECTION_METRICS = [("fn", "peak F_N"), ("ft", "peak F_T"), ("jn", "J_N"), ("jt", "J_T")]
 
 
-def run(simulate, args, modes, correction, tolerance, work):
+def run_case(simulate, args, modes, correction, tolerance, work):
     """Peak forces [N] and tooth-kernel impulses [N s] of one run."""
     tag = f"{abs(hash(tuple(args))) % 10**8}_{modes}_{correction}_{tolerance:g}"
     summary, forces = work / f"{tag}.json", work / f"{tag}.csv"
@@ -196,7 +196,7 @@ def correction_tables(simulate, work):
     lines = []
     summary = []
     for name, args, tooth in CORRECTION_SCENES:
-        ref = run(simulate, args, CORRECTION_REF_MODES, "on", CORRECTION_REF_TOLERANCE, work)
+        ref = run_case(simulate, args, CORRECTION_REF_MODES, "on", CORRECTION_REF_TOLERANCE, work)
         lines += [f"**{name}**: reference {CORRECTION_REF_MODES} modes, tolerance "
                   f"{CORRECTION_REF_TOLERANCE:g}: "
                   f"peak F_N {ref['fn']:.4g} N, F_T {ref['ft']:.4g} N, J_N {ref['jn']:.4g} N s, "
@@ -207,8 +207,8 @@ def correction_tables(simulate, work):
         worse_at = {"peaks": [], "impulses": []}
         at6 = None
         for n in CORRECTION_MODES:
-            off = run(simulate, args, n, "off", CORRECTION_TOLERANCE, work)
-            on = run(simulate, args, n, "on", CORRECTION_TOLERANCE, work)
+            off = run_case(simulate, args, n, "off", CORRECTION_TOLERANCE, work)
+            on = run_case(simulate, args, n, "on", CORRECTION_TOLERANCE, work)
             at6 = on if n == 6 else at6
             cells = []
             for key, _ in CORRECTION_METRICS:
