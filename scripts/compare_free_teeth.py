@@ -17,13 +17,13 @@ Usage: scripts/compare_free_teeth.py [--scene FILE] [--tolerance X] [--ref-toler
 import argparse
 import json
 import os
-import re
 import subprocess
 import sys
 import tempfile
 
 from tslib import ROOT
 from tslib.binaries import BIN_DIR
+from tslib.callgrind import total_instructions
 from tslib.numbers import exit_velocity_error
 
 
@@ -54,12 +54,10 @@ def stepping_instructions(bench, scene, free_teeth, tolerance, duration=None):
         if duration is not None:
             cmd += ["--set", "duration=%r" % duration]
         subprocess.run(cmd, check=True, capture_output=True)
-        with open(out) as f:
-            for line in f:
-                m = re.match(r"(?:summary|totals):\s+(\d+)", line)
-                if m:
-                    return int(m.group(1))
-    sys.exit("compare_free_teeth: no instruction count in the callgrind output")
+        total = total_instructions(out)
+    if total is None:
+        sys.exit("compare_free_teeth: no instruction count in the callgrind output")
+    return total
 
 
 def tip_error(run_, ref):

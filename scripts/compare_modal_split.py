@@ -18,13 +18,13 @@ needs valgrind for --callgrind)
 import argparse
 import json
 import os
-import re
 import subprocess
 import sys
 import tempfile
 
 from tslib import ROOT
 from tslib.binaries import BIN_DIR
+from tslib.callgrind import total_instructions
 from tslib.numbers import exit_velocity_error, rel_error
 
 
@@ -58,12 +58,10 @@ def advance_instructions(simulate, scene, opts):
         cmd = ["valgrind", "--tool=callgrind", "--toggle-collect=threshing_sim::advancePast*",
                "--callgrind-out-file=" + out, simulate, scene, "--quiet"] + opts
         subprocess.run(cmd, check=True, capture_output=True)
-        with open(out) as f:
-            for line in f:
-                m = re.match(r"(?:summary|totals):\s+(\d+)", line)
-                if m:
-                    return int(m.group(1))
-    sys.exit("compare_modal_split: no instruction count in the callgrind output")
+        total = total_instructions(out)
+    if total is None:
+        sys.exit("compare_modal_split: no instruction count in the callgrind output")
+    return total
 
 
 def steps(r):

@@ -147,21 +147,8 @@ Model swingingPedicels(int n, double max_step_s) {
   m.integrator.islands = true;
   m.integrator.tolerance = 1e-6;
   m.integrator.max_step_s = max_step_s;
-  const double a = 5e-3, rest = 3e-3, k_Npm = 1600.0, mass = 2.8e-5;
-  for (int i = 0; i < n; ++i) {
-    const Vec2 anchor(0.012 * i, 0.0);
-    const double hang_m = rest + mass * testutil::kG / k_Npm + a;
-    KernelModel k =
-        testutil::makeKernel(a, 1.3e-3, anchor - Vec2(2e-3, hang_m), Vec2::Zero(), kPi / 2, mass);
-    k.pedicel.present = true;
-    k.pedicel.p_WA_W = anchor;
-    k.pedicel.p_KP_K = Vec2(a, 0.0);
-    k.pedicel.stiffness_Npm = k_Npm;
-    k.pedicel.damping_Nspm = 0.002;
-    k.pedicel.rest_length_m = rest;
-    k.pedicel.detachment_force_N = 1.6;
-    m.kernels.push_back(k);
-  }
+  for (int i = 0; i < n; ++i)
+    m.kernels.push_back(testutil::hangingKernel(Vec2(0.012 * i, 0.0), 2e-3));
   compileModel(&m);
   return m;
 }
