@@ -13,9 +13,9 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
-#include <unsupported/Eigen/MatrixFunctions>
 
 #include "../../src/core/internal.h"
+#include "free_motion_reference.h"
 #include "sim_test_util.h"
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/simulator.h"
@@ -211,23 +211,7 @@ TEST(EventDriven, MechanicalEnergyNeverRisesInAKernelPile) {
 // ---------------------------------------------------------------------------------------------
 // Exact propagation of free teeth (IntegratorParams::exact_free_teeth).
 
-// Reference free motion of a tooth: y(t) = exp(A t) y0 for y = [q; qdot], A = [0 I; -S -D],
-// S = Lambda + Omega^2 (K_G - I) written out here from the model's fields, by Eigen's Pade
-// matrix exponential. Taken in coordinates [omega_i q_i; qdot_i] (A's entries reach omega_4^2
-// ~ 1e10, which costs the plain Pade exponential ~1e-6 relative; balanced, it is exact to
-// rounding).
-VecX referenceFreeMotion(const ToothModel& tm, double omega, double t, const VecX& y0) {
-  const int n = tm.n_modes;
-  MatX A = MatX::Zero(2 * n, 2 * n);
-  A.topRightCorner(n, n).setIdentity();
-  A.bottomLeftCorner(n, n) = -omega * omega * tm.K_G;
-  A.bottomLeftCorner(n, n).diagonal() += -(tm.omega0_sq.array() - omega * omega).matrix();
-  A.bottomRightCorner(n, n).diagonal() = -tm.damping_coeff;
-  VecX s = VecX::Ones(2 * n);
-  s.head(n) = tm.omega0_sq.cwiseSqrt();
-  const MatX At = s.asDiagonal() * A * s.cwiseInverse().asDiagonal() * t;
-  return s.cwiseInverse().asDiagonal() * (At.exp() * (s.asDiagonal() * y0));
-}
+using testutil::referenceFreeMotion;  // free_motion_reference.h
 
 // One mode: q'' + c q' + w2 q = 0 with w2 = omega0^2 + Omega^2 (K_G - 1), c = 2 zeta omega0, has
 // the closed form q = exp(-c t / 2) (q0 cos wd t + (qd0 + c q0 / 2) / wd sin wd t). The

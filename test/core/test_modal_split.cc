@@ -6,10 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <unsupported/Eigen/MatrixFunctions>
 #include <vector>
 
 #include "../../src/core/event_driven/context.h"
+#include "free_motion_reference.h"
 #include "sim_test_util.h"
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/simulator.h"
@@ -83,28 +83,20 @@ TEST(ModalSplit, ZeroContactForceIsTheFreePropagatorOneModeClosedForm) {
 }
 
 // Four coupled modes (K_G couples them at speed), no contact force: split steps of 10 us to 1 ms
-// against the matrix exponential of the free equations (balanced as in test_event_driven) to
+// against the matrix exponential of the free equations (free_motion_reference.h) to
 // 1e-11 of the amplitude.
 TEST(ModalSplit, ZeroContactForceIsTheFreePropagatorFourModes) {
   const Model m = farKernelModel(4, true);
   const ToothModel& tm = m.teeth[0];
   const int n = tm.n_modes;
   const double omega = m.drum.initial_speed_radps;
-  MatX A = MatX::Zero(2 * n, 2 * n);
-  A.topRightCorner(n, n).setIdentity();
-  A.bottomLeftCorner(n, n) = -omega * omega * tm.K_G;
-  A.bottomLeftCorner(n, n).diagonal() += -(tm.omega0_sq.array() - omega * omega).matrix();
-  A.bottomRightCorner(n, n).diagonal() = -tm.damping_coeff;
-  VecX s = VecX::Ones(2 * n);
-  s.head(n) = tm.omega0_sq.cwiseSqrt();
   VecX y0(2 * n);
   y0 << 1e-4, -2e-5, 5e-6, 0.0, 0.02, 0.5, -0.3, 0.2;  // [sqrt(kg) m], [sqrt(kg) m/s]
   const double amp_q = y0.head(n).cwiseAbs().maxCoeff();
   for (double t : {1e-5, 1e-4, 1e-3}) {
     double err = -1;
     const VecX y1 = freeTrialStep(m, y0, t, &err);
-    const MatX At = s.asDiagonal() * A * s.cwiseInverse().asDiagonal() * t;
-    const VecX y = s.cwiseInverse().asDiagonal() * (At.exp() * (s.asDiagonal() * y0));
+    const VecX y = testutil::referenceFreeMotion(tm, omega, t, y0);
     EXPECT_LE((y1.head(n) - y.head(n)).cwiseAbs().maxCoeff(), 1e-11 * amp_q) << "t " << t;
     EXPECT_LE(err, 1e-9) << "t " << t;  // rounding (the kernel's fall too), far below 1
   }
