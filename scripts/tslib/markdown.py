@@ -22,6 +22,8 @@ SECTIONS = {
     "stage-profile": "docs/bench_islands.md",  # scripts/stage_profile.py --docs
     # scripts/stage_profile.py --docs --section stage-profile-before --simulate <main's build>
     "stage-profile-before": "docs/bench_islands.md",
+    # hand-written studies (issue 26's idle kernels), kept by scripts/bench.py --part islands
+    "islands-studies": "docs/bench_islands.md",
     "bench-table": "docs/benchmarks.md",    # scripts/bench.py
     "scaling-table": "docs/benchmarks.md",  # scripts/bench.py
     "stability-table": "docs/numerical_stability.md",  # scripts/stability_table.py

@@ -172,8 +172,14 @@ long replayedMarkerMessages(const std::string& path) {
 }
 
 // A bounded run at real_time_factor 0 in sim clock mode, with speed commands sent while it
-// runs; everything lands in run.bag. The run (2 s of simulated time) is long enough for the
-// commands to land mid-run on a machine up to some 40 times faster than real time.
+// runs; everything lands in run.bag. Each command goes out once the one before it has been
+// applied, so the run must outlast two round trips through the test's own thread: at 2 s of
+// simulated time it lasted about 0.12 s of wall time under the island scheme (the default scene
+// at factor 0 simulates 1 s in 0.06 s, scripts/measure_node_rtf.sh), and under a heavy load the
+// second command could land after the end. 8 s (about 0.5 s of wall time) leaves the round trips
+// some 40 times their unloaded length.
+constexpr int kRecordedRun_s = 8;  // simulated time of the recorded run [s]
+
 TEST(Launch, RecordsABoundedRun) {
   ros::NodeHandle nh;
   std::mutex mutex;
@@ -190,7 +196,8 @@ TEST(Launch, RecordsABoundedRun) {
   cmd.data = 60.0;
   pub.publish(cmd);
 
-  Launch launch("threshing_sim record.launch bag:=" + g_dir + "/run.bag duration:=2");
+  Launch launch("threshing_sim record.launch bag:=" + g_dir +
+                "/run.bag duration:=" + std::to_string(kRecordedRun_s));
   // Each time a command has been applied, the next one, while the run goes on.
   long sent = 1;
   for (double speed : {100.0, 70.0}) {
@@ -211,7 +218,7 @@ TEST(Launch, RecordsABoundedRun) {
   const auto impacts = stamps<threshing_sim::ImpactEvent>(bag, "/impact_events");
   const auto commands = stamps<threshing_sim::DrumSpeedCommand>(bag, "/drum_speed_cmd_applied");
   ASSERT_FALSE(contact.empty());
-  EXPECT_EQ(contact.back(), ros::Time(2.0)) << "the run ends at ~end_time";
+  EXPECT_EQ(contact.back(), ros::Time(kRecordedRun_s)) << "the run ends at ~end_time";
   EXPECT_GE(impacts.size(), 1u);
   // The first command is applied at t = 0, the next ones while the run goes on.
   ASSERT_GE(commands.size(), 2u);
