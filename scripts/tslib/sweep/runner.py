@@ -18,6 +18,7 @@ import time
 from tslib.binaries import find_binary
 from tslib.cache import file_digest
 
+from . import spec
 from . import task as task_module
 
 META_COLUMNS = ["run", "status", "message"]
@@ -244,14 +245,16 @@ def _connect(scheduler, workers):
 def _scene_of(run):
     """What a batch line runs: the run's base scene (its scene with the override files) and
     its --set overrides, so that a simulate --batch process parses each base once and applies
-    the overrides to a copy of the tree; the resolved scene when no base is known."""
+    the overrides to a copy of the tree; the resolved scene when no base is known. scene_name
+    names the scene in messages as simulate --check-batch does (its path)."""
+    name = run.arguments[0] if run.arguments else ""
     if run.base is None:
-        return {"scene": run.scene, "args": []}
+        return {"scene": run.scene, "args": [], "scene_name": name}
     flags = run.arguments[1::2] if len(run.arguments) % 2 else []
     values = run.arguments[2::2] if len(run.arguments) % 2 else []
     if not flags or any(f not in ("--set", "--set-file") for f in flags):
-        return {"scene": run.scene, "args": []}
-    return {"scene": run.base,
+        return {"scene": run.scene, "args": [], "scene_name": name}
+    return {"scene": run.base, "scene_name": name,
             "args": [a for f, v in zip(flags, values) if f == "--set" for a in (f, v)]}
 
 
@@ -260,31 +263,74 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     """Runs every run not in the cache; returns the table (rows in sweep order) and stats.
     Without a scheduler the runs go to `workers` threads of this process (default: one per
     core), each feeding simulate --batch processes; with processes=True to a local Dask
-    cluster of worker processes instead; with a scheduler to its Dask workers."""
-    out.mkdir(parents=True, exist_ok=True)
-    cache = Cache(out / "sweep.sqlite")
-    table = Table(sweep, out, cache.db)
-    cached = cache.load({r.key for r in runs})
+    cluster of worker processes instead; with a scheduler to its Dask workers.
+
+    Without `batch`, validation first: the runs are shared out, one share per worker (thread
+    or Dask worker thread), each held in one simulate --batch process that reads, loads and
+    compiles its runs and answers which are invalid; the runs start, on the models compiled
+    then, only when every share is valid. Otherwise SweepError (spec.invalid_error) before
+    anything is written to `out`. With `batch`, the runs go in batches of that size, handed
+    out as workers free up; spec.validate (with compile_models) must have checked them."""
+    cache_path = out / "sweep.sqlite"
+    cache = Cache(cache_path) if cache_path.exists() else None
+    cached = cache.load({r.key for r in runs}) if cache is not None else {}
     by_key = {}
     for run in runs:
         by_key.setdefault(run.key, []).append(run)
+    todo = [key for key in by_key if key not in cached]
+    n_todo = sum(len(by_key[k]) for k in todo)
+    stats = {"runs": len(runs), "cached": len(runs) - n_todo, "processes": 0,
+             "process_cpu_s": 0.0, "process_wall_s": 0.0, "hold_s": 0.0}
+    payload = {key: {"key": key, **_scene_of(by_key[key][0]), "simulate": str(simulate),
+                     "sha": binary_sha, "timeout_s": sweep.timeout_s, "keep": by_key[key][0].keep}
+               for key in todo}
+    work = [payload[key] for key in todo]
+    shares = None
+    try:
+        if work and batch is None:
+            started = time.monotonic()
+            shares = (_DaskShares(work, scheduler, workers, stats) if scheduler or processes
+                      else _LocalShares(work, workers or os.cpu_count() or 1, stats))
+            _check_verdicts(shares.verdicts(), sweep, runs, by_key, shares)
+            stats["hold_s"] = time.monotonic() - started
+        rows = _run_checked(sweep, runs, out, cache, cached, by_key, todo, work, shares, stats,
+                            scheduler, workers, processes, batch, progress_stream, log)
+    finally:
+        if shares is not None:
+            shares.close()
+    return rows, stats
+
+
+def _check_verdicts(answers, sweep, runs, by_key, shares):
+    """Raises SweepError (after telling the shares not to run) unless every share is valid."""
+    errors = [a["error"] for a in answers if "error" in a]
+    invalid = {item["id"]: item["message"] for a in answers if "error" not in a
+               for item in a.get("invalid", [])}
+    if not errors and not invalid:
+        return
+    shares.go(False)
+    if errors:
+        raise spec.SweepError(f"{sweep.path}: the validation failed: {errors[0]}")
+    bad = [(run, invalid[run.key]) for run in runs if run.key in invalid]
+    raise spec.invalid_error(sweep, len(runs), bad)
+
+
+def _run_checked(sweep, runs, out, cache, cached, by_key, todo, work, shares, stats, scheduler,
+                 workers, processes, batch, progress_stream, log):
+    """run_sweep once the runs to run are valid: the table of the cached runs, the runs, the
+    table in sweep order."""
+    out.mkdir(parents=True, exist_ok=True)
+    cache = cache or Cache(out / "sweep.sqlite")
+    table = Table(sweep, out, cache.db)
     for run in runs:
         if run.key in cached:
             table.add(run, cached[run.key])
     table.write()
-    todo = [key for key in by_key if key not in cached]
-    log(f"sweep {sweep.name}: {len(runs)} runs, {len(runs) - sum(len(by_key[k]) for k in todo)}"
-        f" from the cache, {sum(len(by_key[k]) for k in todo)} to run -> {out}")
-    progress = Progress(len(runs), len(runs) - sum(len(by_key[k]) for k in todo),
-                        progress_stream)
-    stats = {"runs": len(runs), "cached": len(runs) - sum(len(by_key[k]) for k in todo),
-             "processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
+    log(f"sweep {sweep.name}: {len(runs)} runs, {stats['cached']} from the cache, "
+        f"{len(runs) - stats['cached']} to run -> {out}")
+    progress = Progress(len(runs), stats["cached"], progress_stream)
     started = time.monotonic()
     if todo:
-        payload = {key: {"key": key, **_scene_of(by_key[key][0]), "simulate": str(simulate),
-                         "sha": binary_sha, "timeout_s": sweep.timeout_s,
-                         "keep": by_key[key][0].keep}
-                   for key in todo}
         pending = set(todo)
         synced = [time.monotonic()]
 
@@ -301,8 +347,10 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
                 cache.commit()
                 table.write()
 
-        work = [payload[key] for key in todo]
-        if scheduler or processes:
+        if shares is not None:
+            shares.go(True)
+            shares.collect(accept, pending)
+        elif scheduler or processes:
             _dispatch(work, scheduler, workers or os.cpu_count() or 1, batch, accept, pending,
                       stats)
         else:
@@ -313,7 +361,180 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     table.finish()
     rows = [table.rows[i] for i in sorted(table.rows)]
     stats["failed"] = sum(r["status"] != "ok" for r in rows)
-    return rows, stats
+    return rows
+
+
+# Margin on a share's validation time for the runner's wait for all verdicts [s] (the Dask
+# workers' task start, the processes' start).
+VERDICT_MARGIN_S = 30.0
+
+
+def _shares(work, slots):
+    """The runs shared out to `slots` workers, interleaved (each share holds runs of every
+    part of the sweep, so that the shares cost about the same); no empty share."""
+    return [work[i::slots] for i in range(min(slots, len(work)))]
+
+
+class _LocalShares:
+    """Validation first on threads of this process: one thread per share, each holding its
+    share in one simulate --batch process (task.run_share)."""
+
+    def __init__(self, work, workers, stats):
+        import queue
+        import socket
+        import threading
+
+        self.queue_module = queue
+        self.stats, self.lock = stats, threading.Lock()
+        self.shares = _shares(work, workers)
+        stats.update(workers=workers, batch=max(map(len, self.shares)),
+                     batches=len(self.shares))
+        self.answers, self.results = queue.Queue(), queue.Queue()
+        self.decided, self.decision = threading.Event(), False
+        self.limit_s = max(map(task_module.validate_timeout_s, self.shares)) + VERDICT_MARGIN_S
+        prefix = f"{socket.gethostname()}:{os.getpid()}"
+        self.threads = [threading.Thread(target=self._work, args=(share, f"{prefix}:thread-{i}"),
+                                         daemon=True) for i, share in enumerate(self.shares)]
+        for t in self.threads:
+            t.start()
+
+    def _work(self, share, worker):
+        def wait_go():
+            return self.decided.wait(self.limit_s) and self.decision
+        share_stats = task_module.run_share(share, self.results.put, self.answers.put, wait_go,
+                                            worker)
+        with self.lock:
+            task_module.add_stats(self.stats, share_stats)
+
+    def verdicts(self):
+        """Every share's answer (an error for a share that gave none in time)."""
+        deadline = time.monotonic() + self.limit_s
+        answers = []
+        for _ in self.shares:
+            try:
+                answers.append(self.answers.get(timeout=max(0.0, deadline - time.monotonic())))
+            except self.queue_module.Empty:
+                answers.append({"error": f"no verdict from a worker thread within "
+                                         f"{self.limit_s:g} s"})
+                break
+        return answers
+
+    def go(self, value):
+        self.decision = value
+        self.decided.set()
+
+    def collect(self, accept, pending):
+        """Hands each result to accept as it arrives, until every run has one."""
+        # Every run ends within its timeout, so the threads end; the wait is bounded by them.
+        while pending and (any(t.is_alive() for t in self.threads) or
+                           not self.results.empty()):
+            try:
+                accept(self.results.get(timeout=0.5))
+            except self.queue_module.Empty:
+                pass
+        for key in sorted(pending):
+            accept(_error_result(key, "no result from the local worker threads"))
+
+    def close(self):
+        self.go(False)  # threads still waiting (an error before the go) end
+        for t in self.threads:
+            t.join(timeout=10)
+
+
+class _DaskShares:
+    """Validation first on Dask: one task per worker thread (task.run_dask_share, placed on
+    that worker), each holding its share in one simulate --batch process; verdicts and results
+    arrive on a Pub/Sub topic, the go is a Variable."""
+
+    def __init__(self, work, scheduler, workers, stats):
+        self.work, self.stats = work, stats
+        self.client, self.cluster = _connect(scheduler, workers or os.cpu_count() or 1)
+        try:
+            self._start(work, scheduler, stats)
+        except BaseException:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+            raise
+
+    def _start(self, work, scheduler, stats):
+        import queue
+        import uuid
+
+        from distributed import Sub, Variable
+
+        info = self.client.scheduler_info()["workers"]
+        slots = [address for address, w in sorted(info.items()) for _ in range(w["nthreads"])]
+        if not slots:
+            raise spec.SweepError(f"no Dask worker at {scheduler}")
+        self.shares = _shares(work, len(slots))
+        stats.update(workers=len(slots), batch=max(map(len, self.shares)),
+                     batches=len(self.shares))
+        self.topic = f"threshing-sweep-{uuid.uuid4().hex}"
+        self.sub = Sub(self.topic, client=self.client)
+        self.done_keys = Variable(self.topic + "-done", client=self.client)
+        self.done_keys.set([])
+        self.go_flag = Variable(self.topic + "-go", client=self.client)
+        self.departures = queue.Queue()
+        self.client.subscribe_topic("all", lambda event: self.departures.put(event)
+                                    if event[1].get("action") == "remove-worker" else None)
+        self.limit_s = max(map(task_module.validate_timeout_s, self.shares)) + VERDICT_MARGIN_S
+        self.futures = [
+            self.client.submit(task_module.run_dask_share, share, self.topic, i,
+                               key=f"{self.topic}-share-{i}", workers=[slots[i]],
+                               allow_other_workers=True, pure=False)
+            for i, share in enumerate(self.shares)]
+        self.early = []  # results read while waiting for verdicts (none expected)
+
+    def _messages(self, timeout_s):
+        """The next message of the topic, or None after timeout_s."""
+        buffered = getattr(self.sub, "buffer", None)
+        if buffered is None:
+            try:
+                return self.sub.get(timeout=timeout_s)
+            except TimeoutError:
+                return None
+        deadline = time.monotonic() + timeout_s
+        while not buffered:
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(0.002)
+        return buffered.popleft()
+
+    def verdicts(self):
+        deadline = time.monotonic() + self.limit_s
+        answers = {}
+        while len(answers) < len(self.shares):
+            message = self._messages(max(0.0, min(0.5, deadline - time.monotonic())))
+            if message is not None and "verdict" in message:
+                answers.setdefault(message["verdict"], message)
+            elif message is not None:
+                self.early.append(message)
+            elif time.monotonic() >= deadline or any(f.status == "error" for f in self.futures):
+                missing = [i for i in range(len(self.shares)) if i not in answers]
+                return list(answers.values()) + [{"error": f"no verdict from share {i} within "
+                                                           f"{self.limit_s:g} s"}
+                                                 for i in missing]
+        return list(answers.values())
+
+    def go(self, value):
+        self.go_flag.set(bool(value))
+
+    def collect(self, accept, pending):
+        for message in self.early:
+            accept(message)
+        _collect(self.client, self.sub, self.futures, self.shares, self.work, accept, pending,
+                 self.stats, self.done_keys, self.departures)
+
+    def close(self):
+        try:
+            self.go(False)  # after the go: no effect on the shares that run
+            self.client.unsubscribe_topic("all")
+            del self.sub
+        finally:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
 
 
 # Largest batch of the local threads: their processes take one batch after another, so a
@@ -343,11 +564,6 @@ def _split(work, sizes):
         batches.append(work[start:start + k])
         start += k
     return batches
-
-
-def _add_stats(stats, batch_stats):
-    for name in ("processes", "process_cpu_s", "process_wall_s"):
-        stats[name] += batch_stats.get(name, 0)
 
 
 def _dispatch_local(work, workers, batch, accept, pending, stats):
@@ -381,7 +597,7 @@ def _dispatch_local(work, workers, batch, accept, pending, stats):
         batch_stats = task_module.run_tasks([], results.put, f"{prefix}:thread-{i}",
                                             more=next_batch)
         with lock:
-            _add_stats(stats, batch_stats)
+            task_module.add_stats(stats, batch_stats)
 
     threads = [threading.Thread(target=worker, args=(i,), daemon=True) for i in range(workers)]
     for t in threads:
@@ -431,50 +647,63 @@ def _dispatch(work, scheduler, workers, batch, accept, pending, stats):
         # One map call: every submit call would read the caller's source (Dask records it).
         futures = client.map(task_module.run_batch, batches, [topic] * len(batches),
                              key=[f"{topic}-batch-{i}" for i in range(len(batches))], pure=False)
-        all_keys = [p["key"] for p in work]
-        deadline = None
-        # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
-        # (a Sub.get per result would cost a round trip through the event loop).
-        buffered = getattr(sub, "buffer", None)
-        checked = time.monotonic()
-        while pending:
-            if buffered is not None:
-                if buffered:
-                    accept(buffered.popleft())
-                    continue
-                if time.monotonic() - checked < 0.2:
-                    time.sleep(0.005)
-                    continue
-                checked = time.monotonic()
-            else:
-                try:
-                    accept(sub.get(timeout=0.2))
-                    continue
-                except TimeoutError:
-                    pass
-            if not departures.empty():
-                while not departures.empty():
-                    departures.get()
-                done_keys.set([key for key in all_keys if key not in pending])
-            if all(f.done() for f in futures):
-                # Every batch ended. Results of the batches that finished are at most a moment
-                # behind; those of failed batches (e.g. KilledWorker) will not come.
-                expected = {p["key"] for f, b in zip(futures, batches) if f.status == "finished"
-                            for p in b} & pending
-                deadline = deadline or time.monotonic() + 10
-                if not expected or time.monotonic() > deadline:
-                    break
-        for f in futures:
-            if f.status == "finished":
-                _add_stats(stats, f.result())
-        if pending:
-            _run_singly(client, [p for p in work if p["key"] in pending], accept)
+        _collect(client, sub, futures, batches, work, accept, pending, stats, done_keys,
+                 departures)
         client.unsubscribe_topic("all")
         del sub
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _collect(client, sub, futures, batches, work, accept, pending, stats, done_keys,
+             departures):
+    """Hands each result published on the topic (sub) to accept until every run has one or
+    every task ended; batches: the runs of each future. Runs whose task finished without
+    their result go to _run_singly. Verdict messages (validation first) are skipped."""
+    all_keys = [p["key"] for p in work]
+    deadline = None
+    # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
+    # (a Sub.get per result would cost a round trip through the event loop).
+    buffered = getattr(sub, "buffer", None)
+    checked = time.monotonic()
+    while pending:
+        if buffered is not None:
+            if buffered:
+                message = buffered.popleft()
+                if "verdict" not in message:
+                    accept(message)
+                continue
+            if time.monotonic() - checked < 0.2:
+                time.sleep(0.005)
+                continue
+            checked = time.monotonic()
+        else:
+            try:
+                message = sub.get(timeout=0.2)
+                if "verdict" not in message:
+                    accept(message)
+                continue
+            except TimeoutError:
+                pass
+        if not departures.empty():
+            while not departures.empty():
+                departures.get()
+            done_keys.set([key for key in all_keys if key not in pending])
+        if all(f.done() for f in futures):
+            # Every batch ended. Results of the batches that finished are at most a moment
+            # behind; those of failed batches (e.g. KilledWorker) will not come.
+            expected = {p["key"] for f, b in zip(futures, batches) if f.status == "finished"
+                        for p in b} & pending
+            deadline = deadline or time.monotonic() + 10
+            if not expected or time.monotonic() > deadline:
+                break
+    for f in futures:
+        if f.status == "finished":
+            task_module.add_stats(stats, f.result())
+    if pending:
+        _run_singly(client, [p for p in work if p["key"] in pending], accept)
 
 
 def _run_singly(client, payloads, accept):
