@@ -29,7 +29,10 @@
 //   {"barrier": 60}         answers {"barrier": true, "lines": N, "invalid": [{"id", "message"}]}
 //                           for the held lines, then waits at most 60 s for the next line:
 //   {"go": true}            runs the held lines (their compiled models), then reads on;
-//   {"go": false}           (or the end of the input, or no go in time) exits 2, nothing run.
+//   {"go": false}           (or the end of the input, or no go in time) exits 2, nothing run;
+//   {"run": ["id", ...]}    (instead of the go) runs those held lines, in that order; more run
+//                           lines and other lines may follow (the runner shares the runs out as
+//                           workers free up); held lines not run by the end are dropped.
 // A held run's cpu_s and wall_s include its validation (parse, load, compile). "scene_name" in
 // a run line names its scene_yaml in messages (default "(scene_yaml)").
 #include <malloc.h>
@@ -47,6 +50,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -367,7 +371,7 @@ std::string resultLine(const Result& result, double cpu_s, double wall_s) {
 }
 
 // What a line is: a run, or one of the control lines of validation first.
-enum class LineKind { kRun, kHold, kBarrier, kGo };
+enum class LineKind { kRun, kHold, kBarrier, kGo, kRunHeld };
 
 // Heap that the compiled models of held runs may take, by default and at most [MB]; a line
 // validated beyond it drops its model and compiles it again when it runs (its cpu_s holds both
@@ -378,10 +382,11 @@ constexpr double kMaxHeldMegabytes = 65536.0;
 // Longest wait for the go after a barrier that a line may ask for [s].
 constexpr double kMaxBarrierTimeoutS = 86400.0;
 
-// The kind of a line; *number gets a barrier's timeout [s], *flag a go's value. Throws
-// OptionError for a malformed control line.
-LineKind lineKind(const JsonValue& object, double* number, bool* flag) {
-  static const char* const kControls[] = {"hold", "barrier", "go"};
+// The kind of a line; *number gets a barrier's timeout [s] or a hold's heap [MB], *flag a go's
+// value, *ids a run line's ids. Throws OptionError for a malformed control line.
+LineKind lineKind(const JsonValue& object, double* number, bool* flag,
+                  std::vector<std::string>* ids) {
+  static const char* const kControls[] = {"hold", "barrier", "go", "run"};
   for (const auto& [key, value] : object.members) {
     const auto control = std::find_if(std::begin(kControls), std::end(kControls),
                                       [&](const char* name) { return key == name; });
@@ -395,6 +400,10 @@ LineKind lineKind(const JsonValue& object, double* number, bool* flag) {
         throw OptionError("barrier: expected the go's timeout in s, in (0, 86400] (got " +
                           showJson(value) + ")");
       return LineKind::kBarrier;
+    }
+    if (key == "run") {
+      *ids = stringList(value, "run");
+      return LineKind::kRunHeld;
     }
     if (key == "hold" && value.kind == Kind::kNumber) {
       *number = std::strtod(value.text.c_str(), nullptr);
@@ -459,6 +468,7 @@ struct HeldRun {
   Result result;  // its id; its error when it is not valid
   bool valid = false;
   bool compiled = false;  // the model is kept (else compiled again to run)
+  bool done = false;      // run (its result written)
   double cpu_s = 0.0;     // this thread's CPU time for its validation [s]
   double wall_s = 0.0;    // the validation's wall time [s]
 };
@@ -480,9 +490,10 @@ class Batch {
     LineKind kind = LineKind::kRun;
     double number_value = 0.0;
     bool flag = false;
+    std::vector<std::string> ids;
     const bool read = guarded(&result, [&] {
       object = parseLine(text);
-      kind = lineKind(object, &number_value, &flag);
+      kind = lineKind(object, &number_value, &flag, &ids);
     });
     if (read && kind == LineKind::kHold) {
       holding_ = true;
@@ -490,9 +501,13 @@ class Batch {
       return true;
     }
     if (read && kind == LineKind::kBarrier) return barrier(number_value);
-    if (read && kind == LineKind::kGo) result.message = "a go line without a barrier before it";
+    if (read && (kind == LineKind::kGo || kind == LineKind::kRunHeld)) {
+      if (answered_) return decide(kind, flag, ids);
+      result.message = "a go or run line without a barrier before it";
+    }
     if (holding_) {
       hold(read && kind == LineKind::kRun ? &object : nullptr, std::move(result), watch);
+      held_index_.emplace(held_.back().result.id, held_.size() - 1);
       return true;
     }
     PreparedRun run;
@@ -547,7 +562,6 @@ class Batch {
     }
     std::cout << answer << "]}" << std::endl;
     std::string text;
-    bool go = false;
     bool got = false;
     {
       const Watchdog watchdog(timeout_s, "simulate: error: --batch: no go within " +
@@ -558,36 +572,78 @@ class Batch {
     number_ += got;
     Result ignored;
     double unused = 0.0;
+    bool go = false;
+    std::vector<std::string> ids;
+    LineKind kind = LineKind::kRun;
     const bool read = got && guarded(&ignored, [&] {
-                        if (lineKind(parseLine(text), &unused, &go) != LineKind::kGo)
+                        kind = lineKind(parseLine(text), &unused, &go, &ids);
+                        if (kind != LineKind::kGo && kind != LineKind::kRunHeld)
                           throw OptionError("not a go line");
                       });
-    if (!read || !go) {
+    if (!read) {
       std::cerr << "simulate: error: --batch: "
-                << (!got    ? "the input ended at the barrier"
-                    : !read ? "expected {\"go\": true} or {\"go\": false} after the barrier (got " +
-                                  text.substr(0, 200) + ")"
-                            : std::string("no go after the barrier"))
+                << (!got ? std::string("the input ended at the barrier")
+                         : "expected {\"go\": true}, {\"go\": false} or {\"run\": [ids]} after "
+                           "the barrier (got " +
+                               text.substr(0, 200) + ")")
                 << "; " << held_.size() << " held runs not run\n";
       status_ = 2;
       return false;
     }
-    for (HeldRun& held : held_) {
-      const Stopwatch watch;
-      if (held.valid) {
-        guarded(&held.result, [&] {
-          if (!held.compiled)
-            held.run.model = lineModel(held.run.line, held.run.options, &cache_, &held.run.damage);
-          runPrepared(held.run, &held.result);
-        });
-      }
-      emit(held.result, held.cpu_s + watch.cpuSeconds(), held.wall_s + watch.wallSeconds());
-      held.run.model = Model();  // its tables freed as it ends
-    }
-    held_.clear();
-    held_bytes_ = 0;
+    answered_ = true;
     holding_ = false;
+    return decide(kind, go, ids);
+  }
+
+  // After the barrier: {"go": true} runs every held line not run yet (in order), {"go": false}
+  // ends the batch (exit 2) without them, {"run": [ids]} runs those held lines in that order.
+  bool decide(LineKind kind, bool go, const std::vector<std::string>& ids) {
+    if (kind == LineKind::kGo && !go) {
+      std::cerr << "simulate: error: --batch: no go after the barrier; " << held_.size()
+                << " held runs not run\n";
+      status_ = 2;
+      return false;
+    }
+    if (kind == LineKind::kGo) {
+      for (HeldRun& held : held_) {
+        if (!held.done) runHeld(&held);
+      }
+      held_.clear();
+      held_index_.clear();
+      held_bytes_ = 0;
+      answered_ = false;
+      return true;
+    }
+    for (const std::string& id : ids) {
+      auto [begin, end] = held_index_.equal_range(id);
+      while (begin != end && held_[begin->second].done) ++begin;
+      if (begin != end) {
+        runHeld(&held_[begin->second]);
+        continue;
+      }
+      Result result;
+      result.id = id;
+      result.message = "run: no held line '" + id + "' left to run";
+      emit(result, 0.0, 0.0);
+    }
     return true;
+  }
+
+  // Runs a held line (compiling its model again when it was not kept) and writes its result;
+  // its cpu_s and wall_s include its validation.
+  void runHeld(HeldRun* held) {
+    const Stopwatch watch;
+    if (held->valid) {
+      guarded(&held->result, [&] {
+        if (!held->compiled)
+          held->run.model =
+              lineModel(held->run.line, held->run.options, &cache_, &held->run.damage);
+        runPrepared(held->run, &held->result);
+      });
+    }
+    emit(held->result, held->cpu_s + watch.cpuSeconds(), held->wall_s + watch.wallSeconds());
+    held->run.model = Model();  // its tables freed as it ends
+    held->done = true;
   }
 
   void emit(const Result& result, double cpu_s, double wall_s) {
@@ -604,8 +660,10 @@ class Batch {
   std::istream* in_;
   long number_ = 0;  // lines read
   SceneCache cache_;
-  bool holding_ = false;
+  bool holding_ = false;   // run lines are held (after a hold, until the barrier)
+  bool answered_ = false;  // the barrier was answered: go and run lines decide on held_
   std::deque<HeldRun> held_;
+  std::unordered_multimap<std::string, size_t> held_index_;  // held_ by id
   size_t held_bytes_ = 0;      // heap held by the held runs' models [bytes]
   size_t max_held_bytes_ = 0;  // the hold's budget for them [bytes]
   int status_ = 0;
