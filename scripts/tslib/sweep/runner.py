@@ -6,13 +6,17 @@ interrupted sweep resumes where it stopped. Crashes, timeouts and errors are rec
 again by the next invocation. The table (OUT/runs.csv, one row per run, and the `runs` table
 of OUT/sweep.sqlite) is written as results arrive and rewritten in sweep order at the end.
 """
+import collections
 import csv
 import io
 import json
 import math
 import os
+import select
 import sqlite3
+import subprocess
 import sys
+import threading
 import time
 
 from tslib.binaries import find_binary
@@ -375,70 +379,250 @@ def _shares(work, slots):
     return [work[i::slots] for i in range(min(slots, len(work)))]
 
 
+class _PoolProcess:
+    """A simulate --batch process of the local pool: the runs it holds (validated, run by id),
+    its share not yet sent, and the runs sent to it whose results are awaited (in order)."""
+
+    def __init__(self, simulate, folder, index, name, own=(), held=()):
+        self.err = open(os.path.join(folder, f"stderr-{index}.txt"), "w+")
+        try:
+            self.proc = subprocess.Popen([simulate, "--batch", "-"], stdin=subprocess.PIPE,
+                                         stdout=subprocess.PIPE, stderr=self.err)
+        except OSError:
+            self.err.close()
+            raise
+        self.fd = self.proc.stdout.fileno()
+        self.name = name
+        self.own = collections.deque(own)
+        self.held = set(held)
+        self.sent = collections.deque()
+        self.chunks = []          # output read, not yet a whole line
+        self.started = time.monotonic()  # when the run at the head of sent started
+        self.begun = time.perf_counter()
+        self.feeder = None
+        self.closed = False
+
+    def send(self, tasks):
+        """Held runs as one run line by id, the others as whole lines."""
+        if not self.sent:
+            self.started = time.monotonic()
+        parts, ids = [], []
+        for t in tasks:
+            if t["key"] in self.held:
+                ids.append(t["key"])
+                continue
+            if ids:
+                parts.append(json.dumps({"run": ids}) + "\n")
+                ids = []
+            parts.append(task_module._batch_line(t))
+        if ids:
+            parts.append(json.dumps({"run": ids}) + "\n")
+        self.sent.extend(tasks)
+        self.write("".join(parts).encode())
+
+    def write(self, data, close=False):
+        try:
+            if data:
+                self.proc.stdin.write(data)
+                self.proc.stdin.flush()
+            if close:
+                self.closed = True
+                self.proc.stdin.close()
+        except (BrokenPipeError, OSError, ValueError):
+            pass  # the process died: its end is read on its output
+
+    def lines(self, data):
+        """The whole lines in the output read so far, with data."""
+        if b"\n" not in data:
+            self.chunks.append(data)
+            return []
+        self.chunks.append(data)
+        *whole, rest = b"".join(self.chunks).split(b"\n")
+        self.chunks = [rest] if rest else []
+        return [line.decode("utf-8", "replace") for line in whole]
+
+    def reap(self, kill):
+        """Kills (when asked) and reaps the process: (exit code, CPU time [s], stderr's end)."""
+        if kill:
+            self.proc.kill()
+        self.write(b"", close=True)
+        _, status, usage = os.wait4(self.proc.pid, 0)
+        self.proc.returncode = os.waitstatus_to_exitcode(status)
+        self.proc.stdout.close()
+        self.err.seek(0)
+        stderr = self.err.read().strip()[-500:]
+        self.err.close()
+        return self.proc.returncode, usage.ru_utime + usage.ru_stime, stderr
+
+
+# Runs per run line sent to a pool process at most (one line ahead of the run it is on).
+POOL_CHUNK = 8
+
+
 class _LocalShares:
-    """Validation first on threads of this process: one thread per share, each holding its
-    share in one simulate --batch process (task.run_share)."""
+    """Validation first on simulate --batch processes of this process, one per worker: each
+    holds its share (hold, barrier); then one thread (no worker threads: their queues and the
+    interpreter lock cost more than the runs' lines) hands each process its held runs by id a
+    few at a time, and a process whose share is done takes runs from the end of the largest
+    share left, as whole lines (compiled again: their held models are dropped unused)."""
 
     def __init__(self, work, workers, stats):
-        import queue
         import socket
-        import threading
 
-        self.queue_module = queue
-        self.stats, self.lock = stats, threading.Lock()
+        self.stats, self.work = stats, work
         self.shares = _shares(work, workers)
         stats.update(workers=workers, batch=max(map(len, self.shares)),
                      batches=len(self.shares))
-        self.answers, self.results = queue.Queue(), queue.Queue()
-        self.decided, self.decision = threading.Event(), False
+        self.simulate = work[0]["simulate"]
         self.limit_s = max(map(task_module.validate_timeout_s, self.shares)) + VERDICT_MARGIN_S
-        prefix = f"{socket.gethostname()}:{os.getpid()}"
-        self.threads = [threading.Thread(target=self._work, args=(share, f"{prefix}:thread-{i}"),
-                                         daemon=True) for i, share in enumerate(self.shares)]
-        for t in self.threads:
-            t.start()
-
-    def _work(self, share, worker):
-        def wait_go():
-            return self.decided.wait(self.limit_s) and self.decision
-        share_stats = task_module.run_share(share, self.results.put, self.answers.put, wait_go,
-                                            worker)
-        with self.lock:
-            task_module.add_stats(self.stats, share_stats)
+        self.folder = task_module._thread_folder()
+        self.prefix = f"{socket.gethostname()}:{os.getpid()}"
+        self.procs = []
+        for i, share in enumerate(self.shares):
+            p = _PoolProcess(self.simulate, self.folder, i, f"{self.prefix}:thread-{i}",
+                             own=share, held=[t["key"] for t in share])
+            text = "".join(['{"hold": true}\n', *map(task_module._batch_line, share),
+                            json.dumps({"barrier": round(self.limit_s, 3)}) + "\n"]).encode()
+            # A thread writes the share (the pipe is bounded; the process reads as it compiles).
+            p.feeder = threading.Thread(target=p.write, args=(text,), daemon=True)
+            p.feeder.start()
+            self.procs.append(p)
 
     def verdicts(self):
         """Every share's answer (an error for a share that gave none in time)."""
         deadline = time.monotonic() + self.limit_s
-        answers = []
-        for _ in self.shares:
-            try:
-                answers.append(self.answers.get(timeout=max(0.0, deadline - time.monotonic())))
-            except self.queue_module.Empty:
-                answers.append({"error": f"no verdict from a worker thread within "
-                                         f"{self.limit_s:g} s"})
+        answers = {}
+        poller = select.poll()
+        by_fd = {p.fd: p for p in self.procs}
+        for fd in by_fd:
+            poller.register(fd, select.POLLIN | select.POLLHUP)
+        while len(answers) < len(self.procs):
+            left = deadline - time.monotonic()
+            events = poller.poll(max(0.0, left) * 1000.0) if left > 0 else []
+            if not events:
                 break
-        return answers
+            for fd, _ in events:
+                p = by_fd[fd]
+                data = os.read(fd, 1 << 20)
+                lines = p.lines(data) if data else []
+                if lines or not data:
+                    poller.unregister(fd)
+                    answers[fd] = self._verdict(p, lines[0] if lines else None)
+        for p in self.procs:
+            if p.fd not in answers:
+                answers[p.fd] = {"error": f"simulate --batch gave no verdict on its "
+                                          f"{len(p.own)} runs within {self.limit_s:g} s"}
+        return list(answers.values())
+
+    @staticmethod
+    def _verdict(p, line):
+        try:
+            answer = json.loads(line) if line else None
+        except ValueError:
+            answer = None
+        if isinstance(answer, dict) and answer.get("barrier") is True:
+            return answer
+        return {"error": f"simulate --batch ended its validation with "
+                         f"{line[:300] if line else 'no answer'!r}"}
 
     def go(self, value):
-        self.decision = value
-        self.decided.set()
+        if value:
+            return
+        for p in self.procs:
+            if not p.closed:
+                p.write(json.dumps({"go": False}).encode() + b"\n", close=True)
+
+    def _next(self, p):
+        """The next runs for p: its own share's, else the end of the largest share left."""
+        if p.own:
+            n = max(1, min(POOL_CHUNK, len(p.own) // 8))
+            return [p.own.popleft() for _ in range(n)]
+        victim = max(self.procs, key=lambda q: len(q.own))
+        if not victim.own:
+            return []
+        n = max(1, min(POOL_CHUNK // 2, len(victim.own) // 2))
+        taken = [victim.own.pop() for _ in range(n)]
+        return taken[::-1]
+
+    def _top_up(self, p):
+        """Keeps p one run line ahead of the run it is on; closes its input at the end."""
+        if p.closed or len(p.sent) > 1:
+            return
+        tasks = self._next(p)
+        if tasks:
+            p.send(tasks)
+        elif not p.sent:
+            p.write(b"", close=True)
 
     def collect(self, accept, pending):
         """Hands each result to accept as it arrives, until every run has one."""
-        # Every run ends within its timeout, so the threads end; the wait is bounded by them.
-        while pending and (any(t.is_alive() for t in self.threads) or
-                           not self.results.empty()):
-            try:
-                accept(self.results.get(timeout=0.5))
-            except self.queue_module.Empty:
-                pass
+        self._accept = accept
+        for p in self.procs:
+            p.feeder.join(timeout=task_module.EXIT_WAIT_S)
+        for p in self.procs:
+            self._top_up(p)
+        poller = select.poll()
+        by_fd = {}
+
+        def watch(p):
+            by_fd[p.fd] = p
+            poller.register(p.fd, select.POLLIN | select.POLLHUP)
+
+        for p in self.procs:
+            watch(p)
+        while by_fd:
+            now = time.monotonic()
+            waits = [p.started + p.sent[0]["timeout_s"] - now for p in by_fd.values() if p.sent]
+            wait = min(waits) if waits else 0.5
+            events = poller.poll(max(0.0, wait) * 1000.0 + 1.0)
+            for fd, _ in events:
+                p = by_fd[fd]
+                data = os.read(fd, 1 << 20)
+                for line in (p.lines(data) if data else []):
+                    if not p.sent:
+                        continue  # nothing asked: not a result
+                    accept(task_module._line_result(p.sent.popleft(), line, p.name))
+                    p.started = time.monotonic()
+                if data:
+                    self._top_up(p)
+                else:
+                    poller.unregister(fd)
+                    del by_fd[fd]
+                    self._end(p, timed_out=False, watch=watch)
+            now = time.monotonic()
+            for p in list(by_fd.values()):
+                if p.sent and now > p.started + p.sent[0]["timeout_s"]:
+                    poller.unregister(p.fd)
+                    del by_fd[p.fd]
+                    self._end(p, timed_out=True, watch=watch)
         for key in sorted(pending):
-            accept(_error_result(key, "no result from the local worker threads"))
+            accept(_error_result(key, "no result from the local simulate --batch processes"))
+
+    def _end(self, p, timed_out, watch):
+        """p's output ended (or its run timed out): reap it, record the run it was on, and
+        start a new process (holding nothing) for the runs it had left."""
+        code, cpu_s, stderr = p.reap(kill=timed_out or bool(p.sent))
+        self.stats["process_cpu_s"] += cpu_s
+        self.stats["process_wall_s"] += time.perf_counter() - p.begun
+        self.stats["processes"] += 1
+        index = self.procs.index(p)
+        left = list(p.sent)
+        if left:
+            self._accept(task_module._end_result(left[0], p.name, code, stderr, timed_out))
+            left = left[1:]
+        left += list(p.own)
+        p.own.clear()
+        if not left:
+            return
+        fresh = _PoolProcess(self.simulate, self.folder, index, p.name, own=left)
+        self.procs[index] = fresh
+        watch(fresh)
+        self._top_up(fresh)
 
     def close(self):
-        self.go(False)  # threads still waiting (an error before the go) end
-        for t in self.threads:
-            t.join(timeout=10)
+        for p in self.procs:
+            if p.proc.returncode is None:
+                p.reap(kill=True)
 
 
 class _DaskShares:
