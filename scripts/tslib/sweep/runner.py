@@ -13,6 +13,7 @@ import json
 import math
 import os
 import select
+import signal
 import sqlite3
 import subprocess
 import sys
@@ -443,8 +444,11 @@ class _PoolProcess:
 
     def reap(self, kill):
         """Kills (when asked) and reaps the process: (exit code, CPU time [s], stderr's end)."""
-        if kill:
-            self.proc.kill()
+        if kill:  # not Popen.kill, which may reap the process (its usage then lost)
+            try:
+                os.kill(self.proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
         self.write(b"", close=True)
         _, status, usage = os.wait4(self.proc.pid, 0)
         self.proc.returncode = os.waitstatus_to_exitcode(status)
