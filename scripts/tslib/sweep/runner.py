@@ -484,6 +484,10 @@ class _LocalShares:
         stats.update(workers=workers, batch=max(map(len, self.shares)),
                      batches=len(self.shares))
         self.simulate = work[0]["simulate"]
+        sha = task_module._binary_sha(self.simulate)
+        if sha != work[0]["sha"]:
+            raise spec.SweepError(f"simulate at {self.simulate} changed since the sweep started "
+                                  f"(sha256 {sha[:12]} != {work[0]['sha'][:12]})")
         self.limit_s = max(map(task_module.validate_timeout_s, self.shares)) + VERDICT_MARGIN_S
         self.folder = task_module._thread_folder()
         self.prefix = f"{socket.gethostname()}:{os.getpid()}"
