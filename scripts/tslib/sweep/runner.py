@@ -899,6 +899,13 @@ def _collect(client, sub, futures, batches, work, accept, pending, stats, done_k
             deadline = deadline or time.monotonic() + 10
             if not expected or time.monotonic() > deadline:
                 break
+    # A task returns its statistics just after its last result: wait for it, briefly.
+    from distributed import wait
+
+    try:
+        wait(futures, timeout=task_module.EXIT_WAIT_S)
+    except TimeoutError:
+        pass
     for f in futures:
         if f.status == "finished":
             task_module.add_stats(stats, f.result())
