@@ -461,12 +461,9 @@ class _PoolProcess:
 
 # Runs per run line sent to a pool process at most.
 POOL_CHUNK = 8
-# A pool process gets its next runs when it has at most this many left to answer.
-POOL_AHEAD = 3
-# The pool's thread sleeps this long after handling output [s], so that it wakes once for
-# a few results rather than once for each (each wake-up costs the runs' cores more than the
-# result's own handling); the processes have POOL_AHEAD runs to work on meanwhile.
-POOL_NAP_S = 0.01
+# A pool process gets its next runs when it has at most this many left to answer. (A pause
+# after each wake-up, to read a few results at once, saved no CPU and starved the processes.)
+POOL_AHEAD = 1
 
 
 class _LocalShares:
@@ -589,8 +586,6 @@ class _LocalShares:
             waits = [p.started + p.sent[0]["timeout_s"] - now for p in by_fd.values() if p.sent]
             wait = min(waits) if waits else 0.5
             events = poller.poll(max(0.0, wait) * 1000.0 + 1.0)
-            if events:
-                time.sleep(POOL_NAP_S)
             for fd, _ in events:
                 p = by_fd[fd]
                 data = os.read(fd, 1 << 20)
