@@ -717,7 +717,7 @@ class _DaskShares:
 
     def collect(self, accept, pending):
         for message in self.early:
-            accept(message)
+            _accept_message(message, accept)
         _collect(self.client, self.sub, self.futures, self.shares, self.work, accept, pending,
                  self.stats, self.done_keys, self.departures)
 
@@ -866,9 +866,7 @@ def _collect(client, sub, futures, batches, work, accept, pending, stats, done_k
     while pending:
         if buffered is not None:
             if buffered:
-                message = buffered.popleft()
-                if "verdict" not in message:
-                    accept(message)
+                _accept_message(buffered.popleft(), accept)
                 continue
             if time.monotonic() - checked < 0.2:
                 time.sleep(0.005)
@@ -876,9 +874,7 @@ def _collect(client, sub, futures, batches, work, accept, pending, stats, done_k
             checked = time.monotonic()
         else:
             try:
-                message = sub.get(timeout=0.2)
-                if "verdict" not in message:
-                    accept(message)
+                _accept_message(sub.get(timeout=0.2), accept)
                 continue
             except TimeoutError:
                 pass
@@ -906,6 +902,15 @@ def _collect(client, sub, futures, batches, work, accept, pending, stats, done_k
             task_module.add_stats(stats, f.result())
     if pending:
         _run_singly(client, [p for p in work if p["key"] in pending], accept)
+
+
+def _accept_message(message, accept):
+    """A message of the topic: a result, a group of results, or a verdict (skipped)."""
+    if "results" in message:
+        for result in message["results"]:
+            accept(result)
+    elif "verdict" not in message:
+        accept(message)
 
 
 def _run_singly(client, payloads, accept):

@@ -450,9 +450,45 @@ def add_stats(stats, more):
         stats[name] += more.get(name, 0)
 
 
+# Results of a Dask share are published in groups at most this far apart [s]: a message per
+# result costs the worker, the scheduler and the client more than the result's own handling.
+GROUP_S = 0.05
+
+
+class _Grouped:
+    """Results put one by one, published as {"results": [...]} at most GROUP_S apart (by a
+    thread, so that a long run does not hold back the results before it) and at close()."""
+
+    def __init__(self, pub):
+        self.pub, self.items, self.lock = pub, [], threading.Lock()
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+
+    def put(self, result):
+        with self.lock:
+            self.items.append(result)
+
+    def flush(self):
+        with self.lock:
+            items, self.items = self.items, []
+        if items:
+            self.pub.put({"results": items})
+
+    def _loop(self):
+        while not self.done.wait(GROUP_S):
+            self.flush()
+
+    def close(self):
+        self.done.set()
+        self.thread.join(timeout=EXIT_WAIT_S)
+        self.flush()
+
+
 def run_dask_share(tasks, topic, share):
-    """run_share on a Dask worker: the verdict and each result published at once (Dask Pub/Sub
-    topic `topic`; the verdict as {"verdict": share, ...}), the go read from the client's
+    """run_share on a Dask worker: the verdict published at once and the results in groups at
+    most GROUP_S apart (Dask Pub/Sub topic `topic`; the verdict as {"verdict": share, ...}, the
+    results as {"results": [...]}), the go read from the client's
     Variable `topic`-go. Runs whose keys are in the Variable `topic`-done (set when a worker
     left) are skipped: a share rerun after a worker died does not redo its finished runs.
     Returns run_share's statistics and the keys it ran."""
@@ -472,8 +508,12 @@ def run_dask_share(tasks, topic, share):
         except Exception:  # no decision in time: nothing runs
             return False
 
-    stats = run_share(todo, pub.put, lambda answer: pub.put({**answer, "verdict": share}),
-                      wait_go)
+    grouped = _Grouped(pub)
+    try:
+        stats = run_share(todo, grouped.put, lambda answer: pub.put({**answer, "verdict": share}),
+                          wait_go)
+    finally:
+        grouped.close()
     stats["keys"] = [task["key"] for task in todo]
     return stats
 
