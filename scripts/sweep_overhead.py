@@ -15,8 +15,10 @@ in run_stats.json:
   runner CPU    = CPU of the whole command tree (wait4) - the simulate --batch processes' CPU
                   (local runs only: validation, Python, the table)
 
-and where the wall time goes: validation (simulate --check-batch), the runs (dispatch, from the
-first batch to the last result) and the rest (Python start, imports, the table at the end).
+and where the wall time goes: the resolution (simulate --check-batch --resolve-only: the runs'
+scenes and keys), the validation in the batch processes (each share read, loaded and compiled
+before the barrier; the runs' own CPU holds it), the runs (from the go to the last result) and
+the rest (Python start, imports, the table at the end).
 With --cluster it also starts a dask-scheduler and two dask-workers on 127.0.0.1, runs the same
 sweep against them and checks that the table equals the local one apart from wall/CPU times and
 worker names. The load average is printed before and after: the ratio only means something on
@@ -74,26 +76,33 @@ def report(label, workers, wall, tree_cpu, n, run_cpu, stats):
     ideal = run_cpu / workers
     proc_cpu = stats["process_cpu_s"]
     bound = None
-    rest = wall - stats["validate_s"] - stats["dispatch_s"]
+    hold = stats.get("hold_s", 0.0)
+    rest = wall - stats["validate_s"] - hold - stats["dispatch_s"]
+    shares = stats["batches"] if hold else None
     lines = [f"{label}: {n} runs on {workers} workers, {stats['processes']} simulate --batch "
-             f"processes (batches of at most {stats['batch']})",
-             f"  wall {wall:.2f} s (target <= 6 s) = validation {stats['validate_s']:.2f} s + "
-             f"runs {stats['dispatch_s']:.2f} s + start and table {rest:.2f} s",
+             "processes " + (f"({shares} shares of at most {stats['batch']} runs, validated "
+                             "first)" if shares else f"(batches of at most {stats['batch']})"),
+             f"  wall {wall:.2f} s (target <= 6 s) = resolution {stats['validate_s']:.2f} s + "
+             f"validation in the batch processes {hold:.2f} s + runs {stats['dispatch_s']:.2f} s "
+             f"+ start and table {rest:.2f} s",
              f"  runs' own CPU {run_cpu:.2f} s ({1e3 * run_cpu / n:.2f} ms per run, thread CPU "
              f"in simulate); CPU / workers {ideal:.2f} s",
              f"  ratio wall / (runs' CPU / workers) = {wall / ideal:.3f} (target <= 1.10)",
              f"  simulate processes' CPU {proc_cpu:.2f} s ({1e3 * proc_cpu / n:.2f} ms per run); "
              f"ratio wall / (processes' CPU / workers) = {wall / (proc_cpu / workers):.3f}",
              f"  overhead per run = {1e3 * (wall * workers - run_cpu) / n:.2f} ms of core time"]
+    if "runner_cpu_s" in stats:
+        lines.append(f"  the sweep command's own CPU (Python: start, imports, the table, the "
+                     f"results; not its children) {stats['runner_cpu_s']:.2f} s")
     if tree_cpu is not None:
         runner_cpu, check_cpu = tree_cpu - proc_cpu, stats["validate_cpu_s"]
         bound = 1 + (runner_cpu + proc_cpu - run_cpu) / run_cpu
         lines += [f"  runner CPU (command tree - simulate --batch processes) = {runner_cpu:.2f} s "
                   f"({1e3 * runner_cpu / n:.2f} ms per run, {100 * runner_cpu / run_cpu:.1f} % of "
                   f"the runs' CPU)",
-                  f"    of which validation (simulate --check-batch) {check_cpu:.2f} s "
-                  f"({1e3 * check_cpu / n:.2f} ms per run), the rest (Python, Dask, the table) "
-                  f"{runner_cpu - check_cpu:.2f} s"]
+                  f"    of which resolution (simulate --check-batch --resolve-only) "
+                  f"{check_cpu:.2f} s ({1e3 * check_cpu / n:.2f} ms per run), the rest (Python, "
+                  f"Dask, the table) {runner_cpu - check_cpu:.2f} s"]
         if workers == os.cpu_count():  # every core runs runs: the CPU bounds the wall time
             lines.append(f"  lower bounds with every core busy: ratio >= 1 + (runner CPU + "
                          f"processes' CPU - runs' CPU) / runs' CPU = {bound:.3f}; wall >= the "

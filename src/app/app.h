@@ -45,6 +45,7 @@ struct Options {
   bool quiet = false;
   bool check = false;            // validate and print the resolved scene, do not run
   std::string check_batch_path;  // lines of tab-separated arguments to validate, "-" = stdin
+  bool resolve_only = false;     // --check-batch: resolve (overrides, keys) without compiling
   std::string batch_path;        // JSON lines of runs to run in this process, "-" = stdin
   bool help = false;
   bool print_schema = false;  // print the scene key table (types, units, ranges) and exit
@@ -91,14 +92,17 @@ using BaseTexts = std::map<std::string, std::string>;
 // scene as one line of flow-style YAML. With bases and base given, *base points to the base
 // scene's text (before the --set overrides; kept in *bases). With teeth given, the teeth are
 // compiled through it (core/tooth_cache.h). Throws SceneError.
+// With compile false, the model is neither built nor checked (only the overrides are applied).
 std::string resolvedScene(const Options& options, TreeCache* cache = nullptr,
                           BaseTexts* bases = nullptr, const std::string** base = nullptr,
-                          ToothCache* teeth = nullptr);
+                          ToothCache* teeth = nullptr, bool compile = true);
 
 // --check-batch: one line of tab-separated arguments per run; prints
 // "ok<TAB>resolved scene<TAB>base scene" or "error<TAB>message" per line. Returns 0 when
-// every line is valid, else 2.
-int checkBatch(const std::string& path);
+// every line is valid, else 2. With resolve_only the scenes are resolved (override files and
+// --set values applied: a bad key path is refused) but not compiled: the --batch processes
+// that run them validate the rest (batch.cc, "hold" and "barrier").
+int checkBatch(const std::string& path, bool resolve_only = false);
 
 // --batch: one JSON object per line, one run each; prints one JSON line per run as it ends.
 // Returns the highest exit status of the runs (0, 1 or 2). Defined in batch.cc.

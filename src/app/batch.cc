@@ -20,15 +20,37 @@
 // A bad line does not stop the batch. cpu_s is this thread's CPU time for the line (parse,
 // load, run and output), wall_s its wall time. The outputs are the very bytes a separate
 // simulate process writes into its files.
+//
+// Validated first, then run (scripts/sweep: a sweep is refused before any run starts, and each
+// model is compiled once). Three control lines:
+//   {"hold": true}          the run lines after it are read, loaded and compiled, and held
+//                           (their models take at most 256 MB of heap, or {"hold": MB}; a
+//                           model beyond it is compiled again to run);
+//   {"barrier": 60}         answers {"barrier": true, "lines": N, "invalid": [{"id", "message"}]}
+//                           for the held lines, then waits at most 60 s for the next line:
+//   {"go": true}            runs the held lines (their compiled models), then reads on;
+//   {"go": false}           (or the end of the input, or no go in time) exits 2, nothing run;
+//   {"run": ["id", ...]}    (instead of the go) runs those held lines, in that order; more run
+//                           lines and other lines may follow (the runner shares the runs out as
+//                           workers free up); held lines not run by the end are dropped.
+// A held run's cpu_s and wall_s include its validation (parse, load, compile). "scene_name" in
+// a run line names its scene_yaml in messages (default "(scene_yaml)").
+#include <malloc.h>
 #include <time.h>
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
+#include <deque>
 #include <fstream>
 #include <iostream>
+#include <mutex>
 #include <sstream>
 #include <string>
+#include <thread>
+#include <unordered_map>
 #include <unordered_set>
 #include <vector>
 
@@ -75,6 +97,7 @@ struct BatchLine {
   std::vector<std::string> args;
   bool inline_scene = false;
   std::string scene_yaml;
+  std::string scene_name = kInlineScene;  // the scene_yaml's name in messages
   bool returned[kNumOutputs] = {true, true, false, false, false};
 };
 
@@ -129,9 +152,8 @@ void readId(const JsonValue& object, BatchLine* line) {
   }
 }
 
-// One input line into *line (its id first, for the error line); throws OptionError naming
-// the bad key or value.
-void readLine(const std::string& text, BatchLine* line) {
+// An input line as a JSON object; throws OptionError.
+JsonValue parseLine(const std::string& text) {
   JsonValue object;
   try {
     object = parseJson(text);
@@ -140,6 +162,12 @@ void readLine(const std::string& text, BatchLine* line) {
   }
   if (object.kind != Kind::kObject)
     throw OptionError("expected a JSON object (got " + showJson(object) + ")");
+  return object;
+}
+
+// One run line into *line (its id first, for the error line); throws OptionError naming the
+// bad key or value.
+void readLine(const JsonValue& object, BatchLine* line) {
   readId(object, line);
   for (const auto& [key, value] : object.members) {
     if (key == "args") {
@@ -149,10 +177,15 @@ void readLine(const std::string& text, BatchLine* line) {
         throw OptionError("scene_yaml: expected the scene's text (got " + showJson(value) + ")");
       line->inline_scene = true;
       line->scene_yaml = value.text;
+    } else if (key == "scene_name") {
+      if (value.kind != Kind::kString || value.text.empty())
+        throw OptionError("scene_name: expected a name (got " + showJson(value) + ")");
+      line->scene_name = value.text;
     } else if (key == "return") {
       readReturned(value, line);
     } else if (key != "id") {
-      throw OptionError("unknown key '" + key + "' (expected id, args, scene_yaml, return)");
+      throw OptionError("unknown key '" + key +
+                        "' (expected id, args, scene_yaml, scene_name, return)");
     }
   }
 }
@@ -163,7 +196,7 @@ void readLine(const std::string& text, BatchLine* line) {
 // The line's options: simulate's command line, with the scene placeholder for "scene_yaml".
 Options lineOptions(const BatchLine& line) {
   std::vector<std::string> args = {"simulate"};
-  if (line.inline_scene) args.push_back(kInlineScene);
+  if (line.inline_scene) args.push_back(line.scene_name);
   args.insert(args.end(), line.args.begin(), line.args.end());
   std::vector<char*> argv;
   for (std::string& arg : args) argv.push_back(arg.data());
@@ -179,11 +212,11 @@ Options lineOptions(const BatchLine& line) {
 }
 
 // The scene's text parsed as loadSceneYaml parses a file.
-YAML::Node parseSceneText(const std::string& text) {
+YAML::Node parseSceneText(const std::string& text, const std::string& name) {
   try {
     return YAML::Load(text);
   } catch (const YAML::ParserException& e) {
-    throw SceneError(std::string(kInlineScene) + ":" + std::to_string(e.mark.line + 1) + ":" +
+    throw SceneError(name + ":" + std::to_string(e.mark.line + 1) + ":" +
                      std::to_string(e.mark.column + 1) + ": YAML syntax error: " + e.msg);
   }
 }
@@ -200,7 +233,7 @@ YAML::Node baseTree(const BatchLine& line, const Options& options, SceneCache* c
   for (const std::string& path : options.set_files) key += "\t" + path;
   const auto found = cache->trees.find(key);
   if (found != cache->trees.end()) return YAML::Clone(found->second);
-  YAML::Node root = parseSceneText(line.scene_yaml);
+  YAML::Node root = parseSceneText(line.scene_yaml, line.scene_name);
   if (root.IsMap()) {
     for (const std::string& path : options.set_files) {
       for (const std::string& assignment : overridesFromFile(path))
@@ -239,30 +272,62 @@ void writeFile(const std::string& path, const char* name, const std::string& tex
     throw OptionError(std::string("error writing --") + name + " file '" + path + "'");
 }
 
-// Runs the line; fills the result's status and outputs. Throws on a bad line or scene.
-void runLine(const BatchLine& line, SceneCache* cache, Result* result) {
-  const Options options = lineOptions(line);
+// A run line read, loaded and compiled: what its run needs.
+struct PreparedRun {
+  BatchLine line;
+  Options options;
+  Model model;
   DamageThresholds damage;
-  const Model model = lineModel(line, options, cache, &damage);
+};
+
+// Reads the line's keys and options, loads its scene and compiles its model. Throws on a bad
+// line or scene.
+void prepareLine(const JsonValue& object, SceneCache* cache, PreparedRun* run) {
+  readLine(object, &run->line);
+  run->options = lineOptions(run->line);
+  run->model = lineModel(run->line, run->options, cache, &run->damage);
+}
+
+// Runs the prepared line; fills the result's status and outputs. Throws on a bad output file.
+void runPrepared(const PreparedRun& run, Result* result) {
+  const Options& options = run.options;
   std::ostringstream streams[kNumOutputs];
   bool used[kNumOutputs];
   for (size_t k = 0; k < kNumOutputs; ++k)
-    used[k] = line.returned[k] || !(options.*kOutputs[k].path).empty();
+    used[k] = run.line.returned[k] || !(options.*kOutputs[k].path).empty();
   auto stream = [&](size_t k) -> std::ostream* { return used[k] ? &streams[k] : nullptr; };
   std::string status;
   const int exit =
-      runModel(model, damage, options,
+      runModel(run.model, run.damage, options,
                RunStreams{stream(0), stream(4), stream(2), stream(1), stream(3)}, &status);
   for (size_t k = 0; k < kNumOutputs; ++k) {
     if (!used[k]) continue;
     result->outputs[k] = streams[k].str();
-    result->returned[k] = line.returned[k];
+    result->returned[k] = run.line.returned[k];
     const std::string& path = options.*kOutputs[k].path;
     if (!path.empty()) writeFile(path, kOutputs[k].name, result->outputs[k]);
   }
   result->exit = exit;
   result->status = exit == 0 ? "ok" : "failed";
   result->message = exit == 0 ? "" : status;
+}
+
+// Calls f; an exception becomes the result's error (exit 2 for a bad line, option or scene,
+// else 1). Returns whether f returned.
+template <typename F>
+bool guarded(Result* result, F&& f) {
+  try {
+    f();
+    return true;
+  } catch (const OptionError& e) {
+    result->message = e.what();
+  } catch (const SceneError& e) {
+    result->message = e.what();
+  } catch (const std::exception& e) {
+    result->exit = 1;
+    result->message = e.what();
+  }
+  return false;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -273,6 +338,19 @@ double threadCpuSeconds() {
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
+
+// This thread's CPU time and the wall time since it was made [s].
+class Stopwatch {
+ public:
+  double cpuSeconds() const { return threadCpuSeconds() - cpu_started_s_; }
+  double wallSeconds() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_started_).count();
+  }
+
+ private:
+  double cpu_started_s_ = threadCpuSeconds();
+  std::chrono::steady_clock::time_point wall_started_ = std::chrono::steady_clock::now();
+};
 
 std::string resultLine(const Result& result, double cpu_s, double wall_s) {
   std::string out = "{\"id\": ";
@@ -292,25 +370,304 @@ std::string resultLine(const Result& result, double cpu_s, double wall_s) {
   return out + "}";
 }
 
-// The result of one input line: a run, or an error naming what was wrong with it.
-Result processLine(const std::string& text, long number, SceneCache* cache) {
-  Result result;
-  BatchLine line;
-  line.id = std::to_string(number);
-  try {
-    readLine(text, &line);
-    runLine(line, cache, &result);
-  } catch (const OptionError& e) {
-    result.message = e.what();
-  } catch (const SceneError& e) {
-    result.message = e.what();
-  } catch (const std::exception& e) {
-    result.exit = 1;
-    result.message = e.what();
+// What a line is: a run, or one of the control lines of validation first.
+enum class LineKind { kRun, kHold, kBarrier, kGo, kRunHeld };
+
+// Heap that the compiled models of held runs may take, by default and at most [MB]; a line
+// validated beyond it drops its model and compiles it again when it runs (its cpu_s holds both
+// compilations). The single strike's model takes about 0.45 MB.
+constexpr double kDefaultHeldMegabytes = 256.0;
+constexpr double kMaxHeldMegabytes = 65536.0;
+
+// Longest wait for the go after a barrier that a line may ask for [s].
+constexpr double kMaxBarrierTimeoutS = 86400.0;
+
+// The kind of a line; *number gets a barrier's timeout [s] or a hold's heap [MB], *flag a go's
+// value, *ids a run line's ids. Throws OptionError for a malformed control line.
+LineKind lineKind(const JsonValue& object, double* number, bool* flag,
+                  std::vector<std::string>* ids) {
+  static const char* const kControls[] = {"hold", "barrier", "go", "run"};
+  for (const auto& [key, value] : object.members) {
+    const auto control = std::find_if(std::begin(kControls), std::end(kControls),
+                                      [&](const char* name) { return key == name; });
+    if (control == std::end(kControls)) continue;
+    if (object.members.size() != 1)
+      throw OptionError("a control line holds only its key ('" + key + "'; got " +
+                        showJson(object) + ")");
+    if (key == "barrier") {
+      *number = value.kind == Kind::kNumber ? std::strtod(value.text.c_str(), nullptr) : 0.0;
+      if (value.kind != Kind::kNumber || !(*number > 0.0 && *number <= kMaxBarrierTimeoutS))
+        throw OptionError("barrier: expected the go's timeout in s, in (0, 86400] (got " +
+                          showJson(value) + ")");
+      return LineKind::kBarrier;
+    }
+    if (key == "run") {
+      *ids = stringList(value, "run");
+      return LineKind::kRunHeld;
+    }
+    if (key == "hold" && value.kind == Kind::kNumber) {
+      *number = std::strtod(value.text.c_str(), nullptr);
+      if (!(*number >= 0.0 && *number <= kMaxHeldMegabytes))
+        throw OptionError(
+            "hold: expected true or the held models' heap in MB, in [0, 65536] "
+            "(got " +
+            showJson(value) + ")");
+      *flag = true;
+      return LineKind::kHold;
+    }
+    if (value.kind != Kind::kBool || (key == "hold" && !value.flag))
+      throw OptionError(key + ": expected " +
+                        (key == "hold" ? "true or a number of MB" : "true or false") + " (got " +
+                        showJson(value) + ")");
+    if (key == "hold") *number = kDefaultHeldMegabytes;
+    *flag = value.flag;
+    return key == "hold" ? LineKind::kHold : LineKind::kGo;
   }
-  result.id = line.id;
-  return result;
+  return LineKind::kRun;
 }
+
+// Ends the process (exit 2, the message on stderr) unless it is destroyed within timeout_s.
+class Watchdog {
+ public:
+  Watchdog(double timeout_s, std::string message)
+      : thread_([this, timeout_s, message] {
+          std::unique_lock<std::mutex> lock(mutex_);
+          if (!cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                            [this] { return done_; })) {
+            std::cerr << message << std::flush;
+            std::_Exit(2);
+          }
+        }) {}
+  ~Watchdog() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      done_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  Watchdog(const Watchdog&) = delete;
+  Watchdog& operator=(const Watchdog&) = delete;
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread thread_;  // last: it uses the members above
+};
+
+// Bytes of heap in use (malloc's arenas and mmapped blocks).
+size_t heapBytes() {
+  const struct mallinfo2 info = mallinfo2();
+  return info.uordblks + info.hblkhd;
+}
+
+// A run line validated and held until the go: its compiled model, or its error.
+struct HeldRun {
+  PreparedRun run;
+  Result result;  // its id; its error when it is not valid
+  bool valid = false;
+  bool compiled = false;  // the model is kept (else compiled again to run)
+  bool done = false;      // run (its result written)
+  double cpu_s = 0.0;     // this thread's CPU time for its validation [s]
+  double wall_s = 0.0;    // the validation's wall time [s]
+};
+
+// The state of a batch between its lines.
+class Batch {
+ public:
+  explicit Batch(std::istream* in) : in_(in) {}
+
+  // Handles the next input line (its number names it when it has no id; blank lines are
+  // skipped). Returns false when the batch must end (no go after a barrier).
+  bool line(const std::string& text) {
+    const long number = ++number_;
+    if (text.find_first_not_of(" \t\r") == std::string::npos) return true;
+    const Stopwatch watch;
+    Result result;
+    result.id = std::to_string(number);
+    JsonValue object;
+    LineKind kind = LineKind::kRun;
+    double number_value = 0.0;
+    bool flag = false;
+    std::vector<std::string> ids;
+    const bool read = guarded(&result, [&] {
+      object = parseLine(text);
+      kind = lineKind(object, &number_value, &flag, &ids);
+    });
+    if (read && kind == LineKind::kHold) {
+      holding_ = true;
+      max_held_bytes_ = static_cast<size_t>(number_value * 1048576.0);
+      return true;
+    }
+    if (read && kind == LineKind::kBarrier) return barrier(number_value);
+    if (read && (kind == LineKind::kGo || kind == LineKind::kRunHeld)) {
+      if (answered_) return decide(kind, flag, ids);
+      result.message = "a go or run line without a barrier before it";
+    }
+    if (holding_) {
+      hold(read && kind == LineKind::kRun ? &object : nullptr, std::move(result), watch);
+      held_index_.emplace(held_.back().result.id, held_.size() - 1);
+      return true;
+    }
+    PreparedRun run;
+    run.line.id = result.id;
+    if (read && kind == LineKind::kRun) {
+      guarded(&result, [&] {
+        prepareLine(object, &cache_, &run);
+        runPrepared(run, &result);
+      });
+    }
+    result.id = run.line.id;
+    emit(result, watch.cpuSeconds(), watch.wallSeconds());
+    return true;
+  }
+
+  int status() const { return status_; }
+
+ private:
+  // Validates the run line (its object, or null when it could not be read: then the result
+  // holds its error) and holds it.
+  void hold(const JsonValue* object, Result result, const Stopwatch& watch) {
+    held_.emplace_back();
+    HeldRun& held = held_.back();
+    held.run.line.id = result.id;
+    held.result = std::move(result);
+    const size_t heap_before = heapBytes();
+    if (object != nullptr)
+      held.valid = guarded(&held.result, [&] { prepareLine(*object, &cache_, &held.run); });
+    const size_t heap_after = heapBytes();
+    const size_t bytes = heap_after > heap_before ? heap_after - heap_before : 0;
+    held.compiled = held.valid && held_bytes_ + bytes <= max_held_bytes_;
+    if (held.compiled) held_bytes_ += bytes;
+    if (held.valid && !held.compiled) held.run.model = Model();
+    held.result.id = held.run.line.id;
+    held.cpu_s = watch.cpuSeconds();
+    held.wall_s = watch.wallSeconds();
+  }
+
+  // Answers the barrier, waits for the go (at most timeout_s) and runs the held lines.
+  bool barrier(double timeout_s) {
+    std::string answer =
+        "{\"barrier\": true, \"lines\": " + std::to_string(held_.size()) + ", \"invalid\": [";
+    bool first = true;
+    for (const HeldRun& held : held_) {
+      if (held.valid) continue;
+      answer += first ? "{\"id\": " : ", {\"id\": ";
+      first = false;
+      appendJsonString(held.result.id, &answer);
+      answer += ", \"message\": ";
+      appendJsonString(held.result.message, &answer);
+      answer += "}";
+    }
+    std::cout << answer << "]}" << std::endl;
+    std::string text;
+    bool got = false;
+    {
+      const Watchdog watchdog(timeout_s, "simulate: error: --batch: no go within " +
+                                             showNumber(timeout_s) + " s of the barrier; " +
+                                             std::to_string(held_.size()) + " held runs not run\n");
+      got = static_cast<bool>(std::getline(*in_, text));
+    }
+    number_ += got;
+    Result ignored;
+    double unused = 0.0;
+    bool go = false;
+    std::vector<std::string> ids;
+    LineKind kind = LineKind::kRun;
+    const bool read = got && guarded(&ignored, [&] {
+                        kind = lineKind(parseLine(text), &unused, &go, &ids);
+                        if (kind != LineKind::kGo && kind != LineKind::kRunHeld)
+                          throw OptionError("not a go line");
+                      });
+    if (!read) {
+      std::cerr << "simulate: error: --batch: "
+                << (!got ? std::string("the input ended at the barrier")
+                         : "expected {\"go\": true}, {\"go\": false} or {\"run\": [ids]} after "
+                           "the barrier (got " +
+                               text.substr(0, 200) + ")")
+                << "; " << held_.size() << " held runs not run\n";
+      status_ = 2;
+      return false;
+    }
+    answered_ = true;
+    holding_ = false;
+    return decide(kind, go, ids);
+  }
+
+  // After the barrier: {"go": true} runs every held line not run yet (in order), {"go": false}
+  // ends the batch (exit 2) without them, {"run": [ids]} runs those held lines in that order.
+  bool decide(LineKind kind, bool go, const std::vector<std::string>& ids) {
+    if (kind == LineKind::kGo && !go) {
+      std::cerr << "simulate: error: --batch: no go after the barrier; " << held_.size()
+                << " held runs not run\n";
+      status_ = 2;
+      return false;
+    }
+    if (kind == LineKind::kGo) {
+      for (HeldRun& held : held_) {
+        if (!held.done) runHeld(&held);
+      }
+      held_.clear();
+      held_index_.clear();
+      held_bytes_ = 0;
+      answered_ = false;
+      return true;
+    }
+    for (const std::string& id : ids) {
+      auto [begin, end] = held_index_.equal_range(id);
+      while (begin != end && held_[begin->second].done) ++begin;
+      if (begin != end) {
+        runHeld(&held_[begin->second]);
+        continue;
+      }
+      Result result;
+      result.id = id;
+      result.message = "run: no held line '" + id + "' left to run";
+      emit(result, 0.0, 0.0);
+    }
+    return true;
+  }
+
+  // Runs a held line (compiling its model again when it was not kept) and writes its result;
+  // its cpu_s and wall_s include its validation.
+  void runHeld(HeldRun* held) {
+    const Stopwatch watch;
+    if (held->valid) {
+      guarded(&held->result, [&] {
+        if (!held->compiled)
+          held->run.model =
+              lineModel(held->run.line, held->run.options, &cache_, &held->run.damage);
+        runPrepared(held->run, &held->result);
+      });
+    }
+    emit(held->result, held->cpu_s + watch.cpuSeconds(), held->wall_s + watch.wallSeconds());
+    held->run.model = Model();  // its tables freed as it ends
+    held->done = true;
+  }
+
+  void emit(const Result& result, double cpu_s, double wall_s) {
+    std::cout << resultLine(result, cpu_s, wall_s) << std::endl;
+    status_ = std::max(status_, result.exit);
+  }
+
+  static std::string showNumber(double value) {
+    std::ostringstream text;
+    text << value;
+    return text.str();
+  }
+
+  std::istream* in_;
+  long number_ = 0;  // lines read
+  SceneCache cache_;
+  bool holding_ = false;   // run lines are held (after a hold, until the barrier)
+  bool answered_ = false;  // the barrier was answered: go and run lines decide on held_
+  std::deque<HeldRun> held_;
+  std::unordered_multimap<std::string, size_t> held_index_;  // held_ by id
+  size_t held_bytes_ = 0;      // heap held by the held runs' models [bytes]
+  size_t max_held_bytes_ = 0;  // the hold's budget for them [bytes]
+  int status_ = 0;
+};
 
 }  // namespace
 
@@ -321,21 +678,11 @@ int runBatch(const std::string& path) {
     if (!file) throw OptionError("cannot open --batch file '" + path + "'");
   }
   std::istream& in = path == "-" ? std::cin : file;
-  int status = 0;
-  SceneCache cache;
-  long number = 0;
+  Batch batch(&in);
   for (std::string text; std::getline(in, text);) {
-    ++number;
-    if (text.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const double cpu_started = threadCpuSeconds();
-    const auto started = std::chrono::steady_clock::now();
-    const Result result = processLine(text, number, &cache);
-    const double wall_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    std::cout << resultLine(result, threadCpuSeconds() - cpu_started, wall_s) << std::endl;
-    status = std::max(status, result.exit);
+    if (!batch.line(text)) break;
   }
-  return status;
+  return batch.status();
 }
 
 }  // namespace app

@@ -94,7 +94,7 @@ void skipRestitutionFit(YAML::Node* root) {
 }  // namespace
 
 std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* bases,
-                          const std::string** base, ToothCache* teeth) {
+                          const std::string** base, ToothCache* teeth, bool compile) {
   YAML::Node root = sceneWithFiles(options, cache);
   if (bases != nullptr && base != nullptr) {
     std::string key = options.scene_path;
@@ -111,6 +111,7 @@ std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* b
   for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
   std::string text;
   writeFlow(root, &text);  // before the restitutions are set aside
+  if (!compile) return text;
   skipRestitutionFit(&root);
   try {
     modelFromYaml(root, teeth);
@@ -124,7 +125,7 @@ std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* b
 // Each line of the file: the arguments of one run (scene, --set, --set-file, ...) separated by
 // tabs. Each answer "ok" carries the resolved scene and the base scene (the scene with its
 // override files, before the --set overrides), both one line of flow YAML without tabs.
-int checkBatch(const std::string& path) {
+int checkBatch(const std::string& path, bool resolve_only) {
   std::ifstream file;
   if (path != "-") {
     file.open(path);
@@ -145,8 +146,9 @@ int checkBatch(const std::string& path) {
     for (std::string& arg : args) argv.push_back(arg.data());
     try {
       const std::string* base = nullptr;
-      const std::string scene = resolvedScene(
-          parseOptions(static_cast<int>(argv.size()), argv.data()), &cache, &bases, &base, &teeth);
+      const std::string scene =
+          resolvedScene(parseOptions(static_cast<int>(argv.size()), argv.data()), &cache, &bases,
+                        &base, &teeth, !resolve_only);
       std::cout << "ok\t" << scene << "\t" << *base << "\n";
     } catch (const std::exception& e) {
       std::string message = e.what();

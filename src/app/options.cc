@@ -16,7 +16,7 @@ const char kUsage[] =
     "[--dt S] [--tolerance X] [--set-file FILE.yaml]... [--set key.path=value]... "
     "[--summary FILE.json] [--trace FILE.csv] [--trace-every N] [--events FILE.csv] "
     "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--modes] [--quiet] "
-    "[--print-schema] [--check] [--check-batch FILE] [--batch FILE.jsonl]";
+    "[--print-schema] [--check] [--check-batch FILE [--resolve-only]] [--batch FILE.jsonl]";
 
 namespace {
 
@@ -71,6 +71,8 @@ const OptionSpec kOptionSpecs[] = {
     {"--check", false, [](const std::string&, Options* o, Sugar*) { o->check = true; }},
     {"--check-batch", true,
      [](const std::string& v, Options* o, Sugar*) { o->check_batch_path = v; }},
+    {"--resolve-only", false,
+     [](const std::string&, Options* o, Sugar*) { o->resolve_only = true; }},
     {"--batch", true, [](const std::string& v, Options* o, Sugar*) { o->batch_path = v; }},
     {"--quiet", false, [](const std::string&, Options* o, Sugar*) { o->quiet = true; }},
     {"--print-schema", false,
@@ -125,6 +127,8 @@ Options parseOptions(int argc, char** argv) {
       options.check_batch_path.empty() && options.batch_path.empty()) {
     throw UsageError("no scene file given");
   }
+  if (options.resolve_only && options.check_batch_path.empty())
+    throw UsageError("--resolve-only goes with --check-batch");
   if (sugar.duration) options.overrides.push_back("duration=" + *sugar.duration);
   if (sugar.integrator) options.overrides.push_back("integrator.type=" + *sugar.integrator);
   if (sugar.dt) options.overrides.push_back("integrator.dt=" + *sugar.dt);

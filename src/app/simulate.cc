@@ -75,7 +75,8 @@ int dispatch(const app::Options& options) {
     std::cout << sceneSchemaTable();
     return 0;
   }
-  if (!options.check_batch_path.empty()) return app::checkBatch(options.check_batch_path);
+  if (!options.check_batch_path.empty())
+    return app::checkBatch(options.check_batch_path, options.resolve_only);
   if (!options.batch_path.empty()) return app::runBatch(options.batch_path);
   if (options.check) {
     std::cout << app::resolvedScene(options) << "\n";

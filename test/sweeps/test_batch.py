@@ -11,8 +11,10 @@ compared with:
 - simulate --batch with the resolved scenes as text;
 - simulate --batch with each run's base scene as text and its --set overrides (the runner's
   lines: one parse per base scene, the overrides applied to a copy of its tree);
-- scripts/sweep run locally (threads feeding simulate --batch processes), its table and kept
-  files;
+- simulate --batch with validation first (hold, barrier, go or run by id), the models kept
+  or compiled again;
+- scripts/sweep run locally, with validation first (one share per worker) and with --batch (the
+  runs handed out in batches), its table and kept files;
 - scripts/sweep run on a dask-scheduler with two dask-workers on 127.0.0.1.
 
 Summaries must be equal apart from the wall_time_s line; outcomes, events and forces byte for
@@ -204,6 +206,99 @@ class BatchTest(unittest.TestCase):
         self.assertEqual(results["good"]["status"], "ok")
         self.assert_same_outputs(self.runs[0], results["good"], "after bad lines")
 
+    def held_lines(self, runs):
+        """The runner's lines for the runs (base scene, --set values, the scene's name)."""
+        lines = []
+        for run in runs:
+            scene = runner._scene_of(run)
+            lines.append({"id": run.key, "scene_yaml": scene["scene"],
+                          "scene_name": scene["scene_name"], "args": scene["args"],
+                          "return": ["summary", "outcomes", *run.keep]})
+        return lines
+
+    def distinct_runs(self):
+        return list({r.key: r for r in self.runs}.values())
+
+    def test_validation_first(self):
+        """{"hold": ...}, the runs' lines, {"barrier": s} and then {"go": true}: the barrier's
+        answer comes before any run, then the runs on the models compiled for the answer
+        (with {"hold": 0} none is kept: each is compiled again), equal to separate processes;
+        a run's cpu_s includes its validation."""
+        runs = self.distinct_runs()
+        for hold in (True, 0):
+            text = "".join(json.dumps(x) + "\n" for x in [{"hold": hold}, *self.held_lines(runs),
+                                                          {"barrier": 60}, {"go": True}])
+            proc = subprocess.run([self.simulate, "--batch", "-"], input=text,
+                                  capture_output=True, text=True, timeout=300)
+            self.assertEqual(proc.returncode, 0, proc.stderr)
+            answers = [json.loads(line) for line in proc.stdout.splitlines()]
+            self.assertEqual(answers[0], {"barrier": True, "lines": len(runs), "invalid": []})
+            self.assertEqual([a["id"] for a in answers[1:]], [r.key for r in runs])
+            for run, result in zip(runs, answers[1:]):
+                self.assertEqual(result["status"], "ok", result["message"])
+                self.assertGreater(result["cpu_s"], 0)
+                self.assert_same_outputs(run, result, f"held lines (hold {hold})")
+
+    def test_held_lines_run_by_id(self):
+        """{"run": [ids]} after the barrier runs those held lines in that order (the runner's
+        shares); an id not held, or run already, is an error line; a whole run line runs as
+        usual (a run taken from another process's share); the lines not run are dropped at the
+        end of the input."""
+        runs = self.distinct_runs()
+        held, other = runs[:6], runs[6]
+        lines = [{"hold": True}, *self.held_lines(held), {"barrier": 60},
+                 {"run": [held[3].key, held[1].key]}, {"run": [held[1].key, "nosuch"]},
+                 *self.held_lines([other]), {"run": [held[0].key]}]
+        proc = subprocess.run([self.simulate, "--batch", "-"], capture_output=True, text=True,
+                              input="".join(json.dumps(x) + "\n" for x in lines), timeout=300)
+        self.assertEqual(proc.returncode, 2, proc.stderr)  # the two error lines
+        answers = [json.loads(line) for line in proc.stdout.splitlines()]
+        self.assertEqual(answers[0]["invalid"], [])
+        results = answers[1:]
+        self.assertEqual([r["id"] for r in results],
+                         [held[3].key, held[1].key, held[1].key, "nosuch", other.key,
+                          held[0].key])
+        for i in (2, 3):
+            self.assertEqual(results[i]["status"], "error")
+            self.assertIn("no held line", results[i]["message"])
+        for run, result in zip([held[3], held[1], other, held[0]],
+                               [results[0], results[1], results[4], results[5]]):
+            self.assertEqual(result["status"], "ok", result["message"])
+            self.assert_same_outputs(run, result, "held lines run by id")
+
+    def test_validation_first_refuses(self):
+        """The barrier names every invalid held line with the loader's message (the scene
+        named by scene_name, as simulate --check-batch names it); {"go": false} ends the batch
+        (exit 2) without a run; no decision within the barrier's timeout ends it too."""
+        good = self.held_lines([self.runs[0]])[0]
+        speed = dict(good, id="speed", args=[*good["args"], "--set", "drum.speed=fast"])
+        length = dict(good, id="length", args=[*good["args"], "--set", "teeth.*.length=-0.01"])
+        head = [{"hold": True}, good, speed, length, {"barrier": 60}]
+        proc = subprocess.run([self.simulate, "--batch", "-"], capture_output=True, text=True,
+                              input="".join(json.dumps(x) + "\n" for x in
+                                            head + [{"go": False}]), timeout=120)
+        self.assertEqual(proc.returncode, 2)
+        answers = [json.loads(line) for line in proc.stdout.splitlines()]
+        self.assertEqual(len(answers), 1, "a run before the go")
+        invalid = {x["id"]: x["message"] for x in answers[0]["invalid"]}
+        self.assertEqual(set(invalid), {"speed", "length"})
+        self.assertIn(f"{good['scene_name']}: drum.speed: expected a number (got fast)",
+                      invalid["speed"])
+        self.assertIn("teeth.0.length: must be in [1e-5, 10] (got -0.01)", invalid["length"])
+        self.assertIn("no go after the barrier; 3 held runs not run", proc.stderr)
+        # No decision: the input stays open; the process ends by itself after the timeout.
+        head[-1] = {"barrier": 1}
+        proc = subprocess.Popen([self.simulate, "--batch", "-"], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            proc.stdin.write("".join(json.dumps(x) + "\n" for x in head))
+            proc.stdin.flush()
+            self.assertEqual(proc.wait(timeout=30), 2)
+            self.assertIn("no go within 1 s of the barrier", proc.stderr.read())
+        finally:
+            proc.kill()
+            proc.wait()
+
     def check_sweep_output(self, out, where):
         """A sweep's table and kept files against the separate processes."""
         with open(out / "runs.csv", newline="") as f:
@@ -238,6 +333,20 @@ class BatchTest(unittest.TestCase):
         stats = json.loads((out / "run_stats.json").read_text())
         self.assertEqual(stats["batches"], 6)  # 30 distinct runs in batches of 5
         # One simulate --batch process per thread takes its batches one after the other.
+        self.assertEqual(stats["processes"], 2)
+
+    def test_sweep_locally_validation_first(self):
+        """Without --batch: one share per worker, validated in the process that runs it."""
+        out = self.out / "local_held"
+        proc = subprocess.run([sys.executable, str(ROOT / "scripts/sweep"), "run",
+                               str(self.sweep_file), "--simulate", self.simulate, "--out",
+                               str(out), "--workers", "2"], capture_output=True, text=True,
+                              timeout=300)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        table = self.check_sweep_output(out, "local sweep, validation first")
+        self.assertEqual(len({r["worker"] for r in table}), 2)
+        stats = json.loads((out / "run_stats.json").read_text())
+        self.assertEqual(stats["batches"], 2)  # two shares
         self.assertEqual(stats["processes"], 2)
 
     def test_sweep_on_dask_scheduler(self):

@@ -10,6 +10,7 @@ bad axis is refused before anything runs. Every wait has a timeout; every proces
 is killed at the end. Writes a JUnit XML file (--xml) for scripts/test.sh's count.
 """
 import csv
+import json
 import math
 import os
 import pathlib
@@ -257,6 +258,64 @@ class SweepTest(unittest.TestCase):
         self.assertEqual(table[("0.48", "0.003")]["status"], "timeout")
         self.assertIn("no result after 1.5 s", table[("0.48", "0.003")]["message"])
         self.assertIn("4 runs (0 from the cache), 3 not ok", proc.stderr)
+
+    def test_failures_are_recorded_with_validation_first(self):
+        """As test_failures_are_recorded, without --batch: the shares are held (the wrapper
+        answers the barrier for the lines it holds) and run by id; a process that crashes or
+        hangs is replaced by one that takes the runs it had left as whole lines."""
+        wrapper = self.out / "crashy_held_simulate"
+        wrapper.write_text(
+            "#!/usr/bin/python3\n"
+            "import json, os, signal, subprocess, sys, time\n"
+            f"REAL = {str(self.simulate)!r}\n"
+            "if '--batch' not in sys.argv:\n"
+            "    os.execv(REAL, [REAL] + sys.argv[1:])\n"
+            "def run(line):\n"
+            "    if 'restitution=0.3\"' in line:\n"
+            "        os.kill(os.getpid(), signal.SIGSEGV)\n"
+            "    if 'duration=0.003\"' in line:\n"
+            "        time.sleep(60)\n"
+            "    sys.stdout.write(subprocess.run([REAL, '--batch', '-'], input=line, text=True,\n"
+            "                                    stdout=subprocess.PIPE, timeout=60).stdout)\n"
+            "    sys.stdout.flush()\n"
+            "held, holding = {}, False\n"
+            "for line in sys.stdin:\n"
+            "    message = json.loads(line)\n"
+            "    if 'hold' in message:\n"
+            "        holding = True\n"
+            "    elif 'barrier' in message:\n"
+            "        holding = False\n"
+            "        print(json.dumps({'barrier': True, 'lines': len(held), 'invalid': []}),\n"
+            "              flush=True)\n"
+            "    elif 'run' in message:\n"
+            "        for key in message['run']:\n"
+            "            run(held.pop(key))\n"
+            "    elif holding:\n"
+            "        held[message['id']] = line\n"
+            "    else:\n"
+            "        run(line)\n")
+        wrapper.chmod(0o755)
+        spec = self.out / "failures_held.yaml"
+        spec.write_text(
+            f"scene: {ROOT / 'config/scenes/single_strike.yaml'}\n"
+            "axes:\n"
+            "  - {name: e, key: contact.tooth_kernel.restitution, values: [0.48, 0.3]}\n"
+            "  - {name: duration, key: duration, values: [0.002, 0.003, 0.0021]}\n"
+            "timeout: 1.5\n")
+        out = self.out / "failures_held"
+        proc = sweep("run", spec, "--simulate", wrapper, "--out", out, "--workers", 2)
+        self.assertEqual(proc.returncode, 0, proc.stderr)
+        table = {(r["e"], r["duration"]): r for r in rows(out / "runs.csv")}
+        for duration in ("0.002", "0.0021"):
+            self.assertEqual(table[("0.48", duration)]["status"], "ok")
+            self.assertEqual(table[("0.3", duration)]["status"], "crash")
+            self.assertIn("SIGSEGV", table[("0.3", duration)]["message"])
+        self.assertEqual(table[("0.48", "0.003")]["status"], "timeout")
+        self.assertIn("no result after 1.5 s", table[("0.48", "0.003")]["message"])
+        self.assertIn(table[("0.3", "0.003")]["status"], ("crash", "timeout"))
+        self.assertIn("6 runs (0 from the cache), 4 not ok", proc.stderr)
+        stats = json.loads((out / "run_stats.json").read_text())
+        self.assertGreaterEqual(stats["processes"], 4)  # two shares, then their replacements
 
     def test_bad_axis_refused_before_running(self):
         spec = self.out / "bad.yaml"

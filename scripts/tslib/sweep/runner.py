@@ -6,18 +6,24 @@ interrupted sweep resumes where it stopped. Crashes, timeouts and errors are rec
 again by the next invocation. The table (OUT/runs.csv, one row per run, and the `runs` table
 of OUT/sweep.sqlite) is written as results arrive and rewritten in sweep order at the end.
 """
+import collections
 import csv
 import io
 import json
 import math
 import os
+import select
+import signal
 import sqlite3
+import subprocess
 import sys
+import threading
 import time
 
 from tslib.binaries import find_binary
 from tslib.cache import file_digest
 
+from . import spec
 from . import task as task_module
 
 META_COLUMNS = ["run", "status", "message"]
@@ -244,14 +250,16 @@ def _connect(scheduler, workers):
 def _scene_of(run):
     """What a batch line runs: the run's base scene (its scene with the override files) and
     its --set overrides, so that a simulate --batch process parses each base once and applies
-    the overrides to a copy of the tree; the resolved scene when no base is known."""
+    the overrides to a copy of the tree; the resolved scene when no base is known. scene_name
+    names the scene in messages as simulate --check-batch does (its path)."""
+    name = run.arguments[0] if run.arguments else ""
     if run.base is None:
-        return {"scene": run.scene, "args": []}
+        return {"scene": run.scene, "args": [], "scene_name": name}
     flags = run.arguments[1::2] if len(run.arguments) % 2 else []
     values = run.arguments[2::2] if len(run.arguments) % 2 else []
     if not flags or any(f not in ("--set", "--set-file") for f in flags):
-        return {"scene": run.scene, "args": []}
-    return {"scene": run.base,
+        return {"scene": run.scene, "args": [], "scene_name": name}
+    return {"scene": run.base, "scene_name": name,
             "args": [a for f, v in zip(flags, values) if f == "--set" for a in (f, v)]}
 
 
@@ -260,31 +268,74 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     """Runs every run not in the cache; returns the table (rows in sweep order) and stats.
     Without a scheduler the runs go to `workers` threads of this process (default: one per
     core), each feeding simulate --batch processes; with processes=True to a local Dask
-    cluster of worker processes instead; with a scheduler to its Dask workers."""
-    out.mkdir(parents=True, exist_ok=True)
-    cache = Cache(out / "sweep.sqlite")
-    table = Table(sweep, out, cache.db)
-    cached = cache.load({r.key for r in runs})
+    cluster of worker processes instead; with a scheduler to its Dask workers.
+
+    Without `batch`, validation first: the runs are shared out, one share per worker (thread
+    or Dask worker thread), each held in one simulate --batch process that reads, loads and
+    compiles its runs and answers which are invalid; the runs start, on the models compiled
+    then, only when every share is valid. Otherwise SweepError (spec.invalid_error) before
+    anything is written to `out`. With `batch`, the runs go in batches of that size, handed
+    out as workers free up; spec.validate (with compile_models) must have checked them."""
+    cache_path = out / "sweep.sqlite"
+    cache = Cache(cache_path) if cache_path.exists() else None
+    cached = cache.load({r.key for r in runs}) if cache is not None else {}
     by_key = {}
     for run in runs:
         by_key.setdefault(run.key, []).append(run)
+    todo = [key for key in by_key if key not in cached]
+    n_todo = sum(len(by_key[k]) for k in todo)
+    stats = {"runs": len(runs), "cached": len(runs) - n_todo, "processes": 0,
+             "process_cpu_s": 0.0, "process_wall_s": 0.0, "hold_s": 0.0}
+    payload = {key: {"key": key, **_scene_of(by_key[key][0]), "simulate": str(simulate),
+                     "sha": binary_sha, "timeout_s": sweep.timeout_s, "keep": by_key[key][0].keep}
+               for key in todo}
+    work = [payload[key] for key in todo]
+    shares = None
+    try:
+        if work and batch is None:
+            started = time.monotonic()
+            shares = (_DaskShares(work, scheduler, workers, stats) if scheduler or processes
+                      else _LocalShares(work, workers or os.cpu_count() or 1, stats))
+            _check_verdicts(shares.verdicts(), sweep, runs, by_key, shares)
+            stats["hold_s"] = time.monotonic() - started
+        rows = _run_checked(sweep, runs, out, cache, cached, by_key, todo, work, shares, stats,
+                            scheduler, workers, processes, batch, progress_stream, log)
+    finally:
+        if shares is not None:
+            shares.close()
+    return rows, stats
+
+
+def _check_verdicts(answers, sweep, runs, by_key, shares):
+    """Raises SweepError (after telling the shares not to run) unless every share is valid."""
+    errors = [a["error"] for a in answers if "error" in a]
+    invalid = {item["id"]: item["message"] for a in answers if "error" not in a
+               for item in a.get("invalid", [])}
+    if not errors and not invalid:
+        return
+    shares.go(False)
+    if errors:
+        raise spec.SweepError(f"{sweep.path}: the validation failed: {errors[0]}")
+    bad = [(run, invalid[run.key]) for run in runs if run.key in invalid]
+    raise spec.invalid_error(sweep, len(runs), bad)
+
+
+def _run_checked(sweep, runs, out, cache, cached, by_key, todo, work, shares, stats, scheduler,
+                 workers, processes, batch, progress_stream, log):
+    """run_sweep once the runs to run are valid: the table of the cached runs, the runs, the
+    table in sweep order."""
+    out.mkdir(parents=True, exist_ok=True)
+    cache = cache or Cache(out / "sweep.sqlite")
+    table = Table(sweep, out, cache.db)
     for run in runs:
         if run.key in cached:
             table.add(run, cached[run.key])
     table.write()
-    todo = [key for key in by_key if key not in cached]
-    log(f"sweep {sweep.name}: {len(runs)} runs, {len(runs) - sum(len(by_key[k]) for k in todo)}"
-        f" from the cache, {sum(len(by_key[k]) for k in todo)} to run -> {out}")
-    progress = Progress(len(runs), len(runs) - sum(len(by_key[k]) for k in todo),
-                        progress_stream)
-    stats = {"runs": len(runs), "cached": len(runs) - sum(len(by_key[k]) for k in todo),
-             "processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
+    log(f"sweep {sweep.name}: {len(runs)} runs, {stats['cached']} from the cache, "
+        f"{len(runs) - stats['cached']} to run -> {out}")
+    progress = Progress(len(runs), stats["cached"], progress_stream)
     started = time.monotonic()
     if todo:
-        payload = {key: {"key": key, **_scene_of(by_key[key][0]), "simulate": str(simulate),
-                         "sha": binary_sha, "timeout_s": sweep.timeout_s,
-                         "keep": by_key[key][0].keep}
-                   for key in todo}
         pending = set(todo)
         synced = [time.monotonic()]
 
@@ -301,8 +352,10 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
                 cache.commit()
                 table.write()
 
-        work = [payload[key] for key in todo]
-        if scheduler or processes:
+        if shares is not None:
+            shares.go(True)
+            shares.collect(accept, pending)
+        elif scheduler or processes:
             _dispatch(work, scheduler, workers or os.cpu_count() or 1, batch, accept, pending,
                       stats)
         else:
@@ -313,7 +366,370 @@ def run_sweep(sweep, runs, simulate, binary_sha, out, scheduler=None, workers=No
     table.finish()
     rows = [table.rows[i] for i in sorted(table.rows)]
     stats["failed"] = sum(r["status"] != "ok" for r in rows)
-    return rows, stats
+    return rows
+
+
+# Margin on a share's validation time for the runner's wait for all verdicts [s] (the Dask
+# workers' task start, the processes' start).
+VERDICT_MARGIN_S = 30.0
+
+
+def _shares(work, slots):
+    """The runs shared out to `slots` workers, interleaved (each share holds runs of every
+    part of the sweep, so that the shares cost about the same); no empty share."""
+    return [work[i::slots] for i in range(min(slots, len(work)))]
+
+
+class _PoolProcess:
+    """A simulate --batch process of the local pool: the runs it holds (validated, run by id),
+    its share not yet sent, and the runs sent to it whose results are awaited (in order)."""
+
+    def __init__(self, simulate, folder, index, name, own=(), held=()):
+        self.err = open(os.path.join(folder, f"stderr-{index}.txt"), "w+")
+        try:
+            self.proc = subprocess.Popen([simulate, "--batch", "-"], stdin=subprocess.PIPE,
+                                         stdout=subprocess.PIPE, stderr=self.err)
+        except OSError:
+            self.err.close()
+            raise
+        self.fd = self.proc.stdout.fileno()
+        self.name = name
+        self.own = collections.deque(own)
+        self.held = set(held)
+        self.sent = collections.deque()
+        self.chunks = []          # output read, not yet a whole line
+        self.started = time.monotonic()  # when the run at the head of sent started
+        self.begun = time.perf_counter()
+        self.feeder = None
+        self.closed = False
+
+    def send(self, tasks):
+        """Held runs as one run line by id, the others as whole lines."""
+        if not self.sent:
+            self.started = time.monotonic()
+        parts, ids = [], []
+        for t in tasks:
+            if t["key"] in self.held:
+                ids.append(t["key"])
+                continue
+            if ids:
+                parts.append(json.dumps({"run": ids}) + "\n")
+                ids = []
+            parts.append(task_module._batch_line(t))
+        if ids:
+            parts.append(json.dumps({"run": ids}) + "\n")
+        self.sent.extend(tasks)
+        self.write("".join(parts).encode())
+
+    def write(self, data, close=False):
+        try:
+            if data:
+                self.proc.stdin.write(data)
+                self.proc.stdin.flush()
+            if close:
+                self.closed = True
+                self.proc.stdin.close()
+        except (BrokenPipeError, OSError, ValueError):
+            pass  # the process died: its end is read on its output
+
+    def lines(self, data):
+        """The whole lines in the output read so far, with data."""
+        if b"\n" not in data:
+            self.chunks.append(data)
+            return []
+        self.chunks.append(data)
+        *whole, rest = b"".join(self.chunks).split(b"\n")
+        self.chunks = [rest] if rest else []
+        return [line.decode("utf-8", "replace") for line in whole]
+
+    def reap(self, kill):
+        """Kills (when asked) and reaps the process: (exit code, CPU time [s], stderr's end)."""
+        if kill:  # not Popen.kill, which may reap the process (its usage then lost)
+            try:
+                os.kill(self.proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        self.write(b"", close=True)
+        _, status, usage = os.wait4(self.proc.pid, 0)
+        self.proc.returncode = os.waitstatus_to_exitcode(status)
+        self.proc.stdout.close()
+        self.err.seek(0)
+        stderr = self.err.read().strip()[-500:]
+        self.err.close()
+        return self.proc.returncode, usage.ru_utime + usage.ru_stime, stderr
+
+
+# Runs per run line sent to a pool process at most.
+POOL_CHUNK = 8
+# A pool process gets its next runs when it has at most this many left to answer. (A pause
+# after each wake-up, to read a few results at once, saved no CPU and starved the processes.)
+POOL_AHEAD = 1
+
+
+class _LocalShares:
+    """Validation first on simulate --batch processes of this process, one per worker: each
+    holds its share (hold, barrier); then one thread (no worker threads: their queues and the
+    interpreter lock cost more than the runs' lines) hands each process its held runs by id a
+    few at a time, and a process whose share is done takes runs from the end of the largest
+    share left, as whole lines (compiled again: their held models are dropped unused)."""
+
+    def __init__(self, work, workers, stats):
+        import socket
+
+        self.stats, self.work = stats, work
+        self.shares = _shares(work, workers)
+        stats.update(workers=workers, batch=max(map(len, self.shares)),
+                     batches=len(self.shares))
+        self.simulate = work[0]["simulate"]
+        sha = task_module._binary_sha(self.simulate)
+        if sha != work[0]["sha"]:
+            raise spec.SweepError(f"simulate at {self.simulate} changed since the sweep started "
+                                  f"(sha256 {sha[:12]} != {work[0]['sha'][:12]})")
+        self.limit_s = max(map(task_module.validate_timeout_s, self.shares)) + VERDICT_MARGIN_S
+        self.folder = task_module._thread_folder()
+        self.prefix = f"{socket.gethostname()}:{os.getpid()}"
+        self.procs = []
+        for i, share in enumerate(self.shares):
+            p = _PoolProcess(self.simulate, self.folder, i, f"{self.prefix}:thread-{i}",
+                             own=share, held=[t["key"] for t in share])
+            text = "".join(['{"hold": true}\n', *map(task_module._batch_line, share),
+                            json.dumps({"barrier": round(self.limit_s, 3)}) + "\n"]).encode()
+            # A thread writes the share (the pipe is bounded; the process reads as it compiles).
+            p.feeder = threading.Thread(target=p.write, args=(text,), daemon=True)
+            p.feeder.start()
+            self.procs.append(p)
+
+    def verdicts(self):
+        """Every share's answer (an error for a share that gave none in time)."""
+        deadline = time.monotonic() + self.limit_s
+        answers = {}
+        poller = select.poll()
+        by_fd = {p.fd: p for p in self.procs}
+        for fd in by_fd:
+            poller.register(fd, select.POLLIN | select.POLLHUP)
+        while len(answers) < len(self.procs):
+            left = deadline - time.monotonic()
+            events = poller.poll(max(0.0, left) * 1000.0) if left > 0 else []
+            if not events:
+                break
+            for fd, _ in events:
+                p = by_fd[fd]
+                data = os.read(fd, 1 << 20)
+                lines = p.lines(data) if data else []
+                if lines or not data:
+                    poller.unregister(fd)
+                    answers[fd] = self._verdict(p, lines[0] if lines else None)
+        for p in self.procs:
+            if p.fd not in answers:
+                answers[p.fd] = {"error": f"simulate --batch gave no verdict on its "
+                                          f"{len(p.own)} runs within {self.limit_s:g} s"}
+        return list(answers.values())
+
+    @staticmethod
+    def _verdict(p, line):
+        try:
+            answer = json.loads(line) if line else None
+        except ValueError:
+            answer = None
+        if isinstance(answer, dict) and answer.get("barrier") is True:
+            return answer
+        return {"error": f"simulate --batch ended its validation with "
+                         f"{line[:300] if line else 'no answer'!r}"}
+
+    def go(self, value):
+        if value:
+            return
+        for p in self.procs:
+            if not p.closed:
+                p.write(json.dumps({"go": False}).encode() + b"\n", close=True)
+
+    def _next(self, p):
+        """The next runs for p: its own share's, else the end of the largest share left."""
+        if p.own:
+            n = max(1, min(POOL_CHUNK, len(p.own) // 8))
+            return [p.own.popleft() for _ in range(n)]
+        victim = max(self.procs, key=lambda q: len(q.own))
+        if not victim.own:
+            return []
+        n = max(1, min(POOL_CHUNK // 2, len(victim.own) // 2))
+        taken = [victim.own.pop() for _ in range(n)]
+        return taken[::-1]
+
+    def _top_up(self, p):
+        """Keeps p one run line ahead of the run it is on; closes its input at the end."""
+        if p.closed or len(p.sent) > POOL_AHEAD:
+            return
+        tasks = self._next(p)
+        if tasks:
+            p.send(tasks)
+        elif not p.sent:
+            p.write(b"", close=True)
+
+    def collect(self, accept, pending):
+        """Hands each result to accept as it arrives, until every run has one."""
+        self._accept = accept
+        for p in self.procs:
+            p.feeder.join(timeout=task_module.EXIT_WAIT_S)
+        for p in self.procs:
+            self._top_up(p)
+        poller = select.poll()
+        by_fd = {}
+
+        def watch(p):
+            by_fd[p.fd] = p
+            poller.register(p.fd, select.POLLIN | select.POLLHUP)
+
+        for p in self.procs:
+            watch(p)
+        while by_fd:
+            now = time.monotonic()
+            waits = [p.started + p.sent[0]["timeout_s"] - now for p in by_fd.values() if p.sent]
+            wait = min(waits) if waits else 0.5
+            events = poller.poll(max(0.0, wait) * 1000.0 + 1.0)
+            for fd, _ in events:
+                p = by_fd[fd]
+                data = os.read(fd, 1 << 20)
+                for line in (p.lines(data) if data else []):
+                    if not p.sent:
+                        continue  # nothing asked: not a result
+                    accept(task_module._line_result(p.sent.popleft(), line, p.name))
+                    p.started = time.monotonic()
+                if data:
+                    self._top_up(p)
+                else:
+                    poller.unregister(fd)
+                    del by_fd[fd]
+                    self._end(p, timed_out=False, watch=watch)
+            now = time.monotonic()
+            for p in list(by_fd.values()):
+                if p.sent and now > p.started + p.sent[0]["timeout_s"]:
+                    poller.unregister(p.fd)
+                    del by_fd[p.fd]
+                    self._end(p, timed_out=True, watch=watch)
+        for key in sorted(pending):
+            accept(_error_result(key, "no result from the local simulate --batch processes"))
+
+    def _end(self, p, timed_out, watch):
+        """p's output ended (or its run timed out): reap it, record the run it was on, and
+        start a new process (holding nothing) for the runs it had left."""
+        code, cpu_s, stderr = p.reap(kill=timed_out or bool(p.sent))
+        self.stats["process_cpu_s"] += cpu_s
+        self.stats["process_wall_s"] += time.perf_counter() - p.begun
+        self.stats["processes"] += 1
+        index = self.procs.index(p)
+        left = list(p.sent)
+        if left:
+            self._accept(task_module._end_result(left[0], p.name, code, stderr, timed_out))
+            left = left[1:]
+        left += list(p.own)
+        p.own.clear()
+        if not left:
+            return
+        fresh = _PoolProcess(self.simulate, self.folder, index, p.name, own=left)
+        self.procs[index] = fresh
+        watch(fresh)
+        self._top_up(fresh)
+
+    def close(self):
+        for p in self.procs:
+            if p.proc.returncode is None:
+                p.reap(kill=True)
+
+
+class _DaskShares:
+    """Validation first on Dask: one task per worker thread (task.run_dask_share, placed on
+    that worker), each holding its share in one simulate --batch process; verdicts and results
+    arrive on a Pub/Sub topic, the go is a Variable."""
+
+    def __init__(self, work, scheduler, workers, stats):
+        self.work, self.stats = work, stats
+        self.client, self.cluster = _connect(scheduler, workers or os.cpu_count() or 1)
+        try:
+            self._start(work, scheduler, stats)
+        except BaseException:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+            raise
+
+    def _start(self, work, scheduler, stats):
+        import queue
+        import uuid
+
+        from distributed import Sub, Variable
+
+        info = self.client.scheduler_info()["workers"]
+        slots = [address for address, w in sorted(info.items()) for _ in range(w["nthreads"])]
+        if not slots:
+            raise spec.SweepError(f"no Dask worker at {scheduler}")
+        self.shares = _shares(work, len(slots))
+        stats.update(workers=len(slots), batch=max(map(len, self.shares)),
+                     batches=len(self.shares))
+        self.topic = f"threshing-sweep-{uuid.uuid4().hex}"
+        self.sub = Sub(self.topic, client=self.client)
+        self.done_keys = Variable(self.topic + "-done", client=self.client)
+        self.done_keys.set([])
+        self.go_flag = Variable(self.topic + "-go", client=self.client)
+        self.departures = queue.Queue()
+        self.client.subscribe_topic("all", lambda event: self.departures.put(event)
+                                    if event[1].get("action") == "remove-worker" else None)
+        self.limit_s = max(map(task_module.validate_timeout_s, self.shares)) + VERDICT_MARGIN_S
+        self.futures = [
+            self.client.submit(task_module.run_dask_share, share, self.topic, i,
+                               key=f"{self.topic}-share-{i}", workers=[slots[i]],
+                               allow_other_workers=True, pure=False)
+            for i, share in enumerate(self.shares)]
+        self.early = []  # results read while waiting for verdicts (none expected)
+
+    def _messages(self, timeout_s):
+        """The next message of the topic, or None after timeout_s."""
+        buffered = getattr(self.sub, "buffer", None)
+        if buffered is None:
+            try:
+                return self.sub.get(timeout=timeout_s)
+            except TimeoutError:
+                return None
+        deadline = time.monotonic() + timeout_s
+        while not buffered:
+            if time.monotonic() >= deadline:
+                return None
+            time.sleep(0.002)
+        return buffered.popleft()
+
+    def verdicts(self):
+        deadline = time.monotonic() + self.limit_s
+        answers = {}
+        while len(answers) < len(self.shares):
+            message = self._messages(max(0.0, min(0.5, deadline - time.monotonic())))
+            if message is not None and "verdict" in message:
+                answers.setdefault(message["verdict"], message)
+            elif message is not None:
+                self.early.append(message)
+            elif time.monotonic() >= deadline or any(f.status == "error" for f in self.futures):
+                missing = [i for i in range(len(self.shares)) if i not in answers]
+                return list(answers.values()) + [{"error": f"no verdict from share {i} within "
+                                                           f"{self.limit_s:g} s"}
+                                                 for i in missing]
+        return list(answers.values())
+
+    def go(self, value):
+        self.go_flag.set(bool(value))
+
+    def collect(self, accept, pending):
+        for message in self.early:
+            _accept_message(message, accept)
+        _collect(self.client, self.sub, self.futures, self.shares, self.work, accept, pending,
+                 self.stats, self.done_keys, self.departures)
+
+    def close(self):
+        try:
+            self.go(False)  # after the go: no effect on the shares that run
+            self.client.unsubscribe_topic("all")
+            del self.sub
+        finally:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
 
 
 # Largest batch of the local threads: their processes take one batch after another, so a
@@ -343,11 +759,6 @@ def _split(work, sizes):
         batches.append(work[start:start + k])
         start += k
     return batches
-
-
-def _add_stats(stats, batch_stats):
-    for name in ("processes", "process_cpu_s", "process_wall_s"):
-        stats[name] += batch_stats.get(name, 0)
 
 
 def _dispatch_local(work, workers, batch, accept, pending, stats):
@@ -381,7 +792,7 @@ def _dispatch_local(work, workers, batch, accept, pending, stats):
         batch_stats = task_module.run_tasks([], results.put, f"{prefix}:thread-{i}",
                                             more=next_batch)
         with lock:
-            _add_stats(stats, batch_stats)
+            task_module.add_stats(stats, batch_stats)
 
     threads = [threading.Thread(target=worker, args=(i,), daemon=True) for i in range(workers)]
     for t in threads:
@@ -431,50 +842,75 @@ def _dispatch(work, scheduler, workers, batch, accept, pending, stats):
         # One map call: every submit call would read the caller's source (Dask records it).
         futures = client.map(task_module.run_batch, batches, [topic] * len(batches),
                              key=[f"{topic}-batch-{i}" for i in range(len(batches))], pure=False)
-        all_keys = [p["key"] for p in work]
-        deadline = None
-        # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
-        # (a Sub.get per result would cost a round trip through the event loop).
-        buffered = getattr(sub, "buffer", None)
-        checked = time.monotonic()
-        while pending:
-            if buffered is not None:
-                if buffered:
-                    accept(buffered.popleft())
-                    continue
-                if time.monotonic() - checked < 0.2:
-                    time.sleep(0.005)
-                    continue
-                checked = time.monotonic()
-            else:
-                try:
-                    accept(sub.get(timeout=0.2))
-                    continue
-                except TimeoutError:
-                    pass
-            if not departures.empty():
-                while not departures.empty():
-                    departures.get()
-                done_keys.set([key for key in all_keys if key not in pending])
-            if all(f.done() for f in futures):
-                # Every batch ended. Results of the batches that finished are at most a moment
-                # behind; those of failed batches (e.g. KilledWorker) will not come.
-                expected = {p["key"] for f, b in zip(futures, batches) if f.status == "finished"
-                            for p in b} & pending
-                deadline = deadline or time.monotonic() + 10
-                if not expected or time.monotonic() > deadline:
-                    break
-        for f in futures:
-            if f.status == "finished":
-                _add_stats(stats, f.result())
-        if pending:
-            _run_singly(client, [p for p in work if p["key"] in pending], accept)
+        _collect(client, sub, futures, batches, work, accept, pending, stats, done_keys,
+                 departures)
         client.unsubscribe_topic("all")
         del sub
     finally:
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _collect(client, sub, futures, batches, work, accept, pending, stats, done_keys,
+             departures):
+    """Hands each result published on the topic (sub) to accept until every run has one or
+    every task ended; batches: the runs of each future. Runs whose task finished without
+    their result go to _run_singly. Verdict messages (validation first) are skipped."""
+    all_keys = [p["key"] for p in work]
+    deadline = None
+    # Sub's deque, filled by the event loop: read directly, with a short sleep when empty
+    # (a Sub.get per result would cost a round trip through the event loop).
+    buffered = getattr(sub, "buffer", None)
+    checked = time.monotonic()
+    while pending:
+        if buffered is not None:
+            if buffered:
+                _accept_message(buffered.popleft(), accept)
+                continue
+            if time.monotonic() - checked < 0.2:
+                time.sleep(0.005)
+                continue
+            checked = time.monotonic()
+        else:
+            try:
+                _accept_message(sub.get(timeout=0.2), accept)
+                continue
+            except TimeoutError:
+                pass
+        if not departures.empty():
+            while not departures.empty():
+                departures.get()
+            done_keys.set([key for key in all_keys if key not in pending])
+        if all(f.done() for f in futures):
+            # Every batch ended. Results of the batches that finished are at most a moment
+            # behind; those of failed batches (e.g. KilledWorker) will not come.
+            expected = {p["key"] for f, b in zip(futures, batches) if f.status == "finished"
+                        for p in b} & pending
+            deadline = deadline or time.monotonic() + 10
+            if not expected or time.monotonic() > deadline:
+                break
+    # A task returns its statistics just after its last result: wait for it, briefly.
+    from distributed import wait
+
+    try:
+        wait(futures, timeout=task_module.EXIT_WAIT_S)
+    except TimeoutError:
+        pass
+    for f in futures:
+        if f.status == "finished":
+            task_module.add_stats(stats, f.result())
+    if pending:
+        _run_singly(client, [p for p in work if p["key"] in pending], accept)
+
+
+def _accept_message(message, accept):
+    """A message of the topic: a result, a group of results, or a verdict (skipped)."""
+    if "results" in message:
+        for result in message["results"]:
+            accept(result)
+    elif "verdict" not in message:
+        accept(message)
 
 
 def _run_singly(client, payloads, accept):

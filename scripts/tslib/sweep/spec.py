@@ -974,11 +974,14 @@ class Group:
         self.keep = keep
 
 
-def _check_batch(simulate, runs, timeout_s):
-    """Lines of `simulate --check-batch` for the runs (one process)."""
+def _check_batch(simulate, runs, timeout_s, compile_models=True):
+    """Lines of `simulate --check-batch` for the runs (one process; without compile_models,
+    --resolve-only)."""
     text = "".join("\t".join(r.arguments) + "\n" for r in runs)
-    proc = subprocess.run([str(simulate), "--check-batch", "-"], input=text, capture_output=True,
-                          text=True, timeout=timeout_s)
+    command = [str(simulate), "--check-batch", "-"] + ([] if compile_models else
+                                                       ["--resolve-only"])
+    proc = subprocess.run(command, input=text, capture_output=True, text=True,
+                          timeout=timeout_s)
     lines = proc.stdout.splitlines()
     if len(lines) != len(runs):
         raise SweepError(f"{simulate} --check-batch answered {len(lines)} lines for "
@@ -986,18 +989,25 @@ def _check_batch(simulate, runs, timeout_s):
     return lines
 
 
-def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
+def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600, compile_models=True):
     """Resolves every run with `simulate --check-batch` (`jobs` processes, each a share of the
     runs) and sets each run's scene, base scene (the scene with its override files: a batch
     process parses each base once and applies the run's --set values to a copy) and key.
     Raises SweepError naming the first bad run's axis values, its key path and value (the
-    loader's message), and how many runs are bad."""
-    import concurrent.futures
-
+    loader's message), and how many runs are bad (invalid_error). Without compile_models
+    (--resolve-only) the scenes are resolved but not compiled: only a bad key path is refused
+    here, and the runner's batch processes validate the rest before any run starts
+    (runner.run_sweep)."""
     jobs = max(1, min(jobs, len(runs) // 50 + 1))
     shares = [runs[i::jobs] for i in range(jobs)]
-    with concurrent.futures.ThreadPoolExecutor(jobs) as pool:
-        answers = list(pool.map(lambda share: _check_batch(simulate, share, timeout_s), shares))
+    if jobs == 1:
+        answers = [_check_batch(simulate, runs, timeout_s, compile_models)]
+    else:
+        import concurrent.futures
+
+        with concurrent.futures.ThreadPoolExecutor(jobs) as pool:
+            answers = list(pool.map(lambda share: _check_batch(simulate, share, timeout_s,
+                                                               compile_models), shares))
     lines = [None] * len(runs)
     for i, answer in enumerate(answers):
         lines[i::jobs] = answer
@@ -1013,7 +1023,13 @@ def validate(sweep, runs, simulate, binary_sha, jobs=1, timeout_s=600):
         outputs = ",".join(run.keep)
         run.key = hashlib.sha256(f"{binary_sha}\n{outputs}\n{run.scene}".encode()).hexdigest()[:32]
     if bad:
-        run, message = bad[0]
-        axes = ", ".join(f"{k}={v}" for k, v in run.labels.items())
-        raise SweepError(f"{sweep.path}: {len(bad)} of {len(runs)} runs are invalid; the first "
-                         f"({axes}): {message}")
+        raise invalid_error(sweep, len(runs), bad)
+
+
+def invalid_error(sweep, n_runs, bad):
+    """The SweepError for a sweep with bad runs: bad holds (run, the loader's message) in sweep
+    order; the first is named by its axis values."""
+    run, message = bad[0]
+    axes = ", ".join(f"{k}={v}" for k, v in run.labels.items())
+    return SweepError(f"{sweep.path}: {len(bad)} of {n_runs} runs are invalid; the first "
+                      f"({axes}): {message}")

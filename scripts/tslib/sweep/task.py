@@ -101,8 +101,11 @@ EXIT_WAIT_S = 10.0
 
 
 def _batch_line(task):
-    return json.dumps({"id": task["key"], "scene_yaml": task["scene"], "args": task["args"],
-                       "return": ["summary", "outcomes", *task["keep"]]}) + "\n"
+    line = {"id": task["key"], "scene_yaml": task["scene"], "args": task["args"],
+            "return": ["summary", "outcomes", *task["keep"]]}
+    if task.get("scene_name"):
+        line["scene_name"] = task["scene_name"]
+    return json.dumps(line) + "\n"
 
 
 class _Runs:
@@ -196,17 +199,18 @@ def _line_result(task, line, worker):
 class _BatchProcess:
     """One simulate --batch process over a list of tasks, read as it answers."""
 
-    def __init__(self, runs, first, folder):
+    def __init__(self, simulate, folder, feed, runs=None):
+        """feed(proc) writes the input (in a thread); runs, when given, is stopped at the end
+        (its feeder waits on it)."""
         self.runs = runs
         self.err = open(os.path.join(folder, "stderr.txt"), "w+")
         try:
-            self.proc = subprocess.Popen([runs.tasks[first]["simulate"], "--batch", "-"],
-                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                         stderr=self.err)
+            self.proc = subprocess.Popen([simulate, "--batch", "-"], stdin=subprocess.PIPE,
+                                         stdout=subprocess.PIPE, stderr=self.err)
         except OSError:
             self.err.close()
             raise
-        self.feeder = threading.Thread(target=_feed, args=(self.proc, runs, first), daemon=True)
+        self.feeder = threading.Thread(target=feed, args=(self.proc,), daemon=True)
         self.feeder.start()
         self.chunks = []  # output read but not yet returned; only the last may hold a newline
         self.eof = False
@@ -237,7 +241,8 @@ class _BatchProcess:
         and reaps it: (exit code, its CPU time [s], the end of its stderr)."""
         if kill or not _wait_exit(self.proc, EXIT_WAIT_S):
             self.proc.kill()
-        self.runs.stop()
+        if self.runs is not None:
+            self.runs.stop()
         _, status, usage = os.wait4(self.proc.pid, 0)
         self.proc.returncode = os.waitstatus_to_exitcode(status)
         self.feeder.join(timeout=EXIT_WAIT_S)
@@ -274,7 +279,8 @@ def _run_process(runs, first, worker, publish, stats):
     end of the process before a result stops it, with that run recorded. Returns the index
     after the last run it consumed (at least first + 1)."""
     runs.stop(False)
-    batch = _BatchProcess(runs, first, _thread_folder())
+    batch = _BatchProcess(runs.tasks[first]["simulate"], _thread_folder(),
+                          lambda proc: _feed(proc, runs, first), runs)
     i, timed_out = first, False
     started = time.perf_counter()
     while True:
@@ -334,6 +340,181 @@ def run_tasks(tasks, publish, worker=None, more=None):
         except Exception as e:  # e.g. the binary vanished: this run's error, not the batch's
             publish(_error_result_for(runs.tasks[position], worker, f"{type(e).__name__}: {e}"))
             position += 1
+    return stats
+
+
+# ------------------------------------------------------------------------------------------
+# Validation first: a share of the runs held in one process (simulate --batch's hold, barrier
+# and go), run only when every share is valid.
+
+# The wait for a share's validation: the runs' timeout plus this much per run [s].
+VALIDATE_S_PER_RUN = 0.1
+
+
+def validate_timeout_s(tasks):
+    """How long the validation of these runs (one share) may take [s]."""
+    return max(t["timeout_s"] for t in tasks) + VALIDATE_S_PER_RUN * len(tasks)
+
+
+def _write(proc, data, close=False):
+    """Writes data to the process's input (and closes it); a process that died is left to its
+    reader, which records why."""
+    try:
+        proc.stdin.write(data)
+        proc.stdin.flush()
+        if close:
+            proc.stdin.close()
+    except (BrokenPipeError, OSError, ValueError):
+        pass
+
+
+def _verdict(batch, n_runs, timeout_s):
+    """The barrier's answer of a batch process holding n_runs: {"lines", "invalid": [{"id",
+    "message"}]}, or {"error": why} (the process is then reaped) when it ended or said nothing
+    else within timeout_s."""
+    line = batch.next_line(timeout_s)
+    if line:
+        try:
+            answer = json.loads(line)
+        except ValueError:
+            answer = None
+        if isinstance(answer, dict) and answer.get("barrier") is True:
+            return answer
+    code, _, stderr = batch.finish(kill=True)
+    why = (f"it answered {line[:300]!r}" if line else "no answer" if line is False else
+           f"exit status {code}" if code >= 0 else f"killed by {_signal_name(-code)}")
+    return {"error": f"simulate --batch gave no verdict on its {n_runs} runs within "
+                     f"{timeout_s:g} s ({why})" + (f": {stderr}" if stderr else "")}
+
+
+def run_share(tasks, publish, verdict, wait_go, worker=None):
+    """Validation first, then the runs: one simulate --batch process reads, loads and compiles
+    every task (dicts as for run_tasks) and answers whether they are valid; verdict(answer) gets
+    that answer ({"lines", "invalid": [{"id", "message"}]} or {"error"}); wait_go() blocks until
+    the runner decides and returns whether to run. Then the process runs the tasks with the
+    models it compiled, publish(result) for each as it ends. A run that crashes the process or
+    passes its timeout is recorded so, and the runs after it go to run_tasks (a new process;
+    they were validated). Returns the processes' statistics as run_tasks does."""
+    stats = {"processes": 0, "process_cpu_s": 0.0, "process_wall_s": 0.0}
+    if not tasks:
+        verdict({"lines": 0, "invalid": []})
+        wait_go()
+        return stats
+    worker = worker or _worker_name()
+    first = tasks[0]
+    try:
+        sha, message = _binary_sha(first["simulate"]), ""
+    except OSError as e:
+        sha, message = None, f"cannot read simulate at {first['simulate']}: {e.strerror}"
+    if sha is not None and sha != first["sha"]:
+        message = (f"simulate at {first['simulate']} on this worker is not the client's "
+                   f"binary (sha256 {sha[:12]} != {first['sha'][:12]})")
+    if message:
+        verdict({"error": message})
+        wait_go()
+        return stats
+    timeout_s = validate_timeout_s(tasks)
+    started = time.perf_counter()
+    text = "".join(['{"hold": true}\n', *map(_batch_line, tasks),
+                    json.dumps({"barrier": round(timeout_s + 30.0, 3)}) + "\n"]).encode()
+    batch = _BatchProcess(first["simulate"], _thread_folder(), lambda proc: _write(proc, text))
+    answer = _verdict(batch, len(tasks), timeout_s)
+    verdict(answer)
+    go = wait_go() and "error" not in answer
+    if "error" in answer:
+        return stats
+    batch.feeder.join(timeout=EXIT_WAIT_S)
+    _write(batch.proc, json.dumps({"go": go}).encode() + b"\n", close=True)
+    i, timed_out = 0, False
+    while go and i < len(tasks):
+        line = batch.next_line(tasks[i]["timeout_s"])
+        if line is False:
+            timed_out = True
+        if not line:
+            break
+        publish(_line_result(tasks[i], line, worker))
+        i += 1
+    code, cpu_s, stderr = batch.finish(kill=timed_out)
+    stats["process_cpu_s"] += cpu_s
+    stats["process_wall_s"] += time.perf_counter() - started
+    stats["processes"] += 1
+    if go and i < len(tasks):
+        publish(_end_result(tasks[i], worker, code, stderr, timed_out))
+        add_stats(stats, run_tasks(tasks[i + 1:], publish, worker))
+    return stats
+
+
+def add_stats(stats, more):
+    """Adds the batch processes' statistics `more` to `stats`."""
+    for name in ("processes", "process_cpu_s", "process_wall_s"):
+        stats[name] += more.get(name, 0)
+
+
+# Results of a Dask share are published in groups at most this far apart [s]: a message per
+# result costs the worker, the scheduler and the client more than the result's own handling.
+GROUP_S = 0.05
+
+
+class _Grouped:
+    """Results put one by one, published as {"results": [...]} at most GROUP_S apart (by a
+    thread, so that a long run does not hold back the results before it) and at close()."""
+
+    def __init__(self, pub):
+        self.pub, self.items, self.lock = pub, [], threading.Lock()
+        self.done = threading.Event()
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+
+    def put(self, result):
+        with self.lock:
+            self.items.append(result)
+
+    def flush(self):
+        with self.lock:
+            items, self.items = self.items, []
+        if items:
+            self.pub.put({"results": items})
+
+    def _loop(self):
+        while not self.done.wait(GROUP_S):
+            self.flush()
+
+    def close(self):
+        self.done.set()
+        self.thread.join(timeout=EXIT_WAIT_S)
+        self.flush()
+
+
+def run_dask_share(tasks, topic, share):
+    """run_share on a Dask worker: the verdict published at once and the results in groups at
+    most GROUP_S apart (Dask Pub/Sub topic `topic`; the verdict as {"verdict": share, ...}, the
+    results as {"results": [...]}), the go read from the client's
+    Variable `topic`-go. Runs whose keys are in the Variable `topic`-done (set when a worker
+    left) are skipped: a share rerun after a worker died does not redo its finished runs.
+    Returns run_share's statistics and the keys it ran."""
+    from distributed import Pub, Variable
+
+    try:
+        done = set(Variable(topic + "-done").get(timeout=10))
+    except Exception:  # no answer: run everything (duplicates are ignored by the client)
+        done = set()
+    pub = Pub(topic)
+    todo = [task for task in tasks if task["key"] not in done]
+    limit_s = validate_timeout_s(tasks) + 30.0 if tasks else 30.0
+
+    def wait_go():
+        try:
+            return bool(Variable(topic + "-go").get(timeout=limit_s))
+        except Exception:  # no decision in time: nothing runs
+            return False
+
+    grouped = _Grouped(pub)
+    try:
+        stats = run_share(todo, grouped.put, lambda answer: pub.put({**answer, "verdict": share}),
+                          wait_go)
+    finally:
+        grouped.close()
+    stats["keys"] = [task["key"] for task in todo]
     return stats
 
 
