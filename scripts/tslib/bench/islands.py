@@ -29,13 +29,12 @@ from tslib.bench import stages as stage_profile
 from tslib.bench.config import NODE_DURATION_S, say
 from tslib.bench.measure import node_try
 from tslib.bench.scenes import stream_override_file
-from tslib.bench.stages import STREAM
+from tslib.bench.stages import DEFAULT_SCENE, STREAM
 from tslib.bench.tables import write_csv
 from tslib.binaries import BIN_DIR
 from tslib.numbers import fmt
 
 STRIKE = BENCH_DIR / "single_strike.yaml"
-DEFAULT_SCENE = ROOT / "config" / "default_scene.yaml"
 COUNTS = [0, 1, 10, 100, 1000, 10000]
 GLOBAL_MAX = 1000  # the global scheme is run up to this count (it costs kernels x events)
 KNOBS = {"event_driven": "integrator.tolerance=1e-6", "time_stepping": "integrator.dt=1e-6"}
