@@ -388,8 +388,9 @@ LineKind lineKind(const JsonValue& object, double* number, bool* flag,
                   std::vector<std::string>* ids) {
   static const char* const kControls[] = {"hold", "barrier", "go", "run"};
   for (const auto& [key, value] : object.members) {
+    const std::string& name_of_key = key;  // (a lambda may not capture a structured binding)
     const auto control = std::find_if(std::begin(kControls), std::end(kControls),
-                                      [&](const char* name) { return key == name; });
+                                      [&](const char* name) { return name_of_key == name; });
     if (control == std::end(kControls)) continue;
     if (object.members.size() != 1)
       throw OptionError("a control line holds only its key ('" + key + "'; got " +
