@@ -15,7 +15,6 @@ import os
 import select
 import signal
 import sqlite3
-import subprocess
 import sys
 import threading
 import time
@@ -385,13 +384,8 @@ class _PoolProcess:
     its share not yet sent, and the runs sent to it whose results are awaited (in order)."""
 
     def __init__(self, simulate, folder, index, name, own=(), held=()):
-        self.err = open(os.path.join(folder, f"stderr-{index}.txt"), "w+")
-        try:
-            self.proc = subprocess.Popen([simulate, "--batch", "-"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, stderr=self.err)
-        except OSError:
-            self.err.close()
-            raise
+        self.proc, self.err = task_module.start_batch_process(
+            simulate, os.path.join(folder, f"stderr-{index}.txt"))
         self.fd = self.proc.stdout.fileno()
         self.name = name
         self.own = collections.deque(own)

@@ -196,6 +196,29 @@ def _line_result(task, line, worker):
     return result
 
 
+def start_batch_process(simulate, stderr_path):
+    """A `simulate --batch -` process reading its lines from a pipe and answering on one, its
+    standard error into the file stderr_path: (process, that file, open)."""
+    err = open(stderr_path, "w+")
+    try:
+        return subprocess.Popen([simulate, "--batch", "-"], stdin=subprocess.PIPE,
+                                stdout=subprocess.PIPE, stderr=err), err
+    except OSError:
+        err.close()
+        raise
+
+
+def _not_done(tasks, done_variable):
+    """The tasks whose keys the client has not marked done (its Variable, set when a worker
+    left, so that a rerun does not redo finished runs); all of them when it does not answer in
+    10 s (duplicates are ignored by the client)."""
+    try:
+        done = set(done_variable.get(timeout=10))
+    except Exception:
+        done = set()
+    return [task for task in tasks if task["key"] not in done]
+
+
 class _BatchProcess:
     """One simulate --batch process over a list of tasks, read as it answers."""
 
@@ -203,13 +226,7 @@ class _BatchProcess:
         """feed(proc) writes the input (in a thread); runs, when given, is stopped at the end
         (its feeder waits on it)."""
         self.runs = runs
-        self.err = open(os.path.join(folder, "stderr.txt"), "w+")
-        try:
-            self.proc = subprocess.Popen([simulate, "--batch", "-"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, stderr=self.err)
-        except OSError:
-            self.err.close()
-            raise
+        self.proc, self.err = start_batch_process(simulate, os.path.join(folder, "stderr.txt"))
         self.feeder = threading.Thread(target=feed, args=(self.proc,), daemon=True)
         self.feeder.start()
         self.chunks = []  # output read but not yet returned; only the last may hold a newline
@@ -494,12 +511,8 @@ def run_dask_share(tasks, topic, share):
     Returns run_share's statistics and the keys it ran."""
     from distributed import Pub, Variable
 
-    try:
-        done = set(Variable(topic + "-done").get(timeout=10))
-    except Exception:  # no answer: run everything (duplicates are ignored by the client)
-        done = set()
     pub = Pub(topic)
-    todo = [task for task in tasks if task["key"] not in done]
+    todo = _not_done(tasks, Variable(topic + "-done"))
     limit_s = validate_timeout_s(tasks) + 30.0 if tasks else 30.0
 
     def wait_go():
@@ -526,12 +539,8 @@ def run_batch(tasks, topic):
     finished. Returns run_tasks' statistics and the keys it ran."""
     from distributed import Pub, Variable
 
-    try:
-        done = set(Variable(topic + "-done").get(timeout=10))
-    except Exception:  # no answer: run everything (duplicates are ignored by the client)
-        done = set()
     pub = Pub(topic)
-    todo = [task for task in tasks if task["key"] not in done]
+    todo = _not_done(tasks, Variable(topic + "-done"))
     stats = run_tasks(todo, pub.put)
     stats["keys"] = [task["key"] for task in todo]
     return stats
