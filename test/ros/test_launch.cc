@@ -176,8 +176,8 @@ long replayedMarkerMessages(const std::string& path) {
 // applied, so the run must outlast two round trips through the test's own thread: at 2 s of
 // simulated time it lasted about 0.12 s of wall time under the island scheme (the default scene
 // at factor 0 simulates 1 s in 0.06 s, scripts/measure_node_rtf.sh), and under a heavy load the
-// second command could land after the end. 8 s (about 0.5 s of wall time) leaves the round trips
-// some 40 times their unloaded length.
+// second command could land after the end. 8 s (about 0.5 s of wall time) gives them four
+// times as long.
 constexpr int kRecordedRun_s = 8;  // simulated time of the recorded run [s]
 
 TEST(Launch, RecordsABoundedRun) {

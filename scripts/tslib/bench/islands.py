@@ -342,32 +342,29 @@ and by the island integrator's accepted steps.
     return doc, target_table
 
 
+def page_section(out_dir, name):
+    """The body of section name on the page this run writes (out_dir/bench_islands.md), or
+    else on docs/bench_islands.md; None when neither has it."""
+    for page in (pathlib.Path(out_dir) / "bench_islands.md", DOCS / "bench_islands.md"):
+        body = markdown.section_body(page.read_text(), name) if page.exists() else None
+        if body is not None:
+            return body
+    return None
+
+
 def kept_section(out_dir, name):
     """A section of docs/bench_islands.md written by hand between its marker pair (the
     studies behind single figures: their own commands regenerate their numbers), kept as the
     page has it; empty markers on a page without it."""
-    body = None
-    for page in (pathlib.Path(out_dir) / "bench_islands.md", DOCS / "bench_islands.md"):
-        if page.exists():
-            body = markdown.section_body(page.read_text(), name)
-            if body is not None:
-                break
     m0, m1 = markdown.markers(name)
-    return f"{m0}\n{(body or '').strip()}\n{m1}"
+    return f"{m0}\n{(page_section(out_dir, name) or '').strip()}\n{m1}"
 
 
 def stages_section(out_dir, stages):
     """The "Instructions per stage" section: the recorded "before" table of the page (or of
     docs/bench_islands.md) kept, the current one from this run (or kept when not measured)."""
-    old = ""
-    for page in (pathlib.Path(out_dir) / "bench_islands.md", DOCS / "bench_islands.md"):
-        if page.exists():
-            old = page.read_text()
-            if markdown.section_body(old, "stage-profile-before") is not None:
-                break
-    before = markdown.section_body(old, "stage-profile-before")
-    current = stages or markdown.section_body(old, "stage-profile") or "(not measured in this run)"
-    return stage_profile.section(current, before)
+    current = stages or page_section(out_dir, "stage-profile") or "(not measured in this run)"
+    return stage_profile.section(current, page_section(out_dir, "stage-profile-before"))
 
 
 def run_islands(args, runner, gen_dir, out, fig_dir):
