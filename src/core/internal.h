@@ -141,6 +141,7 @@ struct Workspace {
   VecX b_offset;  // restitution target e dg_N- folded into b [m/s]
   std::vector<ContactRow> rows;
   EventDrivenScratch ed;  // the event-driven integrator's state and scratch (integrator_scratch.h)
+  ContactPhaseScratch cp;  // the contact phase's (integrator_scratch.h)
   // Pair-table indices of the candidates of the previous step that were in contact.
   std::vector<int> prev_active;
   // Large-deflection teeth: the configuration of each at the q it was last computed for, and

@@ -164,6 +164,11 @@ void checkGlobals(const Model& m) {
   requirePositive("integrator.zeno_velocity", m.integrator.zeno_velocity_mps);
   if (!(m.integrator.theta >= 0.5 && m.integrator.theta <= 1.0))
     fail("integrator.theta", "must be in [0.5, 1]", m.integrator.theta);
+  // Fewer than 4 steps per Hertz contact time is beyond the explicit kick's stability.
+  if (m.integrator.contact_steps != 0 &&
+      !(m.integrator.contact_steps >= 4 && m.integrator.contact_steps <= 1000))
+    fail("integrator.contact_steps", "must be 0 (off) or in [4, 1000]",
+         m.integrator.contact_steps);
 }
 
 // A modal tooth's compiled data depend on its mount angle only through its root and axes

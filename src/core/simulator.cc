@@ -95,6 +95,7 @@ void resetBodies(const Model& m, Data* d) {
   internal::prepareBroadPhase(m, d->ws.get());
   d->ws->ts.in_contact.clear();
   d->ws->ts.in_contact_step = -2;
+  d->ws->cp.end_valid = false;
   d->ws->geoms.clear();
   d->contacts.clear();
   d->stats.kernel_peak_normal_force_N.assign(m.kernels.size(), 0.0);

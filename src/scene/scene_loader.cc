@@ -471,6 +471,17 @@ const KeySpec kSchema[] = {
      "its fastest mode turns by a radian or more); `none` integrates it with plain "
      "Dormand-Prince. A drum ramp or a large-deflection rod always takes `none`.",
      "exact, none"},
+    {"integrator.contact_steps", KeyKind::kValue, "integer", "", Bound{0.0, 1000.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.model.integrator.contact_steps); },
+     "Event-driven: the contact phase. While an island (or, under `islands: false`, the system) "
+     "has a compliant contact closed and no rigid one, it advances by fixed steps of the Hertz "
+     "contact time of its contacts (from the closing speed at first touch) over this count: the "
+     "kernels by a kick-drift-kick (velocity Verlet) step, the modal teeth by their exact "
+     "propagator between the two half kicks, one force evaluation per step, contacts opening and "
+     "closing, sticking and slipping by sign at step ends (each transition's time interpolated "
+     "inside its step); see [architecture.md](architecture.md). The drum must turn at constant "
+     "speed and the teeth be modal; otherwise the adaptive step runs. `0`: every step adaptive "
+     "(Dormand-Prince with located events, the reference)."},
     {"integrator.islands", KeyKind::kValue, "word", "", kNoRange,
      [](const SchemaDefaults& d) -> std::string { return trueFalse(d.model.integrator.islands); },
      "Both integrators: `true` runs the asynchronous island-local scheme (lone bodies on their own "
@@ -980,6 +991,7 @@ void readIntegrator(const Section& scene, IntegratorParams* integrator) {
   integrator->theta = s.number("theta", integrator->theta);
   integrator->zeno_velocity_mps = s.number("zeno_velocity", integrator->zeno_velocity_mps);
   integrator->max_step_s = s.number("max_step", integrator->max_step_s);
+  integrator->contact_steps = s.integer("contact_steps", integrator->contact_steps);
   const std::string free_teeth =
       s.word("free_teeth", freeTeethWord(integrator->exact_free_teeth), "free tooth propagation");
   integrator->exact_free_teeth = free_teeth == "exact";

@@ -216,6 +216,10 @@ struct IntegratorParams {
              // time stepping: dt x this is the slop of a pressed rigid contact, how far it
              // may sink below its impact depth or open before it is moved back) [m/s]
   double max_step_s = 1e-4;  // event-driven: largest smooth step [s]
+  int contact_steps = 0;     // event-driven: while a compliant contact is closed (and no rigid
+                             // one), its island advances by fixed steps of the Hertz contact
+                             // time over this count (src/core/contact_phase/); 0: every step
+                             // adaptive (the reference) [-]
   bool islands = true;       // event-driven and time stepping: the asynchronous island-local scheme
                              // (per-kernel clocks, islands of bodies that can touch, an event
                              // calendar), the default; false: every body advances together (the

@@ -48,6 +48,16 @@ struct PairMemory {
   int sub_index = -1;                            // sub-collision index within the macro-collision
   double normal_force_N = 0;                     // last force values (for ContactInfo) [N]
   double tangential_force_N = 0;
+  // The contact phase (src/core/contact_phase/): the step set by this episode's Hertz time, the
+  // episode start it was set for, and the forces of the step end before the last (for the
+  // located force peaks).
+  double cp_step_s = 0;             // [s]
+  double cp_step_for_s = -1;        // [s]
+  double cp_fn_before_N = 0;        // [N]
+  double cp_ft_before_N = 0;        // [N]
+  double cp_t_before_s = -1;        // its time (< 0: none) [s]
+  double cp_drift_mps2 = 0;         // the last step's drift changed the slip velocity at this
+                                    // rate (the contact points' motion, the free modes) [m/s^2]
   double impulse_n_acc = 0;  // running sums of the impulses since reset [N s]
   double impulse_t_acc = 0;
   bool seen = false;  // touched by the broad phase in the current step

@@ -25,6 +25,17 @@ double warmStart(const Model& m, const PairMemory& mem, const PairId& p, double 
   return x;
 }
 
+// A bound of the speed of any point of tooth k at the velocities u [m/s]: the drum's turn of its
+// tip and its modes' rate (as motionBound reads them).
+double toothSpeedBound(const Ctx& c, const VecX& u, int k) {
+  const ToothModel& tm = c.m.teeth[k];
+  const double modal = tm.n_modes == 0 ? 0.0
+                       : tm.beam_model == ToothBeamModel::kLargeDeflection
+                           ? tm.length_m * u.segment(tm.dof_offset, tm.n_modes).lpNorm<1>()
+                           : 30.0 * u.segment(tm.dof_offset, tm.n_modes).norm();
+  return std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) + modal;
+}
+
 }  // namespace
 
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
@@ -82,7 +93,13 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
         continue;
       }
       const bool tooth = p.kind == PairKind::kToothKernel;
-      if ((separated == SeparatedPairs::kSign || separated == SeparatedPairs::kStepEnd) && !tooth) {
+      if (separated == SeparatedPairs::kReach) {
+        double speed_mps = tooth ? kernelSpeedBound(c.m, u, p.b) + toothSpeedBound(c, u, p.a)
+                                 : kernelSpeedBound(c.m, u, p.a);
+        if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
+        far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);
+      } else if ((separated == SeparatedPairs::kSign || separated == SeparatedPairs::kStepEnd) &&
+                 !tooth) {
         double speed_mps = kernelSpeedBound(c.m, u, p.a);
         if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
         far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);

@@ -17,6 +17,7 @@
 // 1). The stages live in the files of this folder; context.h lists them.
 #include <algorithm>
 
+#include "../contact_phase/contact_phase.h"
 #include "context.h"
 
 namespace threshing_sim {
@@ -63,6 +64,10 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   plan.t_end_s = t_end_s;
   const double v_bound_mps = event_driven::motionBound(c);
   event_driven::prepareCandidates(c, &plan);
+  // While a compliant contact is closed: the contact phase's fixed step (contact_phase/).
+  if (contact_phase::applies(c) &&
+      contact_phase::step(c, t_end_s, v_bound_mps, plan.margin_m))
+    return StepStatus::kOk;
   event_driven::openTouchingContacts(c);
   event_driven::planStep(c, v_bound_mps, &plan);
   event_driven::armEvents(c, &plan);
