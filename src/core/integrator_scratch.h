@@ -205,6 +205,8 @@ struct ContactPhaseScratch {
   std::vector<std::uint8_t> opened;    // per candidate: closed over this step [-]
   std::vector<std::uint8_t> released;  // per candidate: opened over this step [-]
   std::vector<double> t_open_s;        // the interpolated time of that transition [s]
+  std::vector<double> v_in_mps;        // a closing pair's approach speed there [m/s]
+  std::vector<double> vn0_mps;         // normal velocities at the start, per candidate [m/s]
   // The teeth's exact propagators over the fixed steps as real 2n x 2n matrices [q; qd] ->
   // [q; qd] (built from the event-driven integrator's ToothPropagator), kStepMatrices per tooth,
   // keyed on the step and the drum speed.

@@ -177,7 +177,7 @@ void finishPair(const Ctx& c, const StepState& s, size_t i, EnergyNet&& e_net) {
   const ContactGeom& g = c.ws.geoms[i];
   PairMemory& mem = candidateMemory(c.ws, i);
   if (cp.opened[i]) {
-    mem.v_in_mps = -g.vn;
+    mem.v_in_mps = cp.v_in_mps[i];
     mem.hertz_K = g.hertz_K;
     beginEpisode(c.m, d, &mem, g, cp.t_open_s[i], e_net());
     mem.state = ContactState::kImpact;
@@ -207,6 +207,48 @@ void finishPair(const Ctx& c, const StepState& s, size_t i, EnergyNet&& e_net) {
   mem.cp_t_before_s = s.t0_s;
 }
 
+// The stem's generalised force on kernel i at (z, u): force [N] and moment about the centre
+// [N m].
+Eigen::Vector3d stemForce(const Model& m, const VecX& z, const VecX& u, int i) {
+  Vec2 p_WP;
+  const Vec2 F = pedicelForce(m, z, u, i, &p_WP);
+  const Vec2 r = p_WP - z.segment<2>(m.kernels[i].dof_offset);
+  return Eigen::Vector3d(F.x(), F.y(), r.x() * F.y() - r.y() * F.x());
+}
+
+// Pedicels whose force passed the detachment threshold over the step break at the instant it
+// crossed it (interpolated between the step's ends), not at the step end: the kicks gave the
+// kernel the stem's force all through the step, the share after the break is taken back (the
+// trapezoid's). The step's start state is in ws.ed.z1 and ws.cp.u_end (acceptState swapped it
+// out). Returns whether any broke.
+bool breakPedicels(const Ctx& c, const StepState& s) {
+  const Model& m = c.m;
+  Data* d = &c.d;
+  const VecX& z0 = c.ws.ed.z1;
+  const VecX& u0 = c.ws.cp.u_end;
+  bool broke = false;
+  for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i) {
+    const KernelModel& k = m.kernels[i];
+    if (!k.pedicel.present || !d->kernel_attached[i]) continue;
+    const double limit = k.pedicel.detachment_force_N;
+    const Eigen::Vector3d q1 = stemForce(m, d->z, d->u, i);
+    const double f1 = q1.head<2>().norm();
+    if (!(f1 > limit)) continue;
+    const Eigen::Vector3d q0 = stemForce(m, z0, u0, i);
+    const double f0 = q0.head<2>().norm();
+    const double frac = f0 < limit ? (limit - f0) / (f1 - f0) : 0.0;
+    const Eigen::Vector3d q_break = q0 + frac * (q1 - q0);
+    const Eigen::Vector3d excess = 0.5 * s.h_s * ((q0 + q1) - frac * (q0 + q_break));
+    d->u[k.dof_offset] -= excess[0] / k.mass_kg;
+    d->u[k.dof_offset + 1] -= excess[1] / k.mass_kg;
+    d->u[k.dof_offset + 2] -= excess[2] / k.inertia_kgm2;
+    d->kernel_attached[i] = 0;
+    d->stats.kernel_detach_time_s[i] = s.t0_s + frac * s.h_s;
+    broke = true;
+  }
+  return broke;
+}
+
 // The end values the next step starts from, while nothing else moves the state.
 void keepEndValues(const Ctx& c, bool pedicels_changed) {
   ContactPhaseScratch& cp = c.ws.cp;
@@ -232,10 +274,9 @@ void acceptStep(const Ctx& c, const StepState& s) {
     return energy_net;
   };
   for (size_t i = 0; i < c.ws.candidates.size(); ++i) finishPair(c, s, i, e_net);
-  const long attached_before = event_driven::attachedCount(*d);
-  updatePedicels(m, d);
+  const bool broke = breakPedicels(c, s);
   publishContacts(d, &c.ws);
-  keepEndValues(c, attached_before != event_driven::attachedCount(*d));
+  keepEndValues(c, broke);
 }
 
 }  // namespace contact_phase

@@ -136,7 +136,7 @@ void solveNormals(const Ctx& c, const StepState& s) {
       const PairMemory& mem = candidateMemory(ws, i);
       const bool active = isActive(mem);
       const double f = implicitNormal(c, i, half_h, active ? mem.hertz_K : g.hertz_K,
-                                      active ? mem.v_in_mps : -g.vn);
+                                      active ? mem.v_in_mps : cp.v_in_mps[i]);
       if (f == cp.fn1[i]) continue;
       largest = std::max(largest, std::abs(f - cp.fn1[i]) / cp.fn1[i]);
       const double dfr = residualForceFactor(g, f) - residualForceFactor(g, cp.fn1[i]);
@@ -201,9 +201,11 @@ void startForces(const Ctx& c, StepState* s) {
       addContactAcceleration(m, g, f[0], f[1], 1.0, &cp.a0);
     }
   }
+  cp.vn0_mps.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const ContactGeom& g = ws.geoms[i];
     cp.gap0_m[i] = g.far ? std::numeric_limits<double>::infinity() : g.gap_m;
+    cp.vn0_mps[i] = g.far ? 0.0 : normalVelocity(m, g, c.d.u, cp.u_pred);
   }
 }
 
@@ -279,6 +281,7 @@ bool endForces(const Ctx& c, StepState* s) {
   cp.opened.assign(n, 0);
   cp.released.assign(n, 0);
   cp.t_open_s.assign(n, t1);
+  cp.v_in_mps.assign(n, 0.0);
   const double v_floor = m.hc_min_impact_speed_mps;
   for (size_t i = 0; i < n; ++i) {
     const ContactGeom& g = ws.geoms[i];
@@ -286,12 +289,16 @@ bool endForces(const Ctx& c, StepState* s) {
     cp.fn1[i] = cp.ft1[i] = 0.0;
     const bool active = isActive(mem);
     if (!active && (g.far || g.gap_m >= 0.0 || g.vn > 0.0)) continue;
-    if (!active) {  // closed over the step: the approach speed fixes the damping
+    if (!active) {  // closed over the step: the approach speed at the crossing fixes the damping
       cp.opened[i] = 1;
       cp.t_open_s[i] = crossing(s->t0_s, s->h_s, cp.gap0_m[i], g.gap_m);
+      const double frac = (cp.t_open_s[i] - s->t0_s) / s->h_s;
+      cp.v_in_mps[i] = std::isfinite(cp.gap0_m[i])
+                           ? -(cp.vn0_mps[i] + frac * (g.vn - cp.vn0_mps[i]))
+                           : -g.vn;
     }
     const double K = active ? mem.hertz_K : g.hertz_K;
-    const double v_in = active ? mem.v_in_mps : -g.vn;
+    const double v_in = active ? mem.v_in_mps : cp.v_in_mps[i];
     const double f = compliantNormalForceSigned(g, K, v_in, v_floor);
     if (active && (g.far || g.gap_m > 0.0 || f <= 0.0)) {  // opened over the step
       cp.released[i] = 1;
@@ -303,8 +310,12 @@ bool endForces(const Ctx& c, StepState* s) {
     addContactAcceleration(m, g, cp.fn1[i], 0.0, 1.0, &cp.a1);
   }
   cp.u_end = cp.u_drift + (0.5 * s->h_s) * cp.a1;
+  // Normal and friction forces are coupled through the end velocity (a kernel's turn, the
+  // contact frame): the normals again after the friction, then the friction after them.
   solveNormals(c, *s);
   solveFriction(c, *s);
+  solveNormals(c, *s);
+  projectFriction(c, 0.5 * s->h_s, cp.fn1, cp.u_pred, nullptr, &cp.ft1, &cp.a1, &cp.u_end);
   s->torque1_Nm = 0.0;
   for (size_t i = 0; i < n; ++i)
     if (cp.fn1[i] != 0.0 || cp.ft1[i] != 0.0)

@@ -72,6 +72,12 @@ inline Model loadHard(const std::string& file, IntegratorType type,
                       std::vector<std::string> overrides = {}) {
   overrides.push_back(std::string("integrator.type=") + integratorName(type));
   overrides.push_back(testutil::schemeOverride());
+#ifdef THRESHING_SIM_CONTACT_STEPS
+  // test_hard_cases_contact_phase: compliant contacts by the contact phase's fixed steps (first,
+  // so that a test's own integrator.contact_steps wins).
+  overrides.insert(overrides.begin(),
+                   "integrator.contact_steps=" + std::to_string(THRESHING_SIM_CONTACT_STEPS));
+#endif
   return loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/hard/" + file, overrides);
 }
 
