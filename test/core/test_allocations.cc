@@ -250,6 +250,19 @@ TEST(Allocations, StreamTimeStepping) {
   EXPECT_EQ(allocationsAfterWarmUp(m, 50, 2000, 2), 0);
 }
 
+// The contact phase (integrator.contact_steps): its fixed steps through the strike and the
+// knead's pressed contacts (its propagator matrices, friction rows and end values warmed).
+TEST(Allocations, DefaultSceneContactPhase) {
+  const Model m = loadConfig("config/default_scene.yaml", {"integrator.contact_steps=40"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 20, 600, 2), 0);
+}
+
+TEST(Allocations, KneadContactPhase) {
+  const Model m = loadConfig("config/scenes/knead.yaml",
+                             {"integrator.contact_steps=40", "deflection_validity=1"});
+  EXPECT_EQ(allocationsAfterWarmUp(m, 20, 1500, 2), 0);
+}
+
 // --- The island scheme: islands forming and splitting ------------------------------------------
 // The same pattern with integrator.islands: true, one scheduling window per step: the measured
 // windows must build, merge and dissolve islands, so that the calendar, the tooth sweeps, the
@@ -287,6 +300,13 @@ void expectIslandsWithoutAllocation(const Model& m, int warm_steps, int measured
 TEST(Allocations, IslandsFormAndSplitEventDriven) {
   expectIslandsWithoutAllocation(
       loadIslandConfig("config/scenes/stream.yaml", {"integrator.type=event_driven"}), 5, 60);
+}
+
+TEST(Allocations, IslandsFormAndSplitContactPhase) {
+  expectIslandsWithoutAllocation(
+      loadIslandConfig("config/scenes/stream.yaml",
+                       {"integrator.type=event_driven", "integrator.contact_steps=40"}),
+      5, 60);
 }
 
 TEST(Allocations, IslandsFormAndSplitTimeStepping) {
