@@ -34,6 +34,8 @@ SECTIONS = {
     # scripts/sweep report out/sweeps/stream_statistics --stream-docs docs/convergence.md
     "stream-statistics": "docs/convergence.md",
     "sweep-overhead": "docs/sweeps.md",     # scripts/sweep_overhead.py --docs
+    "contact-phase-accuracy": "docs/contact_phase.md",  # scripts/contact_phase_table.py --docs
+    "contact-phase-cost": "docs/contact_phase.md",      # scripts/contact_phase_table.py --docs
 }
 
 
