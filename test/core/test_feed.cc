@@ -229,6 +229,61 @@ TEST(Feed, ParkedSlotsStayPut) {
   EXPECT_LT(std::abs(e0), 10.0);  // no parked kernel's 1 km of height in it
 }
 
+// Feed rate commands at step boundaries: 0 stops the feed, a new rate spaces the arrivals
+// after the last one; hostile commands are refused naming the value and change nothing; the
+// same commands at the same boundaries give the same run bit for bit.
+void runWithCommands(FeedRun* r) {
+  runFeed(r, 0.1);
+  ASSERT_EQ(setFeedRate(0.0, r->data.t_s, &r->spec, &r->state), "");
+  runFeed(r, 0.2);
+  ASSERT_EQ(setFeedRate(300.0, r->data.t_s, &r->spec, &r->state), "");
+  runFeed(r, 0.3);
+}
+
+TEST(Feed, RateCommandsAtStepBoundaries) {
+  FeedRun r(defaultSpec());
+  runFeed(&r, 0.1);
+  if (HasFatalFailure()) return;
+  const long fed_at_stop = r.state.counts.fed;
+  EXPECT_EQ(fed_at_stop, arrivalsBy(r.spec, r.data.t_s));
+  const double last_s = r.state.last_arrival_s;
+  ASSERT_EQ(setFeedRate(0.0, r.data.t_s, &r.spec, &r.state), "");
+  runFeed(&r, 0.2);
+  if (HasFatalFailure()) return;
+  EXPECT_EQ(r.state.counts.fed, fed_at_stop);  // stopped
+  // Hostile commands: refused, naming the value; nothing changes.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (double bad : {-1.0, nan, 1e12, std::numeric_limits<double>::infinity(), 1e6}) {
+    const std::string why = setFeedRate(bad, r.data.t_s, &r.spec, &r.state);
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.17g", bad);
+    EXPECT_NE(why.find(std::string("feed rate ") + text + " 1/s refused"), std::string::npos)
+        << why;
+    EXPECT_EQ(r.spec.rate_per_s, 0.0);
+  }
+  EXPECT_NE(setFeedRate(1e6, 0.2, &r.spec, &r.state).find("feed.capacity"), std::string::npos);
+  const double t_cmd_s = r.data.t_s;
+  ASSERT_EQ(setFeedRate(300.0, t_cmd_s, &r.spec, &r.state), "");
+  EXPECT_GT(last_s + 1.0 / 300.0, 0.0);
+  EXPECT_EQ(nextFeedArrival(r.spec, r.state), std::max(t_cmd_s, last_s + 1.0 / 300.0));
+  runFeed(&r, 0.3);
+  if (HasFatalFailure()) return;
+  // 300/s from the command on.
+  const long after = r.state.counts.fed - fed_at_stop;
+  long due = 0;  // arrivals t_cmd + k / 300 at or before the end, as the feed computes them
+  while (t_cmd_s + static_cast<double>(due) / 300.0 <= r.data.t_s) ++due;
+  EXPECT_EQ(after, due);
+  EXPECT_GE(after, 30);
+  EXPECT_TRUE(r.state.counts.balanced());
+  // The same commands at the same boundaries: the same run.
+  FeedRun a(defaultSpec()), b(defaultSpec());
+  runWithCommands(&a);
+  runWithCommands(&b);
+  if (HasFatalFailure()) return;
+  EXPECT_TRUE(sameBits(a.data.z, b.data.z));
+  EXPECT_EQ(a.state.counts.fed, r.state.counts.fed);
+}
+
 // Hostile values are refused, naming the key and the value.
 void expectRefused(const FeedSpec& s, const std::string& key, const std::string& value) {
   Model m;

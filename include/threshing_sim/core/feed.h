@@ -104,6 +104,9 @@ struct FeedState {
   std::vector<int> free_ring;          // free slots, longest free first (a ring of capacity) [-]
   int free_head = 0, free_count = 0;   // ring read position and fill [-]
   FeedCounts counts;
+  double base_t_s = 0;              // kernel n arrives at base_t + (n - base_n) / rate [s]
+  long base_n = 0;                  // (the last rate command's reference) [-]
+  double last_arrival_s = 0;        // arrival of the last kernel fed (none: -inf) [s]
   std::vector<FeedRecord> retired;  // kernels that left since the caller last cleared it
   Uniform uniform;                  // the scatter's numbers
   std::string error;                // why updateFeed failed ("" if it did not)
@@ -125,8 +128,15 @@ void startFeed(const FeedSpec& spec, const Model& model, Data* data, FeedState* 
 // clear of the others.
 bool updateFeed(const FeedSpec& spec, Model* model, Data* data, FeedState* state);
 
-// Arrival time of the next kernel to be fed [s].
+// Arrival time of the next kernel to be fed (+inf at rate 0) [s].
 double nextFeedArrival(const FeedSpec& spec, const FeedState& state);
+
+// A feed rate command, applied at a step boundary at time t_s (the caller's: a node stages it
+// and applies it there): from then on kernels arrive 1 / rate_per_s apart, the next one at the
+// later of t_s and the last arrival plus the new interval; 0 stops the feed. Returns "" or why
+// the command was refused, naming the value (spec and state unchanged then): not finite,
+// negative, above 1e6 1/s, or more kernels riding the mat than the pool holds.
+std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState* state);
 
 // The fate of a kernel at centre c (attached: its pedicel holds) under spec's geometry.
 KernelFate feedFate(const FeedSpec& spec, const Vec2& c_W, bool attached);

@@ -2,8 +2,10 @@
 // where they are, then the kernels due placed on the mat at the inlet.
 #include "threshing_sim/core/feed.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 
 #include "../internal.h"
@@ -43,7 +45,33 @@ KernelFate feedFate(const FeedSpec& spec, const Vec2& c_W, bool attached) {
 }
 
 double nextFeedArrival(const FeedSpec& spec, const FeedState& state) {
-  return spec.start_s + static_cast<double>(state.counts.fed) / spec.rate_per_s;
+  if (!(spec.rate_per_s > 0)) return std::numeric_limits<double>::infinity();
+  return state.base_t_s + static_cast<double>(state.counts.fed - state.base_n) / spec.rate_per_s;
+}
+
+std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState* state) {
+  char text[256];
+  if (!std::isfinite(rate_per_s) || rate_per_s < 0 || rate_per_s > 1e6) {
+    std::snprintf(text, sizeof(text), "feed rate %.17g 1/s refused: must be in [0, 1e6]",
+                  rate_per_s);
+    return text;
+  }
+  const double on_mat = rate_per_s *
+                        (spec->exit_x_m - spec->inlet_x_m + 2 * spec->position_scatter_m) /
+                        spec->mat_speed_mps;
+  if (on_mat > state->capacity) {
+    std::snprintf(text, sizeof(text),
+                  "feed rate %.17g 1/s refused: it puts %.6g kernels on the mat, more than the "
+                  "pool's %d slots (feed.capacity)",
+                  rate_per_s, on_mat, state->capacity);
+    return text;
+  }
+  spec->rate_per_s = rate_per_s;
+  state->base_n = state->counts.fed;
+  const double after_last_s =
+      state->counts.fed > 0 && rate_per_s > 0 ? state->last_arrival_s + 1.0 / rate_per_s : t_s;
+  state->base_t_s = std::max({t_s, spec->start_s, after_last_s});
+  return "";
 }
 
 void startFeed(const FeedSpec& spec, const Model& model, Data* data, FeedState* state) {
@@ -58,6 +86,9 @@ void startFeed(const FeedSpec& spec, const Model& model, Data* data, FeedState* 
   s.free_head = 0;
   s.free_count = s.capacity;
   s.counts = FeedCounts();
+  s.base_t_s = spec.start_s;
+  s.base_n = 0;
+  s.last_arrival_s = -std::numeric_limits<double>::infinity();
   s.retired.clear();
   s.retired.reserve(s.capacity);
   s.uniform = Uniform(static_cast<unsigned long long>(spec.seed));
@@ -198,6 +229,7 @@ bool updateFeed(const FeedSpec& spec, Model* model, Data* data, FeedState* state
     --s.free_count;
     s.slot_id[slot] = s.counts.fed;
     s.slot_arrival_s[slot] = arrival_s;
+    s.last_arrival_s = arrival_s;
     ++s.counts.fed;
     ++s.counts.in_drum;
   }
