@@ -54,6 +54,10 @@ struct Bound {
 // No range (sections, lists, words).
 const Bound kNoRange{};
 
+// The feed's defaults that set its geometry at load (the others are FeedSpec's, core/feed.h).
+constexpr double kFeedDepth_m = 0.005;          // feed.depth [m]
+constexpr double kFeedGrateClearance_m = 0.01;  // feed.grate_clearance [m]
+
 // The kernel stream generator's parameters (scene section `stream`); the member values are the
 // section's defaults.
 struct StreamSpec {
@@ -382,14 +386,14 @@ const KeySpec kSchema[] = {
      "x of the concave's exit: a kernel past it (above the grate) is carried over. Needs exit > "
      "inlet."},
     {"feed.depth", KeyKind::kValue, "number", "m", Bound{-1.0, 1.0, false, false},
-     [](const SchemaDefaults&) -> std::string { return "0.005"; },
+     [](const SchemaDefaults&) -> std::string { return num(kFeedDepth_m); },
      "Depth of the kernels' centres (at the mat's mid-height, hanging straight) inside the tip "
      "circle of tooth 0 at the drum's bottom; negative: below it."},
     {"feed.mat_thickness", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false},
      [](const SchemaDefaults& d) -> std::string { return num(d.feed.mat_thickness_m); },
      "Anchors' heights are uniform over the mat's thickness."},
     {"feed.grate_clearance", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, true, false},
-     [](const SchemaDefaults&) -> std::string { return "0.01"; },
+     [](const SchemaDefaults&) -> std::string { return num(kFeedGrateClearance_m); },
      "The grate line lies this far below the tip circle of tooth 0; a kernel below it between "
      "inlet and exit is separated."},
     {"feed.bound_radius", KeyKind::kValue, "number", "m", Bound{0.0, 100.0, true, false},
@@ -1319,9 +1323,9 @@ void checkInletClear(const Section& s, const Model& model, const FeedSpec& spec)
 // (given, or derived from the kernels riding the mat).
 void placeFeed(const Section& s, const Model& model, FeedSpec* spec) {
   const double tip_radius_m = model.drum.radius_m + model.teeth[0].length_m;
-  const double depth_m = s.number("depth", 0.005);
+  const double depth_m = s.number("depth", kFeedDepth_m);
   spec->anchor_y_m = -(tip_radius_m - depth_m) + spec->base.semi_axis_a_m + spec->pedicel_length_m;
-  spec->grate_y_m = -(tip_radius_m + s.number("grate_clearance", 0.01));
+  spec->grate_y_m = -(tip_radius_m + s.number("grate_clearance", kFeedGrateClearance_m));
   if (!(spec->grate_y_m < spec->anchor_y_m - spec->base.semi_axis_a_m - spec->pedicel_length_m)) {
     fail(s.path("grate_clearance"), "puts the grate above the kernels (depth " + show(depth_m) +
                                         " m) (got " + show(s.node("grate_clearance")) + ")");
