@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/tooth_cache.h"
 #include "threshing_sim/scene/outcomes.h"
@@ -40,6 +41,8 @@ struct Options {
   std::string outcomes_path;
   std::string forces_path;
   double sample_interval_s = 1e-6;  // contact sampling near contacts (--forces) [s]
+  std::string feed_series_path;     // a feed's time series, one row per interval (CSV)
+  double feed_interval_s = 0.01;    // the feed series' interval [s]
   int trace_every = 1;
   bool modes = false;
   bool quiet = false;
@@ -75,6 +78,13 @@ int runModel(const Model& model, const DamageThresholds& damage, const Options& 
 // runModel with the output files of the options (opened first, so that a bad path fails
 // before the run; a failed write is an OptionError).
 int runToFiles(const Model& model, const DamageThresholds& damage, const Options& options);
+
+// A scene with a feed (core/feed.h) run to its duration (feed_run.cc): the feed updated at
+// every feed step, the retired kernels' outcomes (--outcomes), the time series per
+// --feed-interval (--feed-series), totals in the summary (--summary and stdout). Returns the
+// exit status: 0, or 1 when the run failed (the integrator, or a pool with no free slot).
+int runFeedToFiles(Model model, const FeedSpec& feed, const DamageThresholds& damage,
+                   const Options& options);
 
 // Scene trees with their override files applied, by scene and file paths: one parse for all
 // the runs that share them.

@@ -114,7 +114,8 @@ std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* b
   if (!compile) return text;
   skipRestitutionFit(&root);
   try {
-    modelFromYaml(root, teeth);
+    FeedSpec feed;  // a feed is validated like the rest
+    modelFromYaml(root, teeth, &feed);
     damageFromYaml(root);
   } catch (const SceneError& e) {
     throw SceneError(options.scene_path + ": " + e.what());

@@ -15,7 +15,8 @@ const char kUsage[] =
     "usage: simulate SCENE.yaml [--duration S] [--integrator event_driven|time_stepping] "
     "[--dt S] [--tolerance X] [--set-file FILE.yaml]... [--set key.path=value]... "
     "[--summary FILE.json] [--trace FILE.csv] [--trace-every N] [--events FILE.csv] "
-    "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--modes] [--quiet] "
+    "[--outcomes FILE.csv] [--forces FILE.csv] [--sample-interval S] [--feed-series FILE.csv] "
+    "[--feed-interval S] [--modes] [--quiet] "
     "[--print-schema] [--check] [--check-batch FILE [--resolve-only]] [--batch FILE.jsonl]";
 
 namespace {
@@ -25,6 +26,15 @@ double parseSampleInterval(const std::string& text) {
   const std::optional<double> value = doubleFromText(text);
   if (!value || !(*value > 0))
     throw UsageError("--sample-interval expects a number > 0 in seconds (got '" + text + "')");
+  return *value;
+}
+
+// --feed-interval: a number in [1e-4, 1e4] [s] (at least the feed's update interval).
+double parseFeedInterval(const std::string& text) {
+  const std::optional<double> value = doubleFromText(text);
+  if (!value || !(*value >= 1e-4 && *value <= 1e4))
+    throw UsageError("--feed-interval expects a number in [1e-4, 1e4] seconds (got '" + text +
+                     "')");
   return *value;
 }
 
@@ -65,6 +75,10 @@ const OptionSpec kOptionSpecs[] = {
      [](const std::string& v, Options* o, Sugar*) {
        o->sample_interval_s = parseSampleInterval(v);
      }},
+    {"--feed-series", true,
+     [](const std::string& v, Options* o, Sugar*) { o->feed_series_path = v; }},
+    {"--feed-interval", true,
+     [](const std::string& v, Options* o, Sugar*) { o->feed_interval_s = parseFeedInterval(v); }},
     {"--trace-every", true,
      [](const std::string& v, Options* o, Sugar*) { o->trace_every = parseTraceEvery(v); }},
     {"--modes", false, [](const std::string&, Options* o, Sugar*) { o->modes = true; }},

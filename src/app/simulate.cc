@@ -83,11 +83,19 @@ int dispatch(const app::Options& options) {
     return 0;
   }
   DamageThresholds damage;
-  const Model model = loadScene(options.scene_path, app::collectOverrides(options), &damage);
+  FeedSpec feed;
+  const Model model = loadScene(options.scene_path, app::collectOverrides(options), &damage, &feed);
   if (options.modes) {
     printModes(model);
     return 0;
   }
+  if (feed.capacity > 0) {
+    if (!options.trace_path.empty() || !options.events_path.empty() || !options.forces_path.empty())
+      throw app::OptionError("--trace, --events and --forces are not written for a feed scene");
+    return app::runFeedToFiles(model, feed, damage, options);
+  }
+  if (!options.feed_series_path.empty())
+    throw app::OptionError("--feed-series needs a scene with a feed section");
   return app::runToFiles(model, damage, options);
 }
 

@@ -55,6 +55,7 @@ double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, dou
   // Kernels: translation, rotation, gravity; stretched pedicels.
   for (size_t i = 0; i < m.kernels.size(); ++i) {
     const KernelModel& k = m.kernels[i];
+    if (!d.kernel_active[i]) continue;  // a parked pool slot (core/feed.h)
     const auto c = z.segment<2>(k.dof_offset);
     const auto v = u.segment<2>(k.dof_offset);
     const double w = u[k.dof_offset + 2];
@@ -62,8 +63,9 @@ double energyOf(const Model& m, const Data& d, const VecX& z, const VecX& u, dou
          k.mass_kg * m.gravity_mps2.dot(c);
     if (k.pedicel.present && d.kernel_attached[i]) {
       Vec2 p_WP;
-      pedicelForce(m, z, u, static_cast<int>(i), &p_WP);
-      const double stretch = (p_WP - k.pedicel.p_WA_W).norm() - k.pedicel.rest_length_m;
+      pedicelForce(m, z, u, static_cast<int>(i), d.t_s, &p_WP);
+      const double stretch =
+          (p_WP - pedicelAnchor(k.pedicel, d.t_s)).norm() - k.pedicel.rest_length_m;
       e += 0.5 * k.pedicel.stiffness_Npm * stretch * stretch;
     }
   }

@@ -168,7 +168,7 @@ void updatePedicels(const Model& m, Data* d) {
     const KernelModel& k = m.kernels[i];
     if (!k.pedicel.present || !d->kernel_attached[i]) continue;
     Vec2 p_WP;
-    const double f = pedicelForce(m, d->z, d->u, static_cast<int>(i), &p_WP).norm();
+    const double f = pedicelForce(m, d->z, d->u, static_cast<int>(i), d->t_s, &p_WP).norm();
     // The stem breaks for good once its force passes the detachment threshold.
     if (f > k.pedicel.detachment_force_N) {
       d->kernel_attached[i] = 0;

@@ -292,12 +292,23 @@ void compileKernel(KernelModel* kernel, const std::string& f) {
     fail(f + "mass", "gives a polar inertia that underflows to 0; mass", k.mass_kg);
 }
 
+// A moving pedicel anchor (a feed's straw mat): finite, and only under the global scheme (the
+// island scheme's closed forms and bounds assume a fixed anchor).
+void checkAnchorVelocity(const Model& m, const KernelModel& k, const std::string& f) {
+  const Vec2& v = k.pedicel.v_WA_W_mps;
+  requireFinite(f + "pedicel.anchor_velocity[0]", v.x());
+  requireFinite(f + "pedicel.anchor_velocity[1]", v.y());
+  if (!v.isZero() && m.integrator.islands)
+    fail(f + "pedicel.anchor_velocity", "needs integrator.islands: false; speed", v.norm());
+}
+
 // Kernels: uniform elliptic disc inertia, then (c_x, c_y, psi) each, from *offset on.
 void compileKernels(Model* model, int* offset) {
   Model& m = *model;
   for (size_t i = 0; i < m.kernels.size(); ++i) {
     KernelModel& k = m.kernels[i];
     compileKernel(&k, "kernels." + std::to_string(i) + ".");
+    checkAnchorVelocity(m, k, "kernels." + std::to_string(i) + ".");
     k.dof_offset = *offset;
     *offset += 3;
   }

@@ -85,6 +85,11 @@ void resetBodies(const Model& m, Data* d) {
     d->u[k.dof_offset + 2] = k.initial_angular_velocity_radps;
   }
   d->kernel_attached.assign(m.kernels.size(), 1);
+  d->kernel_active.assign(m.kernels.size(), 1);
+  // A feed's pool slots start parked (core/feed.h).
+  for (size_t i = 0; i < m.kernels.size(); ++i) {
+    if (m.kernels[i].pool_slot) d->kernel_attached[i] = d->kernel_active[i] = 0;
+  }
   d->omega_target_radps = m.drum.initial_speed_radps;
   d->ws->memory.clear();
   // Room for the pairs a run typically meets (each kernel with every tooth and a few kernels

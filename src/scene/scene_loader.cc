@@ -18,9 +18,11 @@
 
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/constants.h"
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/geometry.h"
 #include "threshing_sim/core/overlap.h"
 #include "threshing_sim/core/tooth_cache.h"
+#include "threshing_sim/core/uniform.h"
 #include "threshing_sim/scene/outcomes.h"
 
 namespace threshing_sim {
@@ -51,6 +53,10 @@ struct Bound {
 
 // No range (sections, lists, words).
 const Bound kNoRange{};
+
+// The feed's defaults that set its geometry at load (the others are FeedSpec's, core/feed.h).
+constexpr double kFeedDepth_m = 0.005;          // feed.depth [m]
+constexpr double kFeedGrateClearance_m = 0.01;  // feed.grate_clearance [m]
 
 // The kernel stream generator's parameters (scene section `stream`); the member values are the
 // section's defaults.
@@ -85,6 +91,7 @@ struct SchemaDefaults {
   PedicelModel pedicel;
   ObstacleModel obstacle;
   StreamSpec stream;
+  FeedSpec feed;
   DamageThresholds damage;
 };
 
@@ -345,6 +352,86 @@ const KeySpec kSchema[] = {
      [](const SchemaDefaults& d) -> std::string { return pair(d.stream.detach_N); },
      "Each pedicel's detachment force is uniform in this range (rice: 0.27 to 2.6 N). Needs lo <= "
      "hi."},
+    {"feed", KeyKind::kOptionalSection, "section", "", kNoRange,
+     [](const SchemaDefaults&) -> std::string { return "absent"; },
+     "A continuous feed (issue 34): kernels on pedicels whose anchors ride a straw mat along the "
+     "concave at `mat_speed`, arriving at `rate` for as long as the run lasts, each leaving when "
+     "it "
+     "passes the grate, the concave's exit or `bound_radius` (see \"Continuous feed\" below). "
+     "Needs at least one tooth, `drum.speed` > 0 and `integrator.islands: false`."},
+    {"feed.rate", KeyKind::kValue, "number", "1/s", Bound{0.0, 1e6, true, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; },
+     "Kernels fed per second of simulated time (the summary also gives it in kg/s)."},
+    {"feed.mat_speed", KeyKind::kValue, "number", "m/s", Bound{0.0, 100.0, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.mat_speed_mps); },
+     "Speed of the straw mat, and of every anchor on it, along +x (the drum's bottom moves along "
+     "+x for `drum.speed` > 0)."},
+    {"feed.start", KeyKind::kValue, "number", "s", Bound{0.0, 1e4, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.start_s); },
+     "Arrival of the first kernel at the inlet; kernel n arrives at start + n / rate."},
+    {"feed.seed", KeyKind::kValue, "integer", "", Bound{0.0, 2147483647.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.seed); },
+     "Seed of the scatter (the same feed on every platform)."},
+    {"feed.capacity", KeyKind::kValue, "integer", "", Bound{1.0, 10000.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return "derived"; },
+     "Kernel slots of the pool: kernels in the simulation at once. Default ceil(1.5 rate (exit - "
+     "inlet + 2 position_scatter) / mat_speed) + 16; refused below rate (exit - inlet + 2 "
+     "position_scatter) / mat_speed, the kernels riding the mat."},
+    {"feed.inlet", KeyKind::kValue, "number", "m", Bound{-10.0, 10.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; },
+     "x of the concave's inlet, where anchors arrive. Arriving kernels must be clear of the "
+     "teeth's reach by 1 mm."},
+    {"feed.exit", KeyKind::kValue, "number", "m", Bound{-10.0, 10.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return "required"; },
+     "x of the concave's exit: a kernel past it (above the grate) is carried over. Needs exit > "
+     "inlet."},
+    {"feed.depth", KeyKind::kValue, "number", "m", Bound{-1.0, 1.0, false, false},
+     [](const SchemaDefaults&) -> std::string { return num(kFeedDepth_m); },
+     "Depth of the kernels' centres (at the mat's mid-height, hanging straight) inside the tip "
+     "circle of tooth 0 at the drum's bottom; negative: below it."},
+    {"feed.mat_thickness", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.mat_thickness_m); },
+     "Anchors' heights are uniform over the mat's thickness."},
+    {"feed.grate_clearance", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, true, false},
+     [](const SchemaDefaults&) -> std::string { return num(kFeedGrateClearance_m); },
+     "The grate line lies this far below the tip circle of tooth 0; a kernel below it between "
+     "inlet and exit is separated."},
+    {"feed.bound_radius", KeyKind::kValue, "number", "m", Bound{0.0, 100.0, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.bound_radius_m); },
+     "A kernel farther than this from the drum axis is out of bounds. Needs to exceed the grate "
+     "line's distance from the axis."},
+    {"feed.position_scatter", KeyKind::kValue, "number", "m", Bound{0.0, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.position_scatter_m); },
+     "+- scatter of each anchor along the mat at arrival."},
+    {"feed.angle_scatter", KeyKind::kValue, "number", "rad", Bound{0.0, 3.0, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.angle_scatter_rad); },
+     "+- scatter of each kernel's long axis about hanging straight down."},
+    {"feed.semi_axes", KeyKind::kValue, "[a, b]", "m", Bound{1e-6, 1.0, false, false},
+     [](const SchemaDefaults& d) -> std::string {
+       return "[" + num(d.kernel.semi_axis_a_m) + ", " + num(d.kernel.semi_axis_b_m) + "]";
+     },
+     "Semi-axes of every fed kernel. Needs a >= b."},
+    {"feed.mass_range", KeyKind::kValue, "[lo, hi]", "kg", Bound{1e-12, 1e3, false, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.feed.mass_kg); },
+     "Each kernel's mass is uniform in this range. Needs lo <= hi."},
+    {"feed.youngs_modulus", KeyKind::kValue, "number", "Pa", Bound{1e3, 1e13, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.youngs_modulus_Pa); },
+     "Young's modulus of every fed kernel."},
+    {"feed.poisson_ratio", KeyKind::kValue, "number", "", Bound{0.0, 0.5, false, true},
+     [](const SchemaDefaults& d) -> std::string { return num(d.kernel.poisson_ratio); },
+     "Poisson's ratio of every fed kernel."},
+    {"feed.pedicel_length", KeyKind::kValue, "number", "m", Bound{0.0, 10.0, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.feed.pedicel_length_m); },
+     "Pedicel from the kernel's upper end to its anchor (its rest length)."},
+    {"feed.pedicel_stiffness", KeyKind::kValue, "number", "N/m", Bound{0.0, 1e9, true, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.stiffness_Npm); },
+     "Pedicel spring stiffness."},
+    {"feed.pedicel_damping", KeyKind::kValue, "number", "N s/m", Bound{0.0, 1e6, false, false},
+     [](const SchemaDefaults& d) -> std::string { return num(d.pedicel.damping_Nspm); },
+     "Pedicel damping coefficient."},
+    {"feed.detachment_force_range", KeyKind::kValue, "[lo, hi]", "N", Bound{0.0, 1e6, true, false},
+     [](const SchemaDefaults& d) -> std::string { return pair(d.feed.detach_N); },
+     "Each pedicel's detachment force is uniform in this range. Needs lo <= hi."},
     {"obstacles", KeyKind::kList, "list", "", kNoRange,
      [](const SchemaDefaults&) -> std::string { return "[]"; },
      "Fixed obstacles: plane (half-plane), circle (concave bar), segment (plate). Each type takes "
@@ -1043,18 +1130,7 @@ double clearance(const Model& model, const KernelGrid& grid, const KernelModel& 
 // ---------------------------------------------------------------------------------------------
 // Kernel stream: kernels on pedicels that tooth 0 meets at a set rate, with seeded scatter.
 
-// Uniform numbers from a 64-bit Mersenne Twister, mapped by hand so that the sequence is the
-// same on every standard library (std::uniform_real_distribution is not specified exactly).
-class Uniform {
- public:
-  explicit Uniform(unsigned long long seed) : engine_(seed) {}
-  double operator()(double lo, double hi) {
-    return lo + (hi - lo) * static_cast<double>(engine_() >> 11) * 0x1.0p-53;
-  }
-
- private:
-  std::mt19937_64 engine_;
-};
+// The scatter's numbers: Uniform (core/uniform.h), the same on every standard library.
 
 // [lo, hi] with 0 < lo <= hi.
 Vec2 positiveRange(const Section& s, const std::string& key, const Vec2& fallback) {
@@ -1191,6 +1267,131 @@ void readStream(const Section& scene, Model* model) {
     grid.insert(static_cast<int>(model->kernels.size()), k.initial_position_m);
     model->kernels.push_back(k);
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Continuous feed (core/feed.h): the section's values, the geometry from tooth 0's tip circle,
+// the pool's capacity.
+
+// The section's values and the kernel every fed kernel starts from.
+FeedSpec readFeedValues(const Section& s) {
+  FeedSpec spec;
+  s.require("rate");
+  s.require("inlet");
+  s.require("exit");
+  spec.rate_per_s = s.number("rate", spec.rate_per_s);
+  spec.mat_speed_mps = s.number("mat_speed", spec.mat_speed_mps);
+  spec.start_s = s.number("start", spec.start_s);
+  spec.seed = s.integer("seed", spec.seed);
+  spec.inlet_x_m = s.number("inlet", spec.inlet_x_m);
+  spec.exit_x_m = s.number("exit", spec.exit_x_m);
+  if (!(spec.exit_x_m > spec.inlet_x_m)) {
+    fail(s.path("exit"), "must be greater than feed.inlet (" + show(spec.inlet_x_m) + " m) (got " +
+                             show(spec.exit_x_m) + ")");
+  }
+  spec.mat_thickness_m = s.number("mat_thickness", spec.mat_thickness_m);
+  spec.bound_radius_m = s.number("bound_radius", spec.bound_radius_m);
+  spec.position_scatter_m = s.number("position_scatter", spec.position_scatter_m);
+  spec.angle_scatter_rad = s.number("angle_scatter", spec.angle_scatter_rad);
+  KernelModel& base = spec.base;
+  const Vec2 axes = s.vec2("semi_axes", Vec2(base.semi_axis_a_m, base.semi_axis_b_m));
+  if (axes.x() < axes.y()) {
+    fail(s.path("semi_axes"), "must be [a, b] with a >= b (got " + show(s.node("semi_axes")) + ")");
+  }
+  base.semi_axis_a_m = axes.x();
+  base.semi_axis_b_m = axes.y();
+  spec.mass_kg = positiveRange(s, "mass_range", spec.mass_kg);
+  base.youngs_modulus_Pa = s.number("youngs_modulus", base.youngs_modulus_Pa);
+  base.poisson_ratio = s.number("poisson_ratio", base.poisson_ratio);
+  spec.pedicel_length_m = s.number("pedicel_length", spec.pedicel_length_m);
+  base.pedicel.stiffness_Npm = s.number("pedicel_stiffness", base.pedicel.stiffness_Npm);
+  base.pedicel.damping_Nspm = s.number("pedicel_damping", base.pedicel.damping_Nspm);
+  spec.detach_N = positiveRange(s, "detachment_force_range", spec.detach_N);
+  return spec;
+}
+
+// Refuses an inlet within the teeth's reach: every point a kernel can occupy at arrival (within
+// 2 a + pedicel length of an anchor in the box of the position scatter and the mat's thickness)
+// must lie outside every tooth's tip circle grown by its radius and 1 mm.
+void checkInletClear(const Section& s, const Model& model, const FeedSpec& spec) {
+  double reach_m = 0;
+  for (const ToothModel& t : model.teeth)
+    reach_m = std::max(reach_m, model.drum.radius_m + t.length_m + 0.5 * t.diameter_m);
+  const double x_m = std::max(spec.inlet_x_m - spec.position_scatter_m,
+                              std::min(0.0, spec.inlet_x_m + spec.position_scatter_m));
+  const double y_m = std::max(spec.anchor_y_m - 0.5 * spec.mat_thickness_m,
+                              std::min(0.0, spec.anchor_y_m + 0.5 * spec.mat_thickness_m));
+  const double kernel_m = 2 * spec.base.semi_axis_a_m + spec.pedicel_length_m;
+  const double gap_m = std::hypot(x_m, y_m) - kernel_m - reach_m;
+  if (!(gap_m > 1e-3)) {
+    fail(s.path("inlet"), "puts arriving kernels within the teeth's reach (" + show(reach_m) +
+                              " m from the axis, " + show(gap_m) +
+                              " m clear; needs 1 mm): move it away from the drum (got " +
+                              show(s.node("inlet")) + ")");
+  }
+}
+
+// The mat's and the grate's heights from tooth 0's tip circle, then the pool's capacity
+// (given, or derived from the kernels riding the mat).
+void placeFeed(const Section& s, const Model& model, FeedSpec* spec) {
+  const double tip_radius_m = model.drum.radius_m + model.teeth[0].length_m;
+  const double depth_m = s.number("depth", kFeedDepth_m);
+  spec->anchor_y_m = -(tip_radius_m - depth_m) + spec->base.semi_axis_a_m + spec->pedicel_length_m;
+  spec->grate_y_m = -(tip_radius_m + s.number("grate_clearance", kFeedGrateClearance_m));
+  if (!(spec->grate_y_m < spec->anchor_y_m - spec->base.semi_axis_a_m - spec->pedicel_length_m)) {
+    fail(s.path("grate_clearance"), "puts the grate above the kernels (depth " + show(depth_m) +
+                                        " m) (got " + show(s.node("grate_clearance")) + ")");
+  }
+  if (!(spec->bound_radius_m > -spec->grate_y_m)) {
+    fail(s.path("bound_radius"), "must exceed the grate's distance from the axis, " +
+                                     show(-spec->grate_y_m) + " m (got " +
+                                     show(spec->bound_radius_m) + ")");
+  }
+  checkInletClear(s, model, *spec);
+  const double on_mat = spec->rate_per_s *
+                        (spec->exit_x_m - spec->inlet_x_m + 2 * spec->position_scatter_m) /
+                        spec->mat_speed_mps;
+  if (s.has("capacity")) {
+    spec->capacity = s.integer("capacity", 0);
+    if (spec->capacity < on_mat) {
+      fail(s.path("capacity"), "cannot hold the " + show(std::ceil(on_mat)) +
+                                   " kernels riding the mat (rate x span / mat_speed) (got " +
+                                   show(s.node("capacity")) + ")");
+    }
+    return;
+  }
+  const double derived = std::ceil(1.5 * on_mat) + 16;
+  if (derived > 10000) {
+    fail(s.path("rate"),
+         "needs a pool of " + show(derived) +
+             " kernel slots, more than 10000 (rate x span / mat_speed = " + show(on_mat) +
+             " kernels on the mat); lower it or raise "
+             "feed.mat_speed (got " +
+             show(s.node("rate")) + ")");
+  }
+  spec->capacity = static_cast<int>(derived);
+}
+
+// The feed of the scene (capacity 0 when it has none); refuses a feed the scene cannot run.
+FeedSpec readFeed(const Section& scene, const Model& model) {
+  const YAML::Node node = scene.node("feed");
+  if (!node.IsDefined() || node.IsNull()) return FeedSpec();
+  const Section s = scene.section("feed", "feed");
+  FeedSpec spec = readFeedValues(s);
+  if (model.teeth.empty()) fail("feed", "needs at least one tooth (teeth is empty)");
+  if (!(model.drum.initial_speed_radps > 0)) {
+    fail("drum.speed",
+         "must be > 0 with a feed (the mat moves along +x, with the drum's bottom) "
+         "(got " +
+             show(model.drum.initial_speed_radps) + ")");
+  }
+  if (model.integrator.islands) {
+    fail("integrator.islands",
+         "must be false with a feed (its moving anchors are in the global "
+         "scheme only) (got true)");
+  }
+  placeFeed(s, model, &spec);
+  return spec;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1431,7 +1632,7 @@ std::vector<std::string> overridesFromFile(const std::string& path) {
   return assignments;
 }
 
-Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache) {
+Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache, FeedSpec* feed) {
   if (!root.IsMap()) {
     fail("", "expected a mapping of sections at the top level (got " + show(root) + ")");
   }
@@ -1469,9 +1670,18 @@ Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache) {
       scene.number("deflection_validity", model.deflection_validity_fraction);
   readDamage(scene);  // validated here; damageFromYaml() returns it
 
-  // Start configuration, then the core's own checks and derived quantities.
+  // Start configuration, then the feed's pool (parked far away), the core's own checks and
+  // derived quantities.
   checkInitialOverlaps(model);
+  const FeedSpec feed_spec = readFeed(scene, model);
+  if (feed_spec.capacity > 0 && feed == nullptr) {
+    fail("feed",
+         "this program does not run a feed (simulate SCENE.yaml runs one; the node and "
+         "simulate --batch do not yet)");
+  }
   try {
+    if (feed_spec.capacity > 0) addFeedPool(feed_spec, &model);
+    if (feed != nullptr) *feed = feed_spec;
     compileModel(&model, tooth_cache);
   } catch (const std::invalid_argument& e) {
     throw SceneError(e.what());
@@ -1485,7 +1695,7 @@ DamageThresholds damageFromYaml(const YAML::Node& root) {
 }
 
 Model loadScene(const std::string& path, const std::vector<std::string>& overrides,
-                DamageThresholds* damage) {
+                DamageThresholds* damage, FeedSpec* feed) {
   YAML::Node root = loadSceneYaml(path);
   // An empty file, or one holding a single value, is no scene, with or without overrides.
   if (!root.IsMap())
@@ -1494,7 +1704,7 @@ Model loadScene(const std::string& path, const std::vector<std::string>& overrid
         (root.IsNull() || !root.IsDefined() ? std::string("an empty file") : show(root)) + ")");
   for (const std::string& assignment : overrides) applyOverride(&root, assignment);
   try {
-    Model model = modelFromYaml(root);
+    Model model = modelFromYaml(root, nullptr, feed);
     if (damage != nullptr) *damage = damageFromYaml(root);
     return model;
   } catch (const SceneError& e) {

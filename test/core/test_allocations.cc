@@ -21,6 +21,7 @@
 #include "../../src/core/async/async.h"
 #include "sim_test_util.h"
 #include "threshing_sim/core/constants.h"
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/simulator.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -428,6 +429,53 @@ TEST(Allocations, IdlePedicelKernelsIslandScheme) {
     EXPECT_GT(d.ws->async->pedicel_closed_forms, 0);  // the closed form was exercised
     EXPECT_GT(d.stats.scheduler.pedicel_steps, 0);    // and so was the numerical clock
   }
+}
+
+}  // namespace
+}  // namespace threshing_sim
+
+// A continuous feed (core/feed.h, config/scenes/feed.yaml): kernels placed into pool slots and
+// retired at the feed updates between steps, with the same warm-up-then-repeat rule as
+// countAfterWarmUp (the Model is restored from its load-time copy before each pass).
+namespace threshing_sim {
+namespace {
+
+// warm_steps + measured_steps steps from the start, each followed by a feed update; counts the
+// allocations of the last measured_steps when count is true.
+long feedPass(const Model& loaded, const FeedSpec& spec, int warm_steps, int measured_steps,
+              bool count, Model* m, Data* d, FeedState* s) {
+  *m = loaded;
+  resetData(*m, d);
+  startFeed(spec, *m, d, s);
+  EXPECT_TRUE(updateFeed(spec, m, d, s));
+  for (int i = 0; i < warm_steps + measured_steps; ++i) {
+    if (count && i == warm_steps) openWindow();
+    EXPECT_NE(step(*m, d), StepStatus::kFailed);
+    EXPECT_TRUE(updateFeed(spec, m, d, s)) << s->error;
+    s->retired.clear();
+    d->events.clear();
+  }
+  return count ? closeWindow() : 0;
+}
+
+TEST(Allocations, FeedEventDriven) {
+  FeedSpec spec;
+  const Model loaded = loadScene(std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/feed.yaml",
+                                 {}, nullptr, &spec);
+  ASSERT_GT(spec.capacity, 0);
+  Model m;
+  Data d;
+  FeedState s;
+  void* probe[2];
+  backtrace(probe, 2);
+  feedPass(loaded, spec, 2000, 3000, false, &m, &d, &s);
+  const long fed = s.counts.fed, left = s.counts.fed - s.counts.in_drum;
+  const long allocations = feedPass(loaded, spec, 2000, 3000, true, &m, &d, &s);
+  if (allocations != 0) printFirstAllocation();
+  EXPECT_EQ(allocations, 0);
+  EXPECT_EQ(s.counts.fed, fed);
+  EXPECT_GT(fed, 10);  // kernels placed and retired in the window
+  EXPECT_GT(left, 5);
 }
 
 }  // namespace

@@ -54,7 +54,10 @@ std::vector<std::string> scenesIn(const std::string& folder) {
   if (d == nullptr) return out;
   while (const dirent* e = readdir(d)) {
     const std::string name = e->d_name;
-    if (name.size() > 5 && name.compare(name.size() - 5, 5, ".yaml") == 0)
+    // A feed scene (a `feed` section, core/feed.h) runs in simulate only: the node does not run
+    // a feed yet (test/scene/test_feed_scene.cc runs config/scenes/feed.yaml).
+    if (name.size() > 5 && name.compare(name.size() - 5, 5, ".yaml") == 0 &&
+        slurp(dir + "/" + name).find("\nfeed:") == std::string::npos)
       out.push_back(dir + "/" + name);
   }
   closedir(d);

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -172,6 +173,89 @@ TEST(HostileCommandLine, HangValuesExitTwoQuickly) {
     EXPECT_EQ(simulate(kDefaultScene + " --duration 1e-4 " + args, &err), 2) << args << ": " << err;
   }
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 20.0);
+}
+
+}  // namespace
+}  // namespace threshing_sim
+
+// ---------------------------------------------------------------------------------------------
+// A continuous feed (issue 34): hostile feed values are scene errors naming the key and the
+// value; a feed scene runs only where a feed is run.
+namespace threshing_sim {
+namespace {
+
+const std::string kFeedScene = std::string(THRESHING_SIM_SOURCE_DIR) + "/config/scenes/feed.yaml";
+
+// The SceneError message of loading the feed scene with the overrides ("" if it loads).
+std::string feedRefusal(const std::vector<std::string>& overrides) {
+  try {
+    FeedSpec feed;
+    loadScene(kFeedScene, overrides, nullptr, &feed);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(HostileFeed, BadValuesAreRefusedNamingKeyAndValue) {
+  const std::vector<std::pair<std::string, std::pair<std::string, std::string>>> cases = {
+      {"feed.rate=0", {"feed.rate: ", "(got 0)"}},
+      {"feed.rate=-5", {"feed.rate: ", "(got -5)"}},
+      {"feed.rate=.nan", {"feed.rate: ", "(got .nan)"}},
+      {"feed.rate=1e12", {"feed.rate: ", "(got 1e12)"}},
+      {"feed.rate=1e6", {"feed.rate: ", "more than 10000"}},  // the pool it needs
+      {"feed.mat_speed=0", {"feed.mat_speed: ", "(got 0)"}},
+      {"feed.mat_speed=-1", {"feed.mat_speed: ", "(got -1)"}},
+      {"feed.capacity=0", {"feed.capacity: ", "(got 0)"}},
+      {"feed.capacity=20", {"feed.capacity: ", "(got 20)"}},  // 200/s x 0.264 m / 1 m/s = 53
+      {"feed.capacity=1e9", {"feed.capacity: ", "(got 1e9)"}},
+      {"feed.inlet=-0.05", {"feed.inlet: ", "teeth's reach"}},
+      {"feed.exit=-0.2", {"feed.exit: ", "(got -0.2)"}},
+      {"feed.bound_radius=0.1", {"feed.bound_radius: ", "(got 0.1)"}},
+      {"integrator.islands=true", {"integrator.islands: ", "with a feed"}},
+      {"drum.speed=-83.78", {"drum.speed: ", "(got -83.78)"}},
+  };
+  for (const auto& c : cases) {
+    const std::string message = feedRefusal({c.first});
+    EXPECT_NE(message.find(c.second.first), std::string::npos) << c.first << " -> " << message;
+    EXPECT_NE(message.find(c.second.second), std::string::npos) << c.first << " -> " << message;
+  }
+  EXPECT_EQ(feedRefusal({}), "");
+  // A program that does not run a feed refuses the scene rather than run it without one.
+  try {
+    loadScene(kFeedScene);
+    ADD_FAILURE() << "a feed scene loaded without its feed";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("feed: this program does not run a feed"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(HostileFeed, SimulateRefusesBadFeedsAndRunsAGoodOne) {
+  std::string err;
+  EXPECT_EQ(simulate(kFeedScene + " --set feed.rate=-1", &err), 2);
+  EXPECT_NE(err.find("feed.rate"), std::string::npos) << err;
+  EXPECT_EQ(simulate(kDefaultScene + " --feed-series /dev/null", &err), 2);
+  EXPECT_NE(err.find("--feed-series"), std::string::npos) << err;
+  EXPECT_EQ(simulate(kFeedScene + " --feed-interval 0", &err), 2);
+  EXPECT_NE(err.find("--feed-interval"), std::string::npos) << err;
+  // A short run: the series has a header and one row per 0.01 s, the summary balances.
+  const auto dir = std::filesystem::temp_directory_path();
+  const std::string series = (dir / "hostile_feed_series.csv").string();
+  const std::string summary = (dir / "hostile_feed.json").string();
+  ASSERT_EQ(
+      simulate(kFeedScene + " --duration 0.05 --feed-series " + series + " --summary " + summary,
+               &err),
+      0)
+      << err;
+  const std::string rows = test::readFile(series);
+  EXPECT_EQ(std::count(rows.begin(), rows.end(), '\n'), 1 + 5) << rows;
+  EXPECT_EQ(rows.rfind("t_start_s,t_end_s,fed,threshed,damaged,separated,", 0), 0u) << rows;
+  const std::string json = test::readFile(summary);
+  EXPECT_NE(json.find("\"status\": \"ok\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"balanced\": true"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"fed\": 11,"), std::string::npos) << json;  // arrivals 0 .. 0.05 s
 }
 
 }  // namespace

@@ -585,9 +585,16 @@ teeth: [{}]
 stream: {count: 3, rate: 2000}
 )";
 
-// Everything a scene key sets in a Model (and its damage thresholds), printed exactly.
+const char kMinimalFeed[] = R"(
+teeth: [{}]
+integrator: {islands: false}
+feed: {rate: 100, inlet: -0.2, exit: 0.2}
+)";
+
+// Everything a scene key sets in a Model (and its damage thresholds and feed), printed exactly.
 std::string fingerprint(const YAML::Node& root) {
-  const Model m = modelFromYaml(root);
+  FeedSpec f;
+  const Model m = modelFromYaml(root, nullptr, &f);
   const DamageThresholds dmg = damageFromYaml(root);
   std::ostringstream o;
   o << std::setprecision(17);
@@ -621,17 +628,28 @@ std::string fingerprint(const YAML::Node& root) {
     << i.exact_free_teeth << ' ' << i.modal_split << ' ' << i.islands << ' ' << m.duration_s << ' '
     << m.broadphase_margin_m << ' ' << m.macro_collision_gap_s << ' '
     << m.deflection_validity_fraction << ' ' << dmg.plastic_force_N << ' ' << dmg.fracture_force_N;
+  o << '\n'
+    << f.rate_per_s << ' ' << f.mat_speed_mps << ' ' << f.start_s << ' ' << f.seed << ' '
+    << f.capacity << ' ' << f.inlet_x_m << ' ' << f.exit_x_m << ' ' << f.anchor_y_m << ' '
+    << f.mat_thickness_m << ' ' << f.grate_y_m << ' ' << f.bound_radius_m << ' '
+    << f.pedicel_length_m << ' ' << f.position_scatter_m << ' ' << f.angle_scatter_rad << ' ';
+  v2(f.mass_kg);
+  v2(f.detach_N);
   return o.str();
 }
 
 TEST(SceneLoader, SchemaDefaultsAreTheLoadersDefaults) {
   int checked = 0;
   for (const auto& [path, value] : sceneSchemaDefaults()) {
-    if (value.empty() || value == "[]" || value == "absent" || value.rfind("required", 0) == 0)
+    if (value.empty() || value == "[]" || value == "absent" || value == "derived" ||
+        value.rfind("required", 0) == 0)
       continue;
     SCOPED_TRACE(path + " = " + value);
     const bool stream = path.rfind("stream.", 0) == 0;
-    const YAML::Node absent = YAML::Load(stream ? kMinimalStream : kMinimalScene);
+    const bool feed = path.rfind("feed.", 0) == 0;
+    const YAML::Node absent = YAML::Load(stream ? kMinimalStream
+                                         : feed ? kMinimalFeed
+                                                : kMinimalScene);
     YAML::Node set = YAML::Clone(absent);
     std::string written = path;
     if (path == "obstacles.*.radius") written = "obstacles.1.radius";  // circles and segments

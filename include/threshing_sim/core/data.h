@@ -146,8 +146,11 @@ struct Data {
   VecX z;                                     // generalised positions (see file comment)
   VecX u;                                     // generalised velocities
   std::vector<std::uint8_t> kernel_attached;  // 1 while the pedicel holds [-]
-  std::vector<ContactInfo> contacts;          // pairs examined in the last step
-  std::vector<ContactEvent> events;           // appended by step(); the caller may clear it
+  // 1 while the kernel takes part; 0: a retired slot of a feed's pool (core/feed.h), parked far
+  // from every body, at rest, with no force on it (global scheme only) [-]
+  std::vector<std::uint8_t> kernel_active;
+  std::vector<ContactInfo> contacts;  // pairs examined in the last step
+  std::vector<ContactEvent> events;   // appended by step(); the caller may clear it
   RunStats stats;
   // Not owned; if set, the island scheme reports every accepted step of its islands to it
   // (step_observer.h). Observing changes no result. Unset (nullptr) costs nothing.

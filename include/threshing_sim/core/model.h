@@ -160,7 +160,10 @@ constexpr int kAutoModes = -1;
 // kernel; it breaks for good when its tension exceeds the detachment force.
 struct PedicelModel {
   bool present = false;
-  Vec2 p_WA_W = Vec2::Zero();       // anchor in world [m]
+  Vec2 p_WA_W = Vec2::Zero();  // anchor in world at t = 0 [m]
+  // Anchor velocity v_A (a feed's straw mat, core/feed.h): at time t the anchor is at
+  // p_WA_W + v_A t. Non-zero only under the global scheme (integrator.islands: false) [m/s]
+  Vec2 v_WA_W_mps = Vec2::Zero();
   Vec2 p_KP_K = Vec2::Zero();       // attachment point in the kernel frame [m]
   double stiffness_Npm = 200.0;     // k [N/m]
   double damping_Nspm = 0.002;      // c [N s/m]
@@ -180,6 +183,7 @@ struct KernelModel {
   double youngs_modulus_Pa = 2.8e8;             // E [Pa]
   double poisson_ratio = 0.3;                   // nu [-]
   PedicelModel pedicel;
+  bool pool_slot = false;  // a feed's pool slot (core/feed.h): starts parked, inactive [-]
   // --- derived ---
   double inertia_kgm2 = 0;  // J = m (a^2 + b^2) / 4 (uniform elliptic disc) [kg m^2]
   int dof_offset = 0;       // index of c_x in the generalised vector (c_y, psi follow)

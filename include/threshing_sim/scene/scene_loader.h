@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/tooth_cache.h"
 #include "threshing_sim/scene/outcomes.h"
@@ -42,9 +43,11 @@ std::vector<std::string> overridesFromFile(const std::string& path);
 // Validates the tree (unknown keys, missing keys, types, ranges, NaN/inf, semi-axes order,
 // kernels overlapping at start), expands a kernel `stream` into kernels appended after the
 // listed ones (deterministic from its seed; docs/scene_reference.md) and returns the
-// compiled model (its teeth compiled through *tooth_cache when given). Throws
-// SceneError.
-Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache = nullptr);
+// compiled model (its teeth compiled through *tooth_cache when given). A `feed` section appends
+// its pool's parked kernel slots after them (core/feed.h) and is returned in *feed when given
+// (capacity 0: no feed). Throws SceneError.
+Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache = nullptr,
+                    FeedSpec* feed = nullptr);
 
 // The outcome settings of a scene (section `damage`; defaults for rice when absent). The tree
 // must have passed modelFromYaml, which validates the section. Throws SceneError.
@@ -53,7 +56,7 @@ DamageThresholds damageFromYaml(const YAML::Node& root);
 // loadSceneYaml + applyOverride for each override + modelFromYaml (and damageFromYaml into
 // *damage when given). Validation errors are prefixed with the file path.
 Model loadScene(const std::string& path, const std::vector<std::string>& overrides = {},
-                DamageThresholds* damage = nullptr);
+                DamageThresholds* damage = nullptr, FeedSpec* feed = nullptr);
 
 // The schema as a Markdown table: every key path with its type, unit, default, accepted range
 // (each finite) or words, and meaning. `simulate --print-schema` prints it; docs/

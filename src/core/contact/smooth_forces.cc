@@ -8,13 +8,14 @@
 namespace threshing_sim {
 namespace internal {
 
-Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, Vec2* p_WP) {
+Vec2 pedicelForce(const Model& m, const VecX& z, const VecX& u, int i, double t_s, Vec2* p_WP) {
   const KernelModel& k = m.kernels[i];
   const Vec2 c = z.segment<2>(k.dof_offset);
   const Vec2 r = rotate(z[k.dof_offset + 2], k.pedicel.p_KP_K);
   *p_WP = c + r;
-  const Vec2 v = u.segment<2>(k.dof_offset) + u[k.dof_offset + 2] * perp(r);
-  const Vec2 d = *p_WP - k.pedicel.p_WA_W;
+  // The attachment point's velocity relative to the anchor (a moving anchor: v_A).
+  const Vec2 v = u.segment<2>(k.dof_offset) + u[k.dof_offset + 2] * perp(r) - k.pedicel.v_WA_W_mps;
+  const Vec2 d = *p_WP - pedicelAnchor(k.pedicel, t_s);
   const double len = d.norm();
   if (len <= 0.0) return Vec2::Zero();
   const Vec2 dir = d / len;
@@ -57,10 +58,12 @@ void smoothForces(const Model& m, const Data& d, const VecX& z, const VecX& u, c
   // Kernels: gravity, and the pedicel while it holds.
   for (size_t i = 0; i < m.kernels.size(); ++i) {
     const KernelModel& k = m.kernels[i];
+    // A retired pool slot (core/feed.h) is parked: no force moves it.
+    if (!d.kernel_active[i]) continue;
     f->segment<2>(k.dof_offset) += k.mass_kg * m.gravity_mps2;
     if (k.pedicel.present && d.kernel_attached[i]) {
       Vec2 p_WP;
-      const Vec2 F = pedicelForce(m, z, u, static_cast<int>(i), &p_WP);
+      const Vec2 F = pedicelForce(m, z, u, static_cast<int>(i), drive.t_s, &p_WP);
       f->segment<2>(k.dof_offset) += F;
       (*f)[k.dof_offset + 2] += cross(p_WP - z.segment<2>(k.dof_offset), F);
     }

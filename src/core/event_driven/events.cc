@@ -72,7 +72,7 @@ void eventValues(const Ctx& c, double t, const VecX& z, const VecX& u, std::vect
     if (!k.pedicel.present || !c.d.kernel_attached[i]) continue;
     Vec2 p;
     (*vals)[4 * ws.geoms.size() + i] =
-        k.pedicel.detachment_force_N - pedicelForce(m, z, u, static_cast<int>(i), &p).norm();
+        k.pedicel.detachment_force_N - pedicelForce(m, z, u, static_cast<int>(i), t, &p).norm();
   }
 }
 

@@ -1,0 +1,144 @@
+// threshing_sim core: a continuous feed (issue 34). Kernels on pedicels whose anchors ride a
+// straw mat along the concave at a set speed arrive at a set rate, with seeded scatter, for as
+// long as the run lasts; each leaves the simulation when it passes through the grate
+// (separated), past the concave's exit (carried over: detached, or still on its pedicel =
+// unthreshed) or out of a bounding circle, and its outcome is final then.
+//
+// Bodies live in a pool: the feed appends `capacity` kernel slots to the Model before it is
+// compiled (addFeedPool); a slot is either occupied by a fed kernel (Data::kernel_active 1) or
+// parked (0: far from every body, at rest, no force on it, its pedicel released). A kernel
+// entering takes the slot that has been free longest; a slot is reused only after the
+// integrator took a step with it parked, so no pair memory of its last kernel is in use. At a
+// step boundary updateFeed retires the kernels that left, then places the kernels due. The
+// occupant's own values (mass, detachment force, anchor) are written into its slot's
+// KernelModel there: the Model changes only at step boundaries and only through this file.
+// Global scheme only (integrator.islands: false): the island scheme's bounds assume fixed
+// pedicel anchors; the island scheme never sees a pool.
+//
+// Geometry (world frame W, drum axis at the origin, the drum turning with Omega > 0 so that its
+// bottom moves along +x): the concave is taken flat under the drum (its curvature neglected
+// over the span): the grate is the line y = grate_y from x = inlet_x to x = exit_x; the mat
+// carries the anchors along +x at mat_speed at heights anchor_y +- mat_thickness / 2, each
+// kernel hanging below its anchor.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "threshing_sim/core/data.h"
+#include "threshing_sim/core/model.h"
+#include "threshing_sim/core/uniform.h"
+
+namespace threshing_sim {
+
+// How a fed kernel ended (kInDrum while it is in the simulation).
+enum class KernelFate : std::uint8_t {
+  kInDrum = 0,             // still in the simulation
+  kSeparated = 1,          // passed through the grate
+  kCarriedDetached = 2,    // past the concave's exit, off its pedicel (threshed, not separated)
+  kCarriedUnthreshed = 3,  // past the concave's exit, still on its pedicel
+  kOutOfBounds = 4,        // left the bounding circle (or below the grate line outside its span)
+};
+const char* toString(KernelFate fate);
+
+// The feed's parameters (scene section `feed`, docs/scene_reference.md).
+struct FeedSpec {
+  double rate_per_s = 0;              // kernels fed per second of simulated time [1/s]
+  double mat_speed_mps = 1.0;         // the straw mat's (and the anchors') speed along +x [m/s]
+  double start_s = 0;                 // arrival of the first kernel at the inlet [s]
+  int seed = 1;                       // seed of the scatter [-]
+  int capacity = 0;                   // pool slots: kernels in the simulation at once [-]
+  double inlet_x_m = -0.1;            // concave inlet: anchors arrive at this x [m]
+  double exit_x_m = 0.1;              // concave exit [m]
+  double anchor_y_m = 0;              // mid-height of the anchors on the mat [m]
+  double mat_thickness_m = 0.01;      // anchors' heights uniform over +- half of it [m]
+  double grate_y_m = -0.27;           // the grate line [m]
+  double bound_radius_m = 0.5;        // kernels farther from the drum axis have left [m]
+  double pedicel_length_m = 0.003;    // pedicel from the kernel's upper end to its anchor [m]
+  double position_scatter_m = 0.002;  // +- along the mat at arrival [m]
+  double angle_scatter_rad = 0.3;     // +- about hanging straight down [rad]
+  Vec2 mass_kg{2.4e-5, 3.1e-5};       // mass range [kg]
+  Vec2 detach_N{0.27, 2.6};           // detachment force range [N]
+  KernelModel base;                   // semi-axes, material, pedicel stiffness and damping
+  double kernel_mass_mean_kg() const { return 0.5 * (mass_kg.x() + mass_kg.y()); }
+};
+
+// A fed kernel that left the simulation: its final outcome.
+struct FeedRecord {
+  long id = 0;           // feed number (0 = first kernel fed) [-]
+  int slot = 0;          // model kernel index it occupied [-]
+  double arrival_s = 0;  // arrival at the inlet [s]
+  double retired_s = 0;  // step end at which it was seen to have left [s]
+  KernelFate fate = KernelFate::kInDrum;
+  double mass_kg = 0;                   // [kg]
+  double peak_normal_N = 0;             // largest tooth normal force on it [N]
+  double peak_tangential_N = 0;         // largest |tooth tangential force| on it [N]
+  double peak_contact_N = 0;            // largest normal force of any contact on it [N]
+  long impacts = 0;                     // completed impacts on it, any pair [-]
+  double detach_s = -1;                 // pedicel break time; < 0: never broke [s]
+  Vec2 exit_position_m = Vec2::Zero();  // centre when retired, world [m]
+};
+
+// Running totals. At every step boundary after updateFeed:
+// fed = in_drum + separated + carried_detached + carried_unthreshed + out_of_bounds.
+struct FeedCounts {
+  long fed = 0;                 // kernels placed so far [-]
+  long in_drum = 0;             // kernels in the simulation now [-]
+  long separated = 0;           // [-]
+  long carried_detached = 0;    // [-]
+  long carried_unthreshed = 0;  // [-]
+  long out_of_bounds = 0;       // [-]
+  bool balanced() const {
+    return fed == in_drum + separated + carried_detached + carried_unthreshed + out_of_bounds;
+  }
+};
+
+// The feed's running state (one per run).
+struct FeedState {
+  int first_slot = 0;                  // model kernel index of pool slot 0 [-]
+  int capacity = 0;                    // pool slots [-]
+  std::vector<long> slot_id;           // occupant's feed number, or -1 (free) [-]
+  std::vector<double> slot_arrival_s;  // occupant's arrival [s]
+  std::vector<long> slot_parked_step;  // Data::steps when the slot was parked [-]
+  std::vector<int> free_ring;          // free slots, longest free first (a ring of capacity) [-]
+  int free_head = 0, free_count = 0;   // ring read position and fill [-]
+  FeedCounts counts;
+  double base_t_s = 0;              // kernel n arrives at base_t + (n - base_n) / rate [s]
+  long base_n = 0;                  // (the last rate command's reference) [-]
+  double last_arrival_s = 0;        // arrival of the last kernel fed (none: -inf) [s]
+  std::vector<FeedRecord> retired;  // kernels that left since the caller last cleared it
+  Uniform uniform;                  // the scatter's numbers
+  std::string error;                // why updateFeed failed ("" if it did not)
+};
+
+// Slot i's parking place: far above the drum, slots 0.05 m apart, world [m].
+Vec2 feedParkingPlace(int slot);
+
+// Checks spec (throws std::invalid_argument naming the `feed.*` key and the value) and appends
+// spec.capacity parked kernel slots to model->kernels. Before compileModel.
+void addFeedPool(const FeedSpec& spec, Model* model);
+
+// After resetData: parks every slot, empties the pool and seeds the scatter.
+void startFeed(const FeedSpec& spec, const Model& model, Data* data, FeedState* state);
+
+// At a step boundary: retires the kernels that left (appending their records to
+// state->retired), then places every kernel that has arrived by data->t_s. Returns false with
+// state->error set when the pool has no slot for a kernel due, or a kernel cannot be placed
+// clear of the others.
+bool updateFeed(const FeedSpec& spec, Model* model, Data* data, FeedState* state);
+
+// Arrival time of the next kernel to be fed (+inf at rate 0) [s].
+double nextFeedArrival(const FeedSpec& spec, const FeedState& state);
+
+// A feed rate command, applied at a step boundary at time t_s (the caller's: a node stages it
+// and applies it there): from then on kernels arrive 1 / rate_per_s apart, the next one at the
+// later of t_s and the last arrival plus the new interval; 0 stops the feed. Returns "" or why
+// the command was refused, naming the value (spec and state unchanged then): not finite,
+// negative, above 1e6 1/s, or more kernels riding the mat than the pool holds.
+std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState* state);
+
+// The fate of a kernel at centre c (attached: its pedicel holds) under spec's geometry.
+KernelFate feedFate(const FeedSpec& spec, const Vec2& c_W, bool attached);
+
+}  // namespace threshing_sim
