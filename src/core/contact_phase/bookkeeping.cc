@@ -207,11 +207,11 @@ void finishPair(const Ctx& c, const StepState& s, size_t i, EnergyNet&& e_net) {
   mem.cp_t_before_s = s.t0_s;
 }
 
-// The stem's generalised force on kernel i at (z, u): force [N] and moment about the centre
-// [N m].
-Eigen::Vector3d stemForce(const Model& m, const VecX& z, const VecX& u, int i) {
+// The stem's generalised force on kernel i at (z, u) and time t_s [s]: force [N] and moment
+// about the centre [N m].
+Eigen::Vector3d stemForce(const Model& m, const VecX& z, const VecX& u, int i, double t_s) {
   Vec2 p_WP;
-  const Vec2 F = pedicelForce(m, z, u, i, &p_WP);
+  const Vec2 F = pedicelForce(m, z, u, i, t_s, &p_WP);
   const Vec2 r = p_WP - z.segment<2>(m.kernels[i].dof_offset);
   return Eigen::Vector3d(F.x(), F.y(), r.x() * F.y() - r.y() * F.x());
 }
@@ -229,12 +229,12 @@ bool breakPedicels(const Ctx& c, const StepState& s) {
   bool broke = false;
   for (int i = 0; i < static_cast<int>(m.kernels.size()); ++i) {
     const KernelModel& k = m.kernels[i];
-    if (!k.pedicel.present || !d->kernel_attached[i]) continue;
+    if (!k.pedicel.present || !d->kernel_attached[i] || !d->kernel_active[i]) continue;
     const double limit = k.pedicel.detachment_force_N;
-    const Eigen::Vector3d q1 = stemForce(m, d->z, d->u, i);
+    const Eigen::Vector3d q1 = stemForce(m, d->z, d->u, i, d->t_s);
     const double f1 = q1.head<2>().norm();
     if (!(f1 > limit)) continue;
-    const Eigen::Vector3d q0 = stemForce(m, z0, u0, i);
+    const Eigen::Vector3d q0 = stemForce(m, z0, u0, i, s.t0_s);
     const double f0 = q0.head<2>().norm();
     const double frac = f0 < limit ? (limit - f0) / (f1 - f0) : 0.0;
     const Eigen::Vector3d q_break = q0 + frac * (q1 - q0);
