@@ -37,7 +37,7 @@ ACCURACY_SCENES = [
 ]
 
 
-def run_simulate(simulate, scene, args, workdir, tag):
+def phase_summary(simulate, scene, args, workdir, tag):
     """The summary of one `simulate` run of scene (relative to the repository) with args."""
     out = os.path.join(workdir, f"{tag}.json")
     subprocess.run([str(simulate), str(ROOT / scene), "--quiet", "--summary", out] + args,
@@ -63,11 +63,11 @@ def accuracy(simulate, say, scenes=ACCURACY_SCENES, counts=STEP_COUNTS):
     with tempfile.TemporaryDirectory() as work:
         for i, (label, scene, extra) in enumerate(scenes):
             say(f"contact phase: {label}")
-            ref = run_simulate(simulate, scene, extra + ["--tolerance", "1e-10"], work, f"r{i}")
-            adaptive = run_simulate(simulate, scene, extra, work, f"a{i}")
+            ref = phase_summary(simulate, scene, extra + ["--tolerance", "1e-10"], work, f"r{i}")
+            adaptive = phase_summary(simulate, scene, extra, work, f"a{i}")
             rows.append(accuracy_row(label, adaptive, ref, "adaptive (scene tolerance)"))
             for n in counts:
-                run = run_simulate(simulate, scene,
+                run = phase_summary(simulate, scene,
                                    extra + ["--set", f"integrator.contact_steps={n}"], work,
                                    f"c{i}_{n}")
                 rows.append(accuracy_row(label, run, ref, f"contact phase, {n} steps"))

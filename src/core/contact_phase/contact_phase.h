@@ -1,4 +1,4 @@
-// The contact phase (integrator.contact_steps; docs/architecture.md, "The contact phase"): while
+// The contact phase (integrator.contact_steps; docs/contact_phase.md): while
 // a compliant contact is closed, the system (an island's sub-system under the island scheme)
 // advances by fixed steps set by the Hertz contact time, as a DEM code does, and returns to the
 // adaptive event-driven step (the reference) when its last contact opens.

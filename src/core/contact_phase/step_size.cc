@@ -29,7 +29,7 @@ double normalMass(const Model& m, const ContactGeom& g) {
 
 // Hertz contact time of an impact at closing speed v_mps of effective mass m_eff_kg with the
 // Hertz constant K = 4/3 E* sqrt(R*): t_H = 2.87 (m*^2 / (R* E*^2 v))^(1/5), R* E*^2 = (3 K / 4)^2
-// (Johnson, Contact Mechanics, §11.4) [s].
+// (Johnson, Contact Mechanics, section 11.4) [s].
 double hertzContactTime(double m_eff_kg, double K, double v_mps) {
   const double rk = 0.75 * K;
   return 2.87 * std::pow(m_eff_kg * m_eff_kg / (rk * rk * v_mps), 0.2);
