@@ -56,6 +56,13 @@ struct PairMemory {
   double cp_fn_before_N = 0;        // [N]
   double cp_ft_before_N = 0;        // [N]
   double cp_t_before_s = -1;        // its time (< 0: none) [s]
+  // The contact phase's conservative advancement of a separated pair (event_driven/evaluate.cc,
+  // SeparatedPairs::kReach): apart until cp_safe_until_s, found at cp_safe_from_s with the gap
+  // (or its bound) cp_safe_gap_m at the bodies' speed bound cp_safe_speed_mps.
+  double cp_safe_from_s = 0;                                         // [s]
+  double cp_safe_until_s = -std::numeric_limits<double>::infinity();  // [s]
+  double cp_safe_speed_mps = 0;                                      // [m/s]
+  double cp_safe_gap_m = 0;                                          // [m]
   double cp_drift_mps2 = 0;         // the last step's drift changed the slip velocity at this
                                     // rate (the contact points' motion, the free modes) [m/s^2]
   double impulse_n_acc = 0;  // running sums of the impulses since reset [N s]

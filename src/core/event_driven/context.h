@@ -87,8 +87,10 @@ enum class SeparatedPairs {
   kNone,     // nothing (Runge-Kutta stages: separated pairs exert no force)
   kReach,    // every separated pair, tooth pairs too, exact only within what its bodies can
              // cover in horizon_s at their present speeds (a tooth point: the drum's turn of
-             // the tip and the modes' rate), else a bound: the contact phase's step ends, where
-             // only a gap's sign over the next step matters (contact_phase/forces.cc)
+             // the tip and the modes' rate), else a bound, and not evaluated at all while its
+             // last evaluation's gap over its speed bound says it stays apart (conservative
+             // advancement): the contact phase's step ends, where only a gap's sign over the
+             // next step matters (contact_phase/forces.cc)
   kStepEnd,  // a step's end: kSign over the horizon and kNear together (every other pair exact
              // within the larger of the two reaches); its results serve the statistics and the
              // published contacts (kNear) and the next step's event functions (kSign over any

@@ -36,6 +36,38 @@ double toothSpeedBound(const Ctx& c, const VecX& u, int k) {
   return std::abs(c.d.omega_radps) * (c.m.drum.radius_m + tm.length_m) + modal;
 }
 
+// kReach: the relative speed bound of a pair's bodies at the velocities u [m/s].
+double pairSpeedBound(const Ctx& c, const VecX& u, const PairId& p) {
+  switch (p.kind) {
+    case PairKind::kToothKernel:
+      return kernelSpeedBound(c.m, u, p.b) + toothSpeedBound(c, u, p.a);
+    case PairKind::kKernelKernel:
+      return kernelSpeedBound(c.m, u, p.a) + kernelSpeedBound(c.m, u, p.b);
+    default:
+      return kernelSpeedBound(c.m, u, p.a);
+  }
+}
+
+// kReach: whether a separated pair is still surely apart at t_s + horizon_s without an
+// evaluation (conservative advancement): its last evaluation at or before t_s found it apart by
+// a gap it cannot cover before PairMemory::cp_safe_until_s at its bodies' speed bound then,
+// which their bound now does not exceed.
+bool safelyApart(const PairMemory& mem, double t_s, double horizon_s, double speed_mps) {
+  return mem.state == ContactState::kSeparated && t_s >= mem.cp_safe_from_s &&
+         t_s + horizon_s < mem.cp_safe_until_s && speed_mps <= mem.cp_safe_speed_mps;
+}
+
+// kReach: after a separated pair's evaluation at t_s, the time until which it stays apart: 0.8
+// of its gap over its speed bound (none when touching or without a bound).
+void recordSafeInterval(const ContactGeom& g, double t_s, double speed_mps, PairMemory* mem) {
+  mem->cp_safe_from_s = t_s;
+  mem->cp_safe_speed_mps = speed_mps;
+  mem->cp_safe_gap_m = g.gap_m;
+  mem->cp_safe_until_s = g.gap_m > 0.0 && speed_mps > 0.0 && std::isfinite(g.gap_m)
+                             ? t_s + 0.8 * g.gap_m / speed_mps
+                             : -kInf;
+}
+
 }  // namespace
 
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
@@ -62,6 +94,9 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     const PairMemory& mem = candidateMemory(c.ws, i);
     const bool separated_pair = mem.state == ContactState::kSeparated;
     if (separated == SeparatedPairs::kNone && separated_pair) continue;
+    if (separated == SeparatedPairs::kReach &&
+        safelyApart(mem, dr.t_s, horizon_s, pairSpeedBound(c, u, p)))
+      continue;
     if (!separated_pair && mem.warm_x_m >= 0.0 && c.m.teeth[p.a].n_modes > 0 &&
         c.m.teeth[p.a].beam_model == ToothBeamModel::kModal)
       continue;
@@ -75,6 +110,7 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     ContactGeom& g = c.ws.geoms[i];
     double far_m = kInf;
     bool tight = false;
+    double reach_speed_mps = -1.0;  // kReach, a separated pair: its speed bound [m/s]
     PairMemory& mem = candidateMemory(c.ws, i);
     // Tooth pairs in contact start the narrow phase from their last closest point (moved on
     // in time by the rate between the last two); a separated one records its closest point for
@@ -94,10 +130,15 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       }
       const bool tooth = p.kind == PairKind::kToothKernel;
       if (separated == SeparatedPairs::kReach) {
-        double speed_mps = tooth ? kernelSpeedBound(c.m, u, p.b) + toothSpeedBound(c, u, p.a)
-                                 : kernelSpeedBound(c.m, u, p.a);
-        if (p.kind == PairKind::kKernelKernel) speed_mps += kernelSpeedBound(c.m, u, p.b);
-        far_m = std::max(1e-6, 2.0 * horizon_s * speed_mps);
+        reach_speed_mps = pairSpeedBound(c, u, p);
+        if (safelyApart(mem, dr.t_s, horizon_s, reach_speed_mps)) {
+          g.pair = p;  // not evaluated: marked far with its last bound
+          g.params = &c.m.contact[static_cast<int>(p.kind)];
+          g.far = true;
+          g.gap_m = mem.cp_safe_gap_m;
+          continue;
+        }
+        far_m = std::max(1e-6, 2.0 * horizon_s * reach_speed_mps);
       } else if ((separated == SeparatedPairs::kSign || separated == SeparatedPairs::kStepEnd) &&
                  !tooth) {
         double speed_mps = kernelSpeedBound(c.m, u, p.a);
@@ -111,6 +152,7 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     }
     double* warm_theta = p.kind == PairKind::kKernelKernel ? &mem.warm_theta_rad : nullptr;
     evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm, warm_theta);
+    if (reach_speed_mps >= 0.0) recordSafeInterval(g, dr.t_s, reach_speed_mps, &mem);
     if (warm && !g.far) {
       mem.warm_x_prev_m = mem.warm_x_m;
       mem.warm_t_prev_s = mem.warm_t_s;
