@@ -345,24 +345,25 @@ struct ResidualInputs {
   double dr_ww_dx_mpNpm = 0;   // its derivative in x (C^1 interpolant) [1/N]
   double wc_slope = 0;         // d w_c / dx of the stations' foreshortening at x* [-]
   const double* hq = nullptr;  // H(x*) q per mode, blended as the narrow phase does [1/sqrt(kg)]
+  const double* phi = nullptr;   // phi(x*) per mode [1/sqrt(kg)]
+  const double* dphi = nullptr;  // phi'(x*) per mode [1/(sqrt(kg) m)]
+  double w1 = 0, w2 = 0;         // w'(x*) = phi' . q [-], w''(x*) = phi'' . q [1/m]
+  Vec2 e1 = Vec2::UnitX(), e2 = Vec2::UnitY();  // the tooth's axes in world at the drum angle [-]
 };
 
 // The residual flexibility along n, R = (e2.n)^2 r_ww(x*) (docs/model.md §9b), differentiated
 // along every coordinate (the sides' w_r) and the drum angle (residual_dtheta_mpNprad): R moves
 // with the normal's direction (dR/dphi = 2 (e2.n)(e2.t) r_ww) and with the closest point
 // (dR/dx* = (e2.n)^2 r_ww'), both given by ClosestPointSensitivity.
-void residualGradient(const NarrowInput& in, const ToothModel& tm, const ResidualInputs& ri,
+void residualGradient(const Vec2& kernel_center_m, const ToothModel& tm, const ResidualInputs& ri,
                       ContactGeom* g) {
-  Workspace* ws = in.ws;
   const int n_modes = tm.n_modes;
   const double x = g->tooth_x_m, r_t = 0.5 * tm.diameter_m;
-  const Rotation2 rot(in.drive.theta_rad);
-  const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
-  evaluateModeCurvatures(tm, x, &ws->centreline.scratch_ddphi);
-  const VecX& phi = ws->centreline.scratch_phi;
-  const VecX& dphi = ws->centreline.scratch_dphi;
-  const auto q = in.z.segment(tm.dof_offset, n_modes);
-  const double w1 = dphi.dot(q), w2 = ws->centreline.scratch_ddphi.dot(q);  // w', w'' [-, 1/m]
+  const Vec2& e1 = ri.e1;
+  const Vec2& e2 = ri.e2;
+  const double* phi = ri.phi;
+  const double* dphi = ri.dphi;
+  const double w1 = ri.w1, w2 = ri.w2;  // w', w'' [-, 1/m]
   ClosestPointSensitivity cp;
   cp.n = g->n;
   cp.t = g->t;
@@ -389,7 +390,7 @@ void residualGradient(const NarrowInput& in, const ToothModel& tm, const Residua
   s1.w_r.resize(3);
   s1.w_r[0] = rate(-Vec2::UnitX(), Vec2::Zero(), 0.0);
   s1.w_r[1] = rate(-Vec2::UnitY(), Vec2::Zero(), 0.0);
-  s1.w_r[2] = rate(-perp(p_W - in.e.center), Vec2::Zero(), 1.0);
+  s1.w_r[2] = rate(-perp(p_W - kernel_center_m), Vec2::Zero(), 1.0);
   // The drum turning the tooth (point, tangent and e2) past the kernel.
   g->residual_dtheta_mpNprad =
       rate(perp(p_W), perp(cp.rt_x), 0.0) + 2.0 * c * ri.r_ww_mpN * perp(e2).dot(g->n);
@@ -438,7 +439,15 @@ void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
           ? (direct->wc1 - direct->wc0) / dx_m
           : (ws->centreline.station_wc_m[col_h + 1] - ws->centreline.station_wc_m[col_h]) / dx_m;
   ri.hq = hq;
-  residualGradient(in, tm, ri, g);
+  evaluateModeCurvatures(tm, g->tooth_x_m, &ws->centreline.scratch_ddphi);
+  const auto q = in.z.segment(tm.dof_offset, n);
+  ri.phi = ws->centreline.scratch_phi.data();
+  ri.dphi = ws->centreline.scratch_dphi.data();
+  ri.w1 = ws->centreline.scratch_dphi.dot(q);
+  ri.w2 = ws->centreline.scratch_ddphi.dot(q);
+  ri.e1 = e1;
+  ri.e2 = e2;
+  residualGradient(in.e.center, tm, ri, g);
 }
 
 // Tooth (body 0) against a kernel: the closest point of the deformed centreline, the tooth's
