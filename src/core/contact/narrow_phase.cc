@@ -450,6 +450,35 @@ void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
   residualGradient(in.e.center, tm, ri, g);
 }
 
+// The contact frame of a tooth pair from its closest point's proximity (point1: the centreline
+// point): gap, normal, tangent, the contact points on the tooth's surface and the kernel's, and
+// the kernel's radius of curvature there.
+void setToothContactFrame(const Proximity& best, double r_t, ContactGeom* g) {
+  g->gap_m = best.distance_m - r_t;
+  g->rho1_m = best.radius2_m;
+  g->n = best.normal;
+  g->t = perp(g->n);
+  g->p0 = best.point1 + r_t * g->n;
+  g->p1 = best.point2;
+}
+
+// A tooth pair whose frame is set: the rheonomic term of the drum turning at omega_radps and
+// the Hertz inputs.
+void toothRheonomicAndHertz(const ToothModel& tm, const KernelModel& kern, const Ellipse& e,
+                            double omega_radps, ContactGeom* g, HertzInputs* h) {
+  const double r_t = 0.5 * tm.diameter_m;
+  // Rheonomic term: the drum carries the tooth point at Omega J p0.
+  g->wtilde_n = -omega_radps * cross(g->p0, g->n);
+  g->wtilde_t = -omega_radps * cross(g->p0, g->t);
+  // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
+  const bool at_tip = g->tooth_x_m >= tm.length_m * (1.0 - 1e-9);
+  h->r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
+                         ellipseCurvatureRadius(e, g->p1));
+  h->r_out = seriesRadius(r_t, kern.semi_axis_b_m);
+  h->E_star = effectiveModulus(tm.youngs_modulus_Pa, tm.poisson_ratio, kern.youngs_modulus_Pa,
+                               kern.poisson_ratio);
+}
+
 // Tooth (body 0) against a kernel: the closest point of the deformed centreline, the tooth's
 // side of the Jacobians, the drum's rheonomic term and the Hertz inputs.
 bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
@@ -461,12 +490,7 @@ bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
   bool from_warm = false;  // the closest point came from the warm start
   if (!toothClosestPoint(in, tm, &direct, &from_warm, g, &best)) return false;
   if (in.warm_x_m != nullptr) *in.warm_x_m = g->tooth_x_m;
-  g->gap_m = best.distance_m - r_t;
-  g->rho1_m = best.radius2_m;
-  g->n = best.normal;
-  g->t = perp(g->n);
-  g->p0 = best.point1 + r_t * g->n;
-  g->p1 = best.point2;
+  setToothContactFrame(best, r_t, g);
 
   // Tooth side: velocity of the surface point = Omega J p0 + Jq qdot, with
   // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) psi^T (psi: the sections' rotation).
@@ -479,16 +503,7 @@ bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
     rodToothSide(in, tm, g);
   else if (n > 0)
     modalToothSide(in, tm, from_warm, &direct, g);
-  // Rheonomic term: the drum carries the tooth point at Omega J p0.
-  g->wtilde_n = -in.drive.omega_radps * cross(g->p0, g->n);
-  g->wtilde_t = -in.drive.omega_radps * cross(g->p0, g->t);
-  // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
-  const bool at_tip = g->tooth_x_m >= tm.length_m * (1.0 - 1e-9);
-  h->r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
-                         ellipseCurvatureRadius(in.e, g->p1));
-  h->r_out = seriesRadius(r_t, in.kern.semi_axis_b_m);
-  h->E_star = effectiveModulus(tm.youngs_modulus_Pa, tm.poisson_ratio, in.kern.youngs_modulus_Pa,
-                               in.kern.poisson_ratio);
+  toothRheonomicAndHertz(tm, in.kern, in.e, in.drive.omega_radps, g, h);
   return true;
 }
 
@@ -643,11 +658,8 @@ void kernelSide(const Model& m, const VecX& u, int kb, const Ellipse& e, Contact
   }
 }
 
-}  // namespace
-
-void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
-                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
-                     bool tight_bound, double* warm_x_m, double* warm_theta_rad) {
+// What every evaluation of a pair starts from: nothing known yet.
+void resetGeom(const Model& m, const PairId& pair, ContactGeom* g) {
   g->pair = pair;
   g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
@@ -660,6 +672,149 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   g->side[0].body = -1;
   g->side[0].w_n.resize(0);
   g->side[0].w_t.resize(0);
+}
+
+
+// --- tooth against kernel, warm (the contact phase) -------------------------------------------
+
+// Newton steps on the closest-point condition of a warm pair: at most this many evaluations
+// [-], stopped once the next correction is below kWarmTol_L of the tooth's length [-] (the
+// point evaluated last is kept: within that of the root), and no farther from the warm start
+// than kWarmMaxMove_intervals station intervals [-].
+constexpr int kWarmMaxEvaluations = 5;
+constexpr double kWarmTol_L = 1e-13;
+constexpr double kWarmMaxMove_intervals = 0.25;
+
+// What the warm closest point's evaluations share: the tooth, its coordinates, its frame, the
+// kernel with the cosine and sine of its angle, and the stations bracketing the last point.
+struct WarmQuery {
+  const ToothModel& tm;       // the tooth
+  const double* q;            // its modal coordinates [sqrt(kg) m]
+  const ToothFrame& frame;    // its axes in world at the drum angle
+  const Ellipse& e;           // the kernel
+  double cos_e, sin_e;        // cos and sin of the kernel's angle [-]
+  StationPair stations;       // H q and w_c at the stations bracketing the last point
+};
+
+// The deformed centreline of a modal tooth at material coordinate x_m against the kernel:
+// everything the closest-point condition h = n . rt_x and its derivative need.
+struct WarmPoint {
+  double x_m = 0;                                          // material coordinate [m]
+  double phi[kMaxModes], dphi[kMaxModes], ddphi[kMaxModes];  // modes and their derivatives
+                                                           // [1/(sqrt(kg) m^k)]
+  int s = 0;                // station interval holding x [-]
+  double t = 0;             // blend weight of its station s + 1 [-]
+  double w1 = 0, w2 = 0;    // w' [-], w'' [1/m]
+  double wc_slope = 0;      // d w_c / dx [-]
+  Vec2 r = Vec2::Zero();    // centreline point, world [m]
+  Vec2 rt_x = Vec2::Zero(); // the condition's tangent (1 - w'^2/2) e1 + w' e2, world [-]
+  Proximity p;              // the centreline point against the kernel
+  double h = 0;             // the condition n . rt_x [-]
+  double dh = 0;            // its derivative in x [1/m]
+};
+
+// Evaluates the centreline at x_m into *pt (the stations' H q and w_c computed directly).
+void warmPointAt(WarmQuery* wq, double x_m, WarmPoint* pt) {
+  const ToothModel& tm = wq->tm;
+  const int n = tm.n_modes;
+  pt->x_m = x_m;
+  interpolateModes(tm, x_m, pt->phi, pt->dphi, pt->ddphi);
+  stationInterval(tm, x_m, &pt->s, &pt->t);
+  wq->stations.update(tm, pt->s, wq->q);
+  const StationPair& st = wq->stations;
+  const double wc = (1.0 - pt->t) * st.wc0 + pt->t * st.wc1;
+  pt->wc_slope = (st.wc1 - st.wc0) / (tm.station_x_m[pt->s + 1] - tm.station_x_m[pt->s]);
+  const Eigen::Map<const VecX> q(wq->q, n);
+  const double w = Eigen::Map<const VecX>(pt->phi, n).dot(q);
+  pt->w1 = Eigen::Map<const VecX>(pt->dphi, n).dot(q);
+  pt->w2 = Eigen::Map<const VecX>(pt->ddphi, n).dot(q);
+  const Vec2& e1 = wq->frame.e1_W;
+  const Vec2& e2 = wq->frame.e2_W;
+  pt->r = wq->frame.root_W + (x_m + wc) * e1 + w * e2;
+  pt->rt_x = (1.0 - 0.5 * pt->w1 * pt->w1) * e1 + pt->w1 * e2;
+  pt->p = pointEllipse(pt->r, wq->e, wq->cos_e, wq->sin_e);
+  const Vec2& n_W = pt->p.normal;
+  pt->h = n_W.dot(pt->rt_x);
+  // dh/dx = n' . rt_x + n . rt_xx; the normal turns at n' = -kappa (t . r_x) t as the point
+  // moves along r_x (kappa = 1 / (rho + d), the ellipse's curvature seen from the point).
+  const Vec2 r_x = (1.0 + pt->wc_slope) * e1 + pt->w1 * e2;
+  const Vec2 rt_xx = -pt->w1 * pt->w2 * e1 + pt->w2 * e2;
+  const Vec2 t_W = perp(n_W);
+  const double kappa = 1.0 / (pt->p.radius2_m + pt->p.distance_m);
+  pt->dh = -kappa * t_W.dot(r_x) * t_W.dot(pt->rt_x) + n_W.dot(rt_xx);
+}
+
+// Whether the point evaluated is a minimum of the distance along the tooth at an end of it: the
+// distance falls out of [0, L] there (its slope is -h).
+bool atEndMinimum(const ToothModel& tm, const WarmPoint& pt) {
+  return (pt.x_m >= tm.length_m && pt.h >= 0.0) || (pt.x_m <= 0.0 && pt.h <= 0.0);
+}
+
+// Newton steps from x_warm_m on the closest-point condition (the distance's minimum: dh < 0
+// inside the tooth, or an end where the distance falls out of it); false where the guard
+// doubts the answer. *pt: the point evaluated last, the closest point.
+bool warmNewton(WarmQuery* wq, double x_warm_m, WarmPoint* pt) {
+  const ToothModel& tm = wq->tm;
+  const double L = tm.length_m;
+  const double max_move_m = kWarmMaxMove_intervals * L / std::max(1, tm.n_stations - 1);
+  double x = std::clamp(x_warm_m, 0.0, L);
+  for (int it = 0; it < kWarmMaxEvaluations; ++it) {
+    warmPointAt(wq, x, pt);
+    if (std::abs(x - x_warm_m) > max_move_m) return false;
+    if (atEndMinimum(tm, *pt)) return pt->p.distance_m <= 0.5 * tm.diameter_m;
+    if (!(pt->dh < 0.0)) return false;  // not a strict minimum of the distance
+    const double x_next = std::clamp(x - pt->h / pt->dh, 0.0, L);
+    if (std::abs(x_next - x) <= kWarmTol_L * L)
+      return pt->p.distance_m <= 0.5 * tm.diameter_m;  // apart: the full path decides
+    x = x_next;
+  }
+  return false;
+}
+
+// The tooth's side of a warm pair's Jacobians and its residual flexibility, as modalToothSide
+// gives them, from the closest point *pt (its phi'' from the mode table).
+void warmToothSide(const WarmQuery& wq, const WarmPoint& pt, double omega_radps, int tooth,
+                   ContactGeom* g) {
+  const ToothModel& tm = wq.tm;
+  const StationPair& st = wq.stations;
+  const int n = tm.n_modes;
+  const double r_t = 0.5 * tm.diameter_m;
+  BodyJac& s = g->side[0];
+  s.body = toothBody(tooth);
+  s.w_n.resize(n);
+  s.w_t.resize(n);
+  const Vec2& e1 = wq.frame.e1_W;
+  const Vec2& e2 = wq.frame.e2_W;
+  const Vec2 jr = perp(r_t * g->n);
+  const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
+  const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
+  double hq[kMaxModes];  // H(x) q [1/sqrt(kg)]
+  for (int i = 0; i < n; ++i) {
+    hq[i] = (1.0 - pt.t) * st.hq0[i] + pt.t * st.hq1[i];
+    const double psi = tm.rotation_factor[i] * pt.dphi[i];  // section turn
+    s.w_n[i] = -(e2n * pt.phi[i] - e1n * hq[i] + jrn * psi);
+    s.w_t[i] = -(e2t * pt.phi[i] - e1t * hq[i] + jrt * psi);
+  }
+  if (!tm.static_correction) return;
+  ResidualInputs ri;
+  ri.r_ww_mpN = residualSmoothAtSpeed(tm, omega_radps, pt.x_m, &ri.dr_ww_dx_mpNpm);
+  g->residual_mpN = e2n * e2n * ri.r_ww_mpN;
+  ri.wc_slope = pt.wc_slope;
+  ri.hq = hq;
+  ri.phi = pt.phi;
+  ri.dphi = pt.dphi;
+  ri.w1 = pt.w1;
+  ri.w2 = pt.w2;
+  ri.e1 = e1;
+  ri.e2 = e2;
+  residualGradient(wq.e.center, tm, ri, g);
+}
+}  // namespace
+
+void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
+                     bool tight_bound, double* warm_x_m, double* warm_theta_rad) {
+  resetGeom(m, pair, g);
   const int kb = pair.kind == PairKind::kKernelObstacle ? pair.a : pair.b;
   const Ellipse e = kernelEllipse(m, z, kb);
   const EllipseWidth width(e);
@@ -669,6 +824,41 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   if (!kPairFunctions[pairFunctionIndex(m, pair)](in, g, &h)) return;
   kernelSide(m, u, kb, e, g);
   g->hertz_K = hertzConstant(h.E_star, h.r_in, h.r_out);
+}
+
+void ToothFrame::update(const Model& m, int tooth_index, double drum_angle_rad) {
+  if (tooth == tooth_index && theta_rad == drum_angle_rad) return;
+  tooth = tooth_index;
+  theta_rad = drum_angle_rad;
+  const ToothModel& tm = m.teeth[tooth_index];
+  const Rotation2 rot(drum_angle_rad);
+  e1_W = rot * tm.e1_D;
+  e2_W = rot * tm.e2_D;
+  root_W = rot * tm.p_DR_D;
+}
+
+bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                             const PairId& pair, const ToothFrame& frame, double warm_x_m,
+                             ContactGeom* g) {
+  const ToothModel& tm = m.teeth[pair.a];
+  if (tm.n_modes == 0 || tm.beam_model != ToothBeamModel::kModal || !(warm_x_m >= 0.0))
+    return false;
+  const Ellipse e = kernelEllipse(m, z, pair.b);
+  const CosSin cs = cosSinOf(e.angle_rad);  // the kernel's angle, once per evaluation
+  WarmQuery wq{tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s, StationPair()};
+  WarmPoint pt;
+  if (!warmNewton(&wq, warm_x_m, &pt)) return false;
+  resetGeom(m, pair, g);
+  g->tooth_x_m = pt.x_m;
+  Proximity best = pt.p;
+  best.point1 = pt.r;
+  setToothContactFrame(best, 0.5 * tm.diameter_m, g);
+  warmToothSide(wq, pt, drive.omega_radps, pair.a, g);
+  HertzInputs h;
+  toothRheonomicAndHertz(tm, m.kernels[pair.b], e, drive.omega_radps, g, &h);
+  kernelSide(m, u, pair.b, e, g);
+  g->hertz_K = hertzConstant(h.E_star, h.r_in, h.r_out);
+  return true;
 }
 
 }  // namespace internal
