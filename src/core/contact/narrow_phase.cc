@@ -694,14 +694,13 @@ struct WarmQuery {
   const Ellipse& e;           // the kernel
   double cos_e, sin_e;        // cos and sin of the kernel's angle [-]
   StationPair stations;       // H q and w_c at the stations bracketing the last point
+  DeflectionInterval deflection;  // the mode table's interval of the last point, times q
 };
 
 // The deformed centreline of a modal tooth at material coordinate x_m against the kernel:
 // everything the closest-point condition h = n . rt_x and its derivative need.
 struct WarmPoint {
-  double x_m = 0;                                          // material coordinate [m]
-  double phi[kMaxModes], dphi[kMaxModes], ddphi[kMaxModes];  // modes and their derivatives
-                                                           // [1/(sqrt(kg) m^k)]
+  double x_m = 0;           // material coordinate [m]
   int s = 0;                // station interval holding x [-]
   double t = 0;             // blend weight of its station s + 1 [-]
   double w1 = 0, w2 = 0;    // w' [-], w'' [1/m]
@@ -716,18 +715,14 @@ struct WarmPoint {
 // Evaluates the centreline at x_m into *pt (the stations' H q and w_c computed directly).
 void warmPointAt(WarmQuery* wq, double x_m, WarmPoint* pt) {
   const ToothModel& tm = wq->tm;
-  const int n = tm.n_modes;
   pt->x_m = x_m;
-  interpolateModes(tm, x_m, pt->phi, pt->dphi, pt->ddphi);
+  double w = 0;  // deflection [m]
+  interpolateDeflection(tm, wq->q, x_m, &wq->deflection, &w, &pt->w1, &pt->w2);
   stationInterval(tm, x_m, &pt->s, &pt->t);
   wq->stations.update(tm, pt->s, wq->q);
   const StationPair& st = wq->stations;
   const double wc = (1.0 - pt->t) * st.wc0 + pt->t * st.wc1;
   pt->wc_slope = (st.wc1 - st.wc0) / (tm.station_x_m[pt->s + 1] - tm.station_x_m[pt->s]);
-  const Eigen::Map<const VecX> q(wq->q, n);
-  const double w = Eigen::Map<const VecX>(pt->phi, n).dot(q);
-  pt->w1 = Eigen::Map<const VecX>(pt->dphi, n).dot(q);
-  pt->w2 = Eigen::Map<const VecX>(pt->ddphi, n).dot(q);
   const Vec2& e1 = wq->frame.e1_W;
   const Vec2& e2 = wq->frame.e2_W;
   pt->r = wq->frame.root_W + (x_m + wc) * e1 + w * e2;
@@ -772,7 +767,7 @@ bool warmNewton(WarmQuery* wq, double x_warm_m, WarmPoint* pt) {
 }
 
 // The tooth's side of a warm pair's Jacobians and its residual flexibility, as modalToothSide
-// gives them, from the closest point *pt (its phi'' from the mode table).
+// gives them, from the closest point *pt (its w'' from the mode table: interpolateDeflection).
 void warmToothSide(const WarmQuery& wq, const WarmPoint& pt, double omega_radps, int tooth,
                    ContactGeom* g) {
   const ToothModel& tm = wq.tm;
@@ -788,12 +783,14 @@ void warmToothSide(const WarmQuery& wq, const WarmPoint& pt, double omega_radps,
   const Vec2 jr = perp(r_t * g->n);
   const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
   const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
+  double phi[kMaxModes], dphi[kMaxModes];  // [1/sqrt(kg)], [1/(sqrt(kg) m)]
+  interpolateModes(tm, pt.x_m, phi, dphi);
   double hq[kMaxModes];  // H(x) q [1/sqrt(kg)]
   for (int i = 0; i < n; ++i) {
     hq[i] = (1.0 - pt.t) * st.hq0[i] + pt.t * st.hq1[i];
-    const double psi = tm.rotation_factor[i] * pt.dphi[i];  // section turn
-    s.w_n[i] = -(e2n * pt.phi[i] - e1n * hq[i] + jrn * psi);
-    s.w_t[i] = -(e2t * pt.phi[i] - e1t * hq[i] + jrt * psi);
+    const double psi = tm.rotation_factor[i] * dphi[i];  // section turn
+    s.w_n[i] = -(e2n * phi[i] - e1n * hq[i] + jrn * psi);
+    s.w_t[i] = -(e2t * phi[i] - e1t * hq[i] + jrt * psi);
   }
   if (!tm.static_correction) return;
   ResidualInputs ri;
@@ -801,8 +798,8 @@ void warmToothSide(const WarmQuery& wq, const WarmPoint& pt, double omega_radps,
   g->residual_mpN = e2n * e2n * ri.r_ww_mpN;
   ri.wc_slope = pt.wc_slope;
   ri.hq = hq;
-  ri.phi = pt.phi;
-  ri.dphi = pt.dphi;
+  ri.phi = phi;
+  ri.dphi = dphi;
   ri.w1 = pt.w1;
   ri.w2 = pt.w2;
   ri.e1 = e1;
@@ -845,7 +842,8 @@ bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const
     return false;
   const Ellipse e = kernelEllipse(m, z, pair.b);
   const CosSin cs = cosSinOf(e.angle_rad);  // the kernel's angle, once per evaluation
-  WarmQuery wq{tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s, StationPair()};
+  WarmQuery wq{tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s, StationPair(),
+               DeflectionInterval()};
   WarmPoint pt;
   if (!warmNewton(&wq, warm_x_m, &pt)) return false;
   resetGeom(m, pair, g);

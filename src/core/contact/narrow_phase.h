@@ -91,14 +91,16 @@ struct ToothFrame {
 
 // The contact phase's narrow phase of a tooth-kernel pair in contact that was evaluated at its
 // last step (a warm pair; a modal tooth with modes): the closest point by Newton steps on the
-// closest-point condition n . rt_x = 0 from warm_x_m [m] with the mode table's phi, phi' and
-// phi'' (and its exact derivative through the ellipse's curvature), the stations bracketing it
-// computed directly, no polyline search and no transcendental function; then the Jacobians,
-// velocities, residual flexibility and Hertz constant as evaluateContact gives them (phi'' from
-// the table, to ~1e-12 of the exact one). frame: ToothFrame::update for the pair's tooth and the
-// drive's angle. Returns false when its guard doubts the warm answer (no strict minimum of the
-// distance, no convergence in a few steps, a move of more than a quarter station interval, or
-// a point that says the bodies are apart): then call evaluateContact, whose full path decides.
+// closest-point condition n . rt_x = 0 from warm_x_m [m], the deflection w, w', w'' from the
+// mode table contracted with q once per table interval (beam.h interpolateDeflection), the
+// condition's exact derivative through the ellipse's curvature, the stations bracketing the
+// point computed directly: no polyline search, no station update, no transcendental function
+// but the kernel angle's sincos. Then the Jacobians, velocities, residual flexibility and
+// Hertz constant as evaluateContact gives them (w'' from the table, to ~1e-12 of the exact
+// one). frame: ToothFrame::update for the pair's tooth and the drive's angle. Returns false
+// when its guard doubts the warm answer (no strict minimum of the distance, no convergence in
+// a few steps, a move of more than a quarter station interval, or a point that says the bodies
+// are apart): then call evaluateContact, whose full path decides.
 bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                              const PairId& pair, const ToothFrame& frame, double warm_x_m,
                              ContactGeom* g);
