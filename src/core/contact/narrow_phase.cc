@@ -688,6 +688,12 @@ constexpr double kWarmMaxMove_intervals = 0.25;
 // What the warm closest point's evaluations share: the tooth, its coordinates, its frame, the
 // kernel with the cosine and sine of its angle, and the stations bracketing the last point.
 struct WarmQuery {
+  // (A constructor: aggregate initialisation would value-initialise, i.e. zero, the stations'
+  // arrays, a kilobyte per pair.)
+  WarmQuery(const ToothModel& tooth, const double* coordinates, const ToothFrame& tooth_frame,
+            const Ellipse& kernel, double cos_angle, double sin_angle)
+      : tm(tooth), q(coordinates), frame(tooth_frame), e(kernel), cos_e(cos_angle),
+        sin_e(sin_angle) {}
   const ToothModel& tm;       // the tooth
   const double* q;            // its modal coordinates [sqrt(kg) m]
   const ToothFrame& frame;    // its axes in world at the drum angle
@@ -842,8 +848,7 @@ bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const
     return false;
   const Ellipse e = kernelEllipse(m, z, pair.b);
   const CosSin cs = cosSinOf(e.angle_rad);  // the kernel's angle, once per evaluation
-  WarmQuery wq{tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s, StationPair(),
-               DeflectionInterval()};
+  WarmQuery wq(tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s);
   WarmPoint pt;
   if (!warmNewton(&wq, warm_x_m, &pt)) return false;
   resetGeom(m, pair, g);
