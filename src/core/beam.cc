@@ -505,6 +505,57 @@ void interpolateModes(const ToothModel& tooth, double x_m, double* phi, double* 
   }
 }
 
+namespace {
+
+// The table interval holding x (as interpolateModes picks it) and the position u - j in it.
+int tableInterval(const ToothModel& tooth, double x_m, double* s) {
+  const double x = std::clamp(x_m, 0.0, tooth.length_m);
+  const double u = x / tooth.mode_table_dx_m;
+  const int j = std::clamp(static_cast<int>(u), 0, tooth.mode_table_intervals - 1);
+  *s = u - j;
+  return j;
+}
+
+// The contractions of table point j with q (DeflectionInterval::at).
+void contractPoint(const ToothModel& tooth, const double* q, int j, double* at) {
+  const int n = tooth.n_modes;
+  const double* p = tooth.mode_table->data() + static_cast<size_t>(4) * n * j;
+  for (int k = 0; k < 5; ++k) at[k] = 0.0;
+  for (int i = 0; i < n; ++i) {
+    at[0] += p[i] * q[i];
+    at[1] += p[n + i] * q[i];
+    at[2] += p[2 * n + i] * q[i];
+    at[3] += p[3 * n + i] * q[i];
+    at[4] += tooth.beta4_per_m4[i] * p[i] * q[i];
+  }
+}
+
+}  // namespace
+
+void interpolateDeflection(const ToothModel& tooth, const double* q, double x_m,
+                           DeflectionInterval* interval, double* w, double* w1, double* w2) {
+  if (tooth.n_modes == 0) {
+    *w = *w1 = *w2 = 0.0;
+    return;
+  }
+  double s = 0;
+  const int j = tableInterval(tooth, x_m, &s);
+  if (interval->j != j) {
+    interval->j = j;
+    contractPoint(tooth, q, j, interval->at[0]);
+    contractPoint(tooth, q, j + 1, interval->at[1]);
+  }
+  const QuinticHermite hb(s, tooth.mode_table_dx_m);
+  const double* a = interval->at[0];
+  const double* b = interval->at[1];
+  *w = hb.w[0] * a[0] + hb.w[1] * a[1] + hb.w[2] * a[2] + hb.w[3] * b[0] + hb.w[4] * b[1] +
+       hb.w[5] * b[2];
+  *w1 = hb.dw[0] * a[0] + hb.dw[1] * a[1] + hb.dw[2] * a[2] + hb.dw[3] * b[0] +
+        hb.dw[4] * b[1] + hb.dw[5] * b[2];
+  *w2 = hb.w[0] * a[2] + hb.w[1] * a[3] + hb.w[2] * a[4] + hb.w[3] * b[2] + hb.w[4] * b[3] +
+        hb.w[5] * b[4];
+}
+
 void interpolateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi) {
   phi->resize(tooth.n_modes);
   dphi->resize(tooth.n_modes);

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "threshing_sim/core/beam.h"
 #include "threshing_sim/core/constants.h"
@@ -640,4 +641,40 @@ TEST(BeamTest, ModeTableIsExactAtTheStations) {
 }
 
 }  // namespace
+// interpolateDeflection (the contact phase's warm narrow phase): w, w', w'' from one table
+// interval contracted with q equal phi . q, phi' . q, phi'' . q of interpolateModes to
+// rounding, also when the interval held changes between calls, at the table points and ends.
+TEST(BeamTest, DeflectionFromTheContractedTableMatchesTheModes) {
+  for (int n : {1, 4, 12}) {
+    const ToothModel tooth = makeNylonTooth(n);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> coord(-1e-4, 1e-4);
+    VecX q(n);
+    for (int i = 0; i < n; ++i) q[i] = coord(rng) / (i + 1);
+    std::vector<double> xs = {0.0, tooth.length_m, tooth.mode_table_dx_m, 0.5 * tooth.length_m};
+    std::uniform_real_distribution<double> along(0.0, tooth.length_m);
+    for (int k = 0; k < 200; ++k) xs.push_back(along(rng));
+    DeflectionInterval interval;  // kept across the calls, as the narrow phase keeps it
+    double scale0 = 0, scale1 = 0, scale2 = 0, err0 = 0, err1 = 0, err2 = 0;
+    for (double x : xs) {
+      VecX phi(n), dphi(n), ddphi(n);
+      interpolateModes(tooth, x, phi.data(), dphi.data(), ddphi.data());
+      double w = 0, w1 = 0, w2 = 0;
+      interpolateDeflection(tooth, q.data(), x, &interval, &w, &w1, &w2);
+      err0 = std::max(err0, std::abs(w - phi.dot(q)));
+      err1 = std::max(err1, std::abs(w1 - dphi.dot(q)));
+      err2 = std::max(err2, std::abs(w2 - ddphi.dot(q)));
+      scale0 = std::max(scale0, phi.cwiseAbs().dot(q.cwiseAbs()));
+      scale1 = std::max(scale1, dphi.cwiseAbs().dot(q.cwiseAbs()));
+      scale2 = std::max(scale2, ddphi.cwiseAbs().dot(q.cwiseAbs()));
+    }
+    EXPECT_LT(err0, 1e-14 * scale0) << n << " modes";
+    EXPECT_LT(err1, 1e-12 * scale1) << n << " modes";  // the slope weights go as 1/dx
+    EXPECT_LT(err2, 1e-14 * scale2) << n << " modes";
+    RecordProperty("relative_error_w_" + std::to_string(n), fmt(err0 / scale0));
+    RecordProperty("relative_error_w1_" + std::to_string(n), fmt(err1 / scale1));
+    RecordProperty("relative_error_w2_" + std::to_string(n), fmt(err2 / scale2));
+  }
+}
+
 }  // namespace threshing_sim

@@ -770,4 +770,135 @@ TEST(ContactDrift, KernelPairsMatchCentralDifferences) {
 }
 
 }  // namespace
+// ---------------------------------------------------------------------------------------------
+// The contact phase's warm narrow phase (evaluateWarmToothKernel) against the full one.
+//
+// The tooth deflected and vibrating, the kernel pressed 50 um into it, then everything moved on
+// by dt along the motion (the kernel spinning at 300 rad/s, the drum at 800 rpm): the warm path
+// started from the closest point before the move must give what the full path (polyline search
+// and secant refinement) gives after it. Both converge on the same root of the same condition
+// (to 1e-13 L and 1e-15 L): the gap, being stationary there, agrees to rounding; the point, the
+// normal and the Jacobians to ~1e-12 relative; w_r also carries the mode table's phi''
+// (~1e-12 of the exact one that the full path evaluates).
+
+// The warm path at (z, u, theta) from warm_x_m; false if its guard refused.
+bool evaluateWarm(const Model& m, const Motion& mo, const PairId& pair, double warm_x_m,
+                  ContactGeom* g) {
+  Drive dr;
+  dr.theta_rad = mo.theta;
+  dr.omega_radps = mo.omega;
+  internal::ToothFrame frame;
+  frame.update(m, pair.a, mo.theta);
+  return internal::evaluateWarmToothKernel(m, mo.z, mo.u, dr, pair, frame, warm_x_m, g);
+}
+
+// Largest relative difference of two Jacobian rows, on the scale of the larger row [-].
+double rowDifference(const internal::SmallVec& a, const internal::SmallVec& b) {
+  EXPECT_EQ(a.size(), b.size());
+  double diff = 0.0, scale = 1e-300;
+  for (int i = 0; i < a.size() && i < b.size(); ++i) {
+    diff = std::max(diff, std::abs(a[i] - b[i]));
+    scale = std::max({scale, std::abs(a[i]), std::abs(b[i])});
+  }
+  return diff / scale;
+}
+
+void expectWarmMatchesFull(const ContactGeom& w, const ContactGeom& f, const std::string& at) {
+  constexpr double kRel = 1e-11;  // Jacobians, velocities, residual (seen: 5e-14) [-]
+  EXPECT_FALSE(w.far) << at;
+  EXPECT_NEAR(w.gap_m, f.gap_m, 1e-17) << at;          // seen: 2e-18 m
+  EXPECT_NEAR(w.tooth_x_m, f.tooth_x_m, 1e-14) << at;  // seen: 9e-16 m
+  EXPECT_NEAR((w.n - f.n).norm(), 0.0, 1e-12) << at;
+  EXPECT_NEAR((w.t - f.t).norm(), 0.0, 1e-12) << at;
+  EXPECT_NEAR((w.p0 - f.p0).norm(), 0.0, 1e-15) << at;
+  EXPECT_NEAR((w.p1 - f.p1).norm(), 0.0, 1e-15) << at;
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_EQ(w.side[k].body, f.side[k].body) << at;
+    EXPECT_LT(rowDifference(w.side[k].w_n, f.side[k].w_n), kRel) << at << " side " << k;
+    EXPECT_LT(rowDifference(w.side[k].w_t, f.side[k].w_t), kRel) << at << " side " << k;
+    EXPECT_LT(rowDifference(w.side[k].w_r, f.side[k].w_r), kRel) << at << " side " << k;
+  }
+  // Velocities relative to the relative speed, the rheonomic terms to Omega |p0| (either
+  // component can be a small difference of large terms).
+  const double speed = std::hypot(f.vn, f.vt), drum = std::hypot(f.wtilde_n, f.wtilde_t);
+  EXPECT_NEAR(w.vn, f.vn, kRel * speed) << at;
+  EXPECT_NEAR(w.vt, f.vt, kRel * speed) << at;
+  EXPECT_NEAR(w.wtilde_n, f.wtilde_n, kRel * drum) << at;
+  EXPECT_NEAR(w.wtilde_t, f.wtilde_t, kRel * drum) << at;
+  EXPECT_NEAR(w.residual_mpN, f.residual_mpN, kRel * f.residual_mpN) << at;
+  EXPECT_NEAR(w.residual_dtheta_mpNprad, f.residual_dtheta_mpNprad,
+              kRel * std::abs(f.residual_dtheta_mpNprad) + 1e-30) << at;
+  EXPECT_NEAR(w.rho1_m, f.rho1_m, kRel * f.rho1_m) << at;
+  EXPECT_NEAR(w.hertz_K, f.hertz_K, kRel * f.hertz_K) << at;
+}
+
+TEST(WarmNarrowPhase, MatchesTheFullPathOnADeformedToothAndAMovedKernel) {
+  const Model m = contactModel(4);
+  const PairId pair{PairKind::kToothKernel, 0, 0};
+  // Mid-interval, at a station, near the tip (tilted back: on the tip's end, x = L); the kernel
+  // tilted both ways.
+  for (double x_c : {0.0200, 0.0375, 0.0560}) {
+    for (double tilt_rad : {0.1, -0.3}) {
+      Motion mo = toothKernelMotion(m, x_c, tilt_rad);
+      placeAtGap(m, &mo, pair, 0, -5e-5);
+      const ContactGeom before = evaluate(m, mo.z, mo.u, mo.theta, mo.omega, pair);
+      ASSERT_LT(before.gap_m, 0.0);
+      const double dt = 1e-6;  // a contact-phase step [s]
+      mo.z += dt * mo.u;
+      mo.theta += dt * mo.omega;
+      const ContactGeom full = evaluate(m, mo.z, mo.u, mo.theta, mo.omega, pair);
+      ContactGeom warm;
+      const std::string at = "x_c = " + fmt(x_c) + ", tilt = " + fmt(tilt_rad);
+      ASSERT_TRUE(evaluateWarm(m, mo, pair, before.tooth_x_m, &warm)) << at;
+      if (before.tooth_x_m < m.teeth[0].length_m) {  // the point moved (or stays at the tip)
+        EXPECT_GT(std::abs(full.tooth_x_m - before.tooth_x_m), 1e-9) << at;
+      }
+      expectWarmMatchesFull(warm, full, at);
+      RecordProperty("x_move_m_" + fmt(x_c) + "_" + fmt(tilt_rad),
+                     fmt(full.tooth_x_m - before.tooth_x_m));
+    }
+  }
+}
+
+// A warm start as far off as the closest point's move over a few steps still converges.
+TEST(WarmNarrowPhase, ConvergesFromAWarmStartAFewMicrometresOff) {
+  const Model m = contactModel(4);
+  const PairId pair{PairKind::kToothKernel, 0, 0};
+  Motion mo = toothKernelMotion(m, 0.033, 0.2);
+  placeAtGap(m, &mo, pair, 0, -5e-5);
+  const ContactGeom full = evaluate(m, mo.z, mo.u, mo.theta, mo.omega, pair);
+  for (double off_m : {-5e-6, 2e-6, 5e-6}) {
+    ContactGeom warm;
+    ASSERT_TRUE(evaluateWarm(m, mo, pair, full.tooth_x_m + off_m, &warm)) << off_m;
+    expectWarmMatchesFull(warm, full, "off = " + fmt(off_m));
+  }
+}
+
+// The guard: a warm start more than a quarter station interval from the closest point, a
+// separated pair (the warm point says the bodies are apart: the polyline search decides), no
+// warm start, and a rigid tooth all leave the pair to the full path.
+TEST(WarmNarrowPhase, FallsBackToTheFullPathWhenTheWarmStartIsDoubtful) {
+  const Model m = contactModel(4);
+  const PairId pair{PairKind::kToothKernel, 0, 0};
+  Motion mo = toothKernelMotion(m, 0.033, 0.1);
+  placeAtGap(m, &mo, pair, 0, -5e-5);
+  const ContactGeom full = evaluate(m, mo.z, mo.u, mo.theta, mo.omega, pair);
+  ContactGeom warm;
+  const double interval_m = m.teeth[0].length_m / (m.teeth[0].n_stations - 1);
+  EXPECT_FALSE(evaluateWarm(m, mo, pair, full.tooth_x_m - 0.5 * interval_m, &warm));
+  EXPECT_FALSE(evaluateWarm(m, mo, pair, 0.2 * m.teeth[0].length_m, &warm));
+  EXPECT_FALSE(evaluateWarm(m, mo, pair, -1.0, &warm));
+  Motion apart = mo;
+  placeAtGap(m, &apart, pair, 0, 1e-4);
+  EXPECT_FALSE(evaluateWarm(m, apart, pair, full.tooth_x_m, &warm));
+  const Model rigid = contactModel(0);
+  Motion mr;
+  mr.z = VecX::Zero(rigid.n_dof);
+  mr.u = VecX::Zero(rigid.n_dof);
+  mr.z.segment<2>(rigid.kernels[0].dof_offset) = Vec2(0.233, 0.0063);
+  mr.theta = 0.0;
+  mr.omega = 83.78;
+  EXPECT_FALSE(evaluateWarm(rigid, mr, pair, 0.033, &warm));
+}
+
 }  // namespace threshing_sim

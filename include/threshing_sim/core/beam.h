@@ -76,6 +76,20 @@ void interpolateModes(const ToothModel& tooth, double x_m, VecX* phi, VecX* dphi
 // phi''(x) from the table (as the ddphi of interpolateModes) [1/(sqrt(kg) m^2)].
 void interpolateModeCurvatures(const ToothModel& tooth, double x_m, VecX* ddphi);
 
+// One interval of the mode table contracted with the modal coordinates q: at its two points,
+// phi . q, phi' . q, phi'' . q, phi''' . q and (beta^4 phi) . q [1/m^(k-1)] (interpolateDeflection
+// fills it for the interval it needs and reuses it while the interval stays; q must not change).
+struct DeflectionInterval {
+  int j = -1;                 // the table interval [x_j, x_{j+1}] held (-1: none) [-]
+  double at[2][5] = {{0.0}};  // the contractions at x_j and x_{j+1} [1/m^(k-1)]
+};
+// The deflection w(x) = phi(x) . q [m] and its derivatives w' [-] and w'' [1/m] from the mode
+// table, equal to interpolateModes's phi, phi', phi'' dotted with q (to rounding) for the cost
+// of one interval's contraction (5 dot products of n at each end, kept in *interval) and a
+// few scalar operations per call. q: n_modes coordinates [sqrt(kg) m].
+void interpolateDeflection(const ToothModel& tooth, const double* q, double x_m,
+                           DeflectionInterval* interval, double* w, double* w1, double* w2);
+
 // H(x) = int_0^x phi' phi'^T d xi (n x n) [1/(kg m)], linearly interpolated between stations.
 void interpolateH(const ToothModel& tooth, double x_m, MatX* H);
 

@@ -345,24 +345,25 @@ struct ResidualInputs {
   double dr_ww_dx_mpNpm = 0;   // its derivative in x (C^1 interpolant) [1/N]
   double wc_slope = 0;         // d w_c / dx of the stations' foreshortening at x* [-]
   const double* hq = nullptr;  // H(x*) q per mode, blended as the narrow phase does [1/sqrt(kg)]
+  const double* phi = nullptr;   // phi(x*) per mode [1/sqrt(kg)]
+  const double* dphi = nullptr;  // phi'(x*) per mode [1/(sqrt(kg) m)]
+  double w1 = 0, w2 = 0;         // w'(x*) = phi' . q [-], w''(x*) = phi'' . q [1/m]
+  Vec2 e1 = Vec2::UnitX(), e2 = Vec2::UnitY();  // the tooth's axes in world at the drum angle [-]
 };
 
 // The residual flexibility along n, R = (e2.n)^2 r_ww(x*) (docs/model.md §9b), differentiated
 // along every coordinate (the sides' w_r) and the drum angle (residual_dtheta_mpNprad): R moves
 // with the normal's direction (dR/dphi = 2 (e2.n)(e2.t) r_ww) and with the closest point
 // (dR/dx* = (e2.n)^2 r_ww'), both given by ClosestPointSensitivity.
-void residualGradient(const NarrowInput& in, const ToothModel& tm, const ResidualInputs& ri,
+void residualGradient(const Vec2& kernel_center_m, const ToothModel& tm, const ResidualInputs& ri,
                       ContactGeom* g) {
-  Workspace* ws = in.ws;
   const int n_modes = tm.n_modes;
   const double x = g->tooth_x_m, r_t = 0.5 * tm.diameter_m;
-  const Rotation2 rot(in.drive.theta_rad);
-  const Vec2 e1 = rot * tm.e1_D, e2 = rot * tm.e2_D;
-  evaluateModeCurvatures(tm, x, &ws->centreline.scratch_ddphi);
-  const VecX& phi = ws->centreline.scratch_phi;
-  const VecX& dphi = ws->centreline.scratch_dphi;
-  const auto q = in.z.segment(tm.dof_offset, n_modes);
-  const double w1 = dphi.dot(q), w2 = ws->centreline.scratch_ddphi.dot(q);  // w', w'' [-, 1/m]
+  const Vec2& e1 = ri.e1;
+  const Vec2& e2 = ri.e2;
+  const double* phi = ri.phi;
+  const double* dphi = ri.dphi;
+  const double w1 = ri.w1, w2 = ri.w2;  // w', w'' [-, 1/m]
   ClosestPointSensitivity cp;
   cp.n = g->n;
   cp.t = g->t;
@@ -389,7 +390,7 @@ void residualGradient(const NarrowInput& in, const ToothModel& tm, const Residua
   s1.w_r.resize(3);
   s1.w_r[0] = rate(-Vec2::UnitX(), Vec2::Zero(), 0.0);
   s1.w_r[1] = rate(-Vec2::UnitY(), Vec2::Zero(), 0.0);
-  s1.w_r[2] = rate(-perp(p_W - in.e.center), Vec2::Zero(), 1.0);
+  s1.w_r[2] = rate(-perp(p_W - kernel_center_m), Vec2::Zero(), 1.0);
   // The drum turning the tooth (point, tangent and e2) past the kernel.
   g->residual_dtheta_mpNprad =
       rate(perp(p_W), perp(cp.rt_x), 0.0) + 2.0 * c * ri.r_ww_mpN * perp(e2).dot(g->n);
@@ -438,7 +439,44 @@ void modalToothSide(const NarrowInput& in, const ToothModel& tm, bool from_warm,
           ? (direct->wc1 - direct->wc0) / dx_m
           : (ws->centreline.station_wc_m[col_h + 1] - ws->centreline.station_wc_m[col_h]) / dx_m;
   ri.hq = hq;
-  residualGradient(in, tm, ri, g);
+  evaluateModeCurvatures(tm, g->tooth_x_m, &ws->centreline.scratch_ddphi);
+  const auto q = in.z.segment(tm.dof_offset, n);
+  ri.phi = ws->centreline.scratch_phi.data();
+  ri.dphi = ws->centreline.scratch_dphi.data();
+  ri.w1 = ws->centreline.scratch_dphi.dot(q);
+  ri.w2 = ws->centreline.scratch_ddphi.dot(q);
+  ri.e1 = e1;
+  ri.e2 = e2;
+  residualGradient(in.e.center, tm, ri, g);
+}
+
+// The contact frame of a tooth pair from its closest point's proximity (point1: the centreline
+// point): gap, normal, tangent, the contact points on the tooth's surface and the kernel's, and
+// the kernel's radius of curvature there.
+void setToothContactFrame(const Proximity& best, double r_t, ContactGeom* g) {
+  g->gap_m = best.distance_m - r_t;
+  g->rho1_m = best.radius2_m;
+  g->n = best.normal;
+  g->t = perp(g->n);
+  g->p0 = best.point1 + r_t * g->n;
+  g->p1 = best.point2;
+}
+
+// A tooth pair whose frame is set: the rheonomic term of the drum turning at omega_radps and
+// the Hertz inputs.
+void toothRheonomicAndHertz(const ToothModel& tm, const KernelModel& kern, const Ellipse& e,
+                            double omega_radps, ContactGeom* g, HertzInputs* h) {
+  const double r_t = 0.5 * tm.diameter_m;
+  // Rheonomic term: the drum carries the tooth point at Omega J p0.
+  g->wtilde_n = -omega_radps * cross(g->p0, g->n);
+  g->wtilde_t = -omega_radps * cross(g->p0, g->t);
+  // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
+  const bool at_tip = g->tooth_x_m >= tm.length_m * (1.0 - 1e-9);
+  h->r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
+                         ellipseCurvatureRadius(e, g->p1));
+  h->r_out = seriesRadius(r_t, kern.semi_axis_b_m);
+  h->E_star = effectiveModulus(tm.youngs_modulus_Pa, tm.poisson_ratio, kern.youngs_modulus_Pa,
+                               kern.poisson_ratio);
 }
 
 // Tooth (body 0) against a kernel: the closest point of the deformed centreline, the tooth's
@@ -452,12 +490,7 @@ bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
   bool from_warm = false;  // the closest point came from the warm start
   if (!toothClosestPoint(in, tm, &direct, &from_warm, g, &best)) return false;
   if (in.warm_x_m != nullptr) *in.warm_x_m = g->tooth_x_m;
-  g->gap_m = best.distance_m - r_t;
-  g->rho1_m = best.radius2_m;
-  g->n = best.normal;
-  g->t = perp(g->n);
-  g->p0 = best.point1 + r_t * g->n;
-  g->p1 = best.point2;
+  setToothContactFrame(best, r_t, g);
 
   // Tooth side: velocity of the surface point = Omega J p0 + Jq qdot, with
   // Jq = A(theta) (e2 phi^T - e1 (H q)^T) + (J r_t n) psi^T (psi: the sections' rotation).
@@ -470,16 +503,7 @@ bool toothKernel(const NarrowInput& in, ContactGeom* g, HertzInputs* h) {
     rodToothSide(in, tm, g);
   else if (n > 0)
     modalToothSide(in, tm, from_warm, &direct, g);
-  // Rheonomic term: the drum carries the tooth point at Omega J p0.
-  g->wtilde_n = -in.drive.omega_radps * cross(g->p0, g->n);
-  g->wtilde_t = -in.drive.omega_radps * cross(g->p0, g->t);
-  // Hertz: tooth flat along its side in plane (round at the tip), round (r_t) across.
-  const bool at_tip = g->tooth_x_m >= tm.length_m * (1.0 - 1e-9);
-  h->r_in = seriesRadius(at_tip ? r_t : std::numeric_limits<double>::infinity(),
-                         ellipseCurvatureRadius(in.e, g->p1));
-  h->r_out = seriesRadius(r_t, in.kern.semi_axis_b_m);
-  h->E_star = effectiveModulus(tm.youngs_modulus_Pa, tm.poisson_ratio, in.kern.youngs_modulus_Pa,
-                               in.kern.poisson_ratio);
+  toothRheonomicAndHertz(tm, in.kern, in.e, in.drive.omega_radps, g, h);
   return true;
 }
 
@@ -634,11 +658,8 @@ void kernelSide(const Model& m, const VecX& u, int kb, const Ellipse& e, Contact
   }
 }
 
-}  // namespace
-
-void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
-                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
-                     bool tight_bound, double* warm_x_m, double* warm_theta_rad) {
+// What every evaluation of a pair starts from: nothing known yet.
+void resetGeom(const Model& m, const PairId& pair, ContactGeom* g) {
   g->pair = pair;
   g->far = false;
   g->params = &m.contact[static_cast<int>(pair.kind)];
@@ -651,6 +672,204 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   g->side[0].body = -1;
   g->side[0].w_n.resize(0);
   g->side[0].w_t.resize(0);
+}
+
+
+// --- tooth against kernel, warm (the contact phase) -------------------------------------------
+
+// Newton steps on the closest-point condition of a warm pair: at most this many evaluations
+// [-], stopped once the next correction is below kWarmTol_L of the tooth's length [-] (the
+// point evaluated last is kept: within that of the root) or taken without a new projection
+// below kWarmPolish_L (polish), and no farther from the warm start than kWarmMaxMove_intervals
+// station intervals [-].
+constexpr int kWarmMaxEvaluations = 5;
+constexpr double kWarmTol_L = 1e-13;
+constexpr double kWarmMaxMove_intervals = 0.25;
+
+// What the warm closest point's evaluations share: the tooth, its coordinates, its frame, the
+// kernel with the cosine and sine of its angle, and the stations bracketing the last point.
+struct WarmQuery {
+  // (A constructor: aggregate initialisation would value-initialise, i.e. zero, the stations'
+  // arrays, a kilobyte per pair.)
+  WarmQuery(const ToothModel& tooth, const double* coordinates, const ToothFrame& tooth_frame,
+            const Ellipse& kernel, double cos_angle, double sin_angle)
+      : tm(tooth), q(coordinates), frame(tooth_frame), e(kernel), cos_e(cos_angle),
+        sin_e(sin_angle) {}
+  const ToothModel& tm;       // the tooth
+  const double* q;            // its modal coordinates [sqrt(kg) m]
+  const ToothFrame& frame;    // its axes in world at the drum angle
+  const Ellipse& e;           // the kernel
+  double cos_e, sin_e;        // cos and sin of the kernel's angle [-]
+  StationPair stations;       // H q and w_c at the stations bracketing the last point
+  DeflectionInterval deflection;  // the mode table's interval of the last point, times q
+};
+
+// The deformed centreline of a modal tooth at material coordinate x_m against the kernel:
+// everything the closest-point condition h = n . rt_x and its derivative need.
+struct WarmPoint {
+  double x_m = 0;           // material coordinate [m]
+  int s = 0;                // station interval holding x [-]
+  double t = 0;             // blend weight of its station s + 1 [-]
+  double w1 = 0, w2 = 0;    // w' [-], w'' [1/m]
+  double wc_slope = 0;      // d w_c / dx [-]
+  Vec2 r = Vec2::Zero();    // centreline point, world [m]
+  Vec2 rt_x = Vec2::Zero(); // the condition's tangent (1 - w'^2/2) e1 + w' e2, world [-]
+  Proximity p;              // the centreline point against the kernel
+  double h = 0;             // the condition n . rt_x [-]
+  double dh = 0;            // its derivative in x [1/m]
+};
+
+// The centreline at x_m into *pt (the stations' H q and w_c computed directly), not its
+// proximity.
+void warmCentrelineAt(WarmQuery* wq, double x_m, WarmPoint* pt) {
+  const ToothModel& tm = wq->tm;
+  pt->x_m = x_m;
+  double w = 0;  // deflection [m]
+  interpolateDeflection(tm, wq->q, x_m, &wq->deflection, &w, &pt->w1, &pt->w2);
+  stationInterval(tm, x_m, &pt->s, &pt->t);
+  wq->stations.update(tm, pt->s, wq->q);
+  const StationPair& st = wq->stations;
+  const double wc = (1.0 - pt->t) * st.wc0 + pt->t * st.wc1;
+  pt->wc_slope = (st.wc1 - st.wc0) / (tm.station_x_m[pt->s + 1] - tm.station_x_m[pt->s]);
+  const Vec2& e1 = wq->frame.e1_W;
+  const Vec2& e2 = wq->frame.e2_W;
+  pt->r = wq->frame.root_W + (x_m + wc) * e1 + w * e2;
+  pt->rt_x = (1.0 - 0.5 * pt->w1 * pt->w1) * e1 + pt->w1 * e2;
+}
+
+// The closest-point condition h = n . rt_x at the point *pt (its centreline from
+// warmCentrelineAt, its proximity in pt->p) and its derivative dh/dx.
+void warmCondition(const WarmQuery& wq, WarmPoint* pt) {
+  const Vec2& e1 = wq.frame.e1_W;
+  const Vec2& e2 = wq.frame.e2_W;
+  const Vec2& n_W = pt->p.normal;
+  pt->h = n_W.dot(pt->rt_x);
+  // dh/dx = n' . rt_x + n . rt_xx; the normal turns at n' = -kappa (t . r_x) t as the point
+  // moves along r_x (kappa = 1 / (rho + d), the ellipse's curvature seen from the point).
+  const Vec2 r_x = (1.0 + pt->wc_slope) * e1 + pt->w1 * e2;
+  const Vec2 rt_xx = -pt->w1 * pt->w2 * e1 + pt->w2 * e2;
+  const Vec2 t_W = perp(n_W);
+  const double kappa = 1.0 / (pt->p.radius2_m + pt->p.distance_m);
+  pt->dh = -kappa * t_W.dot(r_x) * t_W.dot(pt->rt_x) + n_W.dot(rt_xx);
+}
+
+// Whether the point evaluated is a minimum of the distance along the tooth at an end of it: the
+// distance falls out of [0, L] there (its slope is -h).
+bool atEndMinimum(const ToothModel& tm, const WarmPoint& pt) {
+  return (pt.x_m >= tm.length_m && pt.h >= 0.0) || (pt.x_m <= 0.0 && pt.h <= 0.0);
+}
+
+// Newton steps from x_warm_m on the closest-point condition (the distance's minimum: dh < 0
+// inside the tooth, or an end where the distance falls out of it); false where the guard
+// doubts the answer. *pt: the point evaluated last, the closest point.
+// The centreline at x_m and its proximity, with the condition (a full evaluation).
+void warmPointAt(WarmQuery* wq, double x_m, WarmPoint* pt) {
+  warmCentrelineAt(wq, x_m, pt);
+  pt->p = pointEllipse(pt->r, wq->e, wq->cos_e, wq->sin_e);
+  warmCondition(*wq, pt);
+}
+
+// The last Newton step, when it is below kWarmPolish_L of the tooth's length [-], moves the
+// point's proximity to first order instead of projecting it again: with the move delta of the
+// centreline point, the distance d - n.delta + kappa (t.delta)^2 / 2 and the normal turned by
+// -kappa t.delta (kappa = 1 / (rho + d)) are exact but for O(kappa |delta|^2), ~1e-18 m and
+// ~1e-15 rad at 1e-9 L on a 60 mm tooth against a 1.3 mm radius of curvature.
+constexpr double kWarmPolish_L = 1e-9;
+
+// The proximity *p of the centreline point moved by delta_m [m], to first order (second in the
+// distance); the ellipse's radius of curvature at the new foot point from its normal.
+void movedProximity(const WarmQuery& wq, const Vec2& delta_m, Proximity* p) {
+  const Vec2 n0 = p->normal, t0 = perp(n0);
+  const double kappa = 1.0 / (p->radius2_m + p->distance_m);  // [1/m]
+  const double along = t0.dot(delta_m);                        // [m]
+  const double turn = -kappa * along;                           // [rad]
+  p->distance_m += -n0.dot(delta_m) + 0.5 * kappa * along * along;
+  p->normal = (1.0 - 0.5 * turn * turn) * n0 + turn * t0;
+  p->point1 += delta_m;
+  p->point2 = p->point1 + p->distance_m * p->normal;
+  // Outward normal -n in the ellipse's frame; rho = a^2 b^2 / h^3, h its support value.
+  const double na = -(wq.cos_e * p->normal.x() + wq.sin_e * p->normal.y());
+  const double nb = -(-wq.sin_e * p->normal.x() + wq.cos_e * p->normal.y());
+  const double a = wq.e.a_m, b = wq.e.b_m;
+  const double h = std::sqrt(a * a * na * na + b * b * nb * nb);
+  p->radius2_m = a * a * b * b / (h * h * h);
+}
+
+// The last Newton step to x_m [m]: the centreline there, its proximity moved to first order.
+void polish(WarmQuery* wq, double x_m, WarmPoint* pt) {
+  const Vec2 r_before = pt->r;
+  const Proximity p_before = pt->p;
+  warmCentrelineAt(wq, x_m, pt);
+  pt->p = p_before;
+  movedProximity(*wq, pt->r - r_before, &pt->p);
+}
+
+bool warmNewton(WarmQuery* wq, double x_warm_m, WarmPoint* pt) {
+  const ToothModel& tm = wq->tm;
+  const double L = tm.length_m;
+  const double max_move_m = kWarmMaxMove_intervals * L / std::max(1, tm.n_stations - 1);
+  double x = std::clamp(x_warm_m, 0.0, L);
+  for (int it = 0; it < kWarmMaxEvaluations; ++it) {
+    warmPointAt(wq, x, pt);
+    if (std::abs(x - x_warm_m) > max_move_m) return false;
+    if (atEndMinimum(tm, *pt)) return pt->p.distance_m <= 0.5 * tm.diameter_m;
+    if (!(pt->dh < 0.0)) return false;  // not a strict minimum of the distance
+    const double x_next = std::clamp(x - pt->h / pt->dh, 0.0, L);
+    if (std::abs(x_next - x) <= kWarmPolish_L * L) {
+      if (std::abs(x_next - x) > kWarmTol_L * L) polish(wq, x_next, pt);
+      return pt->p.distance_m <= 0.5 * tm.diameter_m;  // apart: the full path decides
+    }
+    x = x_next;
+  }
+  return false;
+}
+
+// The tooth's side of a warm pair's Jacobians and its residual flexibility, as modalToothSide
+// gives them, from the closest point *pt (its w'' from the mode table: interpolateDeflection).
+void warmToothSide(const WarmQuery& wq, const WarmPoint& pt, double omega_radps, int tooth,
+                   ContactGeom* g) {
+  const ToothModel& tm = wq.tm;
+  const StationPair& st = wq.stations;
+  const int n = tm.n_modes;
+  const double r_t = 0.5 * tm.diameter_m;
+  BodyJac& s = g->side[0];
+  s.body = toothBody(tooth);
+  s.w_n.resize(n);
+  s.w_t.resize(n);
+  const Vec2& e1 = wq.frame.e1_W;
+  const Vec2& e2 = wq.frame.e2_W;
+  const Vec2 jr = perp(r_t * g->n);
+  const double e2n = e2.dot(g->n), e1n = e1.dot(g->n), jrn = jr.dot(g->n);
+  const double e2t = e2.dot(g->t), e1t = e1.dot(g->t), jrt = jr.dot(g->t);
+  double phi[kMaxModes], dphi[kMaxModes];  // [1/sqrt(kg)], [1/(sqrt(kg) m)]
+  interpolateModes(tm, pt.x_m, phi, dphi);
+  double hq[kMaxModes];  // H(x) q [1/sqrt(kg)]
+  for (int i = 0; i < n; ++i) {
+    hq[i] = (1.0 - pt.t) * st.hq0[i] + pt.t * st.hq1[i];
+    const double psi = tm.rotation_factor[i] * dphi[i];  // section turn
+    s.w_n[i] = -(e2n * phi[i] - e1n * hq[i] + jrn * psi);
+    s.w_t[i] = -(e2t * phi[i] - e1t * hq[i] + jrt * psi);
+  }
+  if (!tm.static_correction) return;
+  ResidualInputs ri;
+  ri.r_ww_mpN = residualSmoothAtSpeed(tm, omega_radps, pt.x_m, &ri.dr_ww_dx_mpNpm);
+  g->residual_mpN = e2n * e2n * ri.r_ww_mpN;
+  ri.wc_slope = pt.wc_slope;
+  ri.hq = hq;
+  ri.phi = phi;
+  ri.dphi = dphi;
+  ri.w1 = pt.w1;
+  ri.w2 = pt.w2;
+  ri.e1 = e1;
+  ri.e2 = e2;
+  residualGradient(wq.e.center, tm, ri, g);
+}
+}  // namespace
+
+void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                     const PairId& pair, Workspace* ws, ContactGeom* g, double far_m,
+                     bool tight_bound, double* warm_x_m, double* warm_theta_rad) {
+  resetGeom(m, pair, g);
   const int kb = pair.kind == PairKind::kKernelObstacle ? pair.a : pair.b;
   const Ellipse e = kernelEllipse(m, z, kb);
   const EllipseWidth width(e);
@@ -660,6 +879,41 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
   if (!kPairFunctions[pairFunctionIndex(m, pair)](in, g, &h)) return;
   kernelSide(m, u, kb, e, g);
   g->hertz_K = hertzConstant(h.E_star, h.r_in, h.r_out);
+}
+
+void ToothFrame::update(const Model& m, int tooth_index, double drum_angle_rad) {
+  if (tooth == tooth_index && theta_rad == drum_angle_rad) return;
+  tooth = tooth_index;
+  theta_rad = drum_angle_rad;
+  const ToothModel& tm = m.teeth[tooth_index];
+  const Rotation2 rot(drum_angle_rad);
+  e1_W = rot * tm.e1_D;
+  e2_W = rot * tm.e2_D;
+  root_W = rot * tm.p_DR_D;
+}
+
+bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                             const PairId& pair, const ToothFrame& frame, double warm_x_m,
+                             ContactGeom* g) {
+  const ToothModel& tm = m.teeth[pair.a];
+  if (tm.n_modes == 0 || tm.beam_model != ToothBeamModel::kModal || !(warm_x_m >= 0.0))
+    return false;
+  const Ellipse e = kernelEllipse(m, z, pair.b);
+  const CosSin cs = cosSinOf(e.angle_rad);  // the kernel's angle, once per evaluation
+  WarmQuery wq(tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s);
+  WarmPoint pt;
+  if (!warmNewton(&wq, warm_x_m, &pt)) return false;
+  resetGeom(m, pair, g);
+  g->tooth_x_m = pt.x_m;
+  Proximity best = pt.p;
+  best.point1 = pt.r;
+  setToothContactFrame(best, 0.5 * tm.diameter_m, g);
+  warmToothSide(wq, pt, drive.omega_radps, pair.a, g);
+  HertzInputs h;
+  toothRheonomicAndHertz(tm, m.kernels[pair.b], e, drive.omega_radps, g, &h);
+  kernelSide(m, u, pair.b, e, g);
+  g->hertz_K = hertzConstant(h.E_star, h.r_in, h.r_out);
+  return true;
 }
 
 }  // namespace internal

@@ -77,5 +77,33 @@ void evaluateContact(const Model& m, const VecX& z, const VecX& u, const Drive& 
                      bool tight_bound = false, double* warm_x_m = nullptr,
                      double* warm_theta_rad = nullptr);
 
+// What the warm tooth-kernel pairs of one tooth share at one evaluation (evaluateWarmToothKernel):
+// the tooth's axes turned by the drum, computed once per tooth and evaluation.
+struct ToothFrame {
+  int tooth = -1;              // the tooth it was computed for (-1: none) [-]
+  double theta_rad = 0;        // the drum angle it was computed at [rad]
+  Vec2 e1_W = Vec2::UnitX();   // tooth axis in world [-]
+  Vec2 e2_W = Vec2::UnitY();   // transverse axis J e1 in world [-]
+  Vec2 root_W = Vec2::Zero();  // the tooth's root in world [m]
+  // Recomputes the frame unless it holds for (tooth, theta_rad) already.
+  void update(const Model& m, int tooth_index, double drum_angle_rad);
+};
+
+// The contact phase's narrow phase of a tooth-kernel pair in contact that was evaluated at its
+// last step (a warm pair; a modal tooth with modes): the closest point by Newton steps on the
+// closest-point condition n . rt_x = 0 from warm_x_m [m], the deflection w, w', w'' from the
+// mode table contracted with q once per table interval (beam.h interpolateDeflection), the
+// condition's exact derivative through the ellipse's curvature, the stations bracketing the
+// point computed directly: no polyline search, no station update, no transcendental function
+// but the kernel angle's sincos. Then the Jacobians, velocities, residual flexibility and
+// Hertz constant as evaluateContact gives them (w'' from the table, to ~1e-12 of the exact
+// one). frame: ToothFrame::update for the pair's tooth and the drive's angle. Returns false
+// when its guard doubts the warm answer (no strict minimum of the distance, no convergence in
+// a few steps, a move of more than a quarter station interval, or a point that says the bodies
+// are apart): then call evaluateContact, whose full path decides.
+bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
+                             const PairId& pair, const ToothFrame& frame, double warm_x_m,
+                             ContactGeom* g);
+
 }  // namespace internal
 }  // namespace threshing_sim

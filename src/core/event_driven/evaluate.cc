@@ -68,6 +68,19 @@ void recordSafeInterval(const ContactGeom& g, double t_s, double speed_mps, Pair
                              : -kInf;
 }
 
+// The warm narrow phase (evaluateWarmToothKernel) of a tooth pair in contact (state) with a warm
+// start x_warm_m [m] (< 0: none): true if it answered, *warm then receiving the closest point as
+// evaluateContact's would; false: its guard doubts the warm answer, nothing decided.
+bool evaluateWarm(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr, const PairId& p,
+                  ContactState state, double x_warm_m, ToothFrame* frame, ContactGeom* g,
+                  double* warm) {
+  if (x_warm_m < 0.0 || state == ContactState::kSeparated) return false;
+  frame->update(c.m, p.a, dr.theta_rad);
+  if (!evaluateWarmToothKernel(c.m, z, u, dr, p, *frame, x_warm_m, g)) return false;
+  *warm = g->tooth_x_m;
+  return true;
+}
+
 }  // namespace
 
 // Evaluates every candidate pair at (z, u, t) into ws.geoms; separated pairs as `separated`
@@ -105,6 +118,9 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
   }
   c.ws.geoms.resize(c.ws.candidates.size());
   const double near_m = 0.25 * c.m.broadphase_margin_m;
+  // The contact phase's step ends (kReach): tooth pairs in contact take the warm narrow phase.
+  const bool fast_warm = separated == SeparatedPairs::kReach;
+  ToothFrame frame;  // the warm pairs' tooth frame, recomputed when the tooth changes
   for (size_t i = 0; i < c.ws.candidates.size(); ++i) {
     const PairId& p = c.ws.candidates[i];
     ContactGeom& g = c.ws.geoms[i];
@@ -151,7 +167,8 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
     double* warm_theta = p.kind == PairKind::kKernelKernel ? &mem.warm_theta_rad : nullptr;
-    evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm, warm_theta);
+    if (!(fast_warm && warm && evaluateWarm(c, z, u, dr, p, mem.state, x_warm, &frame, &g, warm)))
+      evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm, warm_theta);
     if (reach_speed_mps >= 0.0) recordSafeInterval(g, dr.t_s, reach_speed_mps, &mem);
     if (warm && !g.far) {
       mem.warm_x_prev_m = mem.warm_x_m;
