@@ -185,6 +185,9 @@ struct ContactPhaseScratch {
   double end_omega_radps = 0;         // its drum speed [rad/s]
   VecX end_z, end_u;                  // its state [m or -, m/s or -]
   std::vector<PairId> end_candidates;  // its candidates [-]
+  // The candidate list kept from step to step (keepCandidates): a bound of the distance any
+  // body can have moved since the list was built [m].
+  double list_motion_m = 0.0;
   // This step.
   VecX a0, a1;              // kick accelerations at the start and the end
   VecX u_drift;             // velocity after the first half kick and the drift

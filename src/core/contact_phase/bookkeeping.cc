@@ -12,8 +12,8 @@ namespace threshing_sim {
 namespace internal {
 namespace contact_phase {
 
-using event_driven::Ctx;
 using event_driven::candidateMemory;
+using event_driven::Ctx;
 using event_driven::isActive;
 
 namespace {
@@ -89,7 +89,8 @@ void recordForces(const Ctx& c, const StepState& s, size_t i, PairMemory* mem) {
 
 // The normal force at time t_s inside the step [N]: the parabola through the step end before
 // the start (in the same episode), the start (fn0) and the end (fn1); else the line.
-double normalForceAt(const PairMemory& mem, const StepState& s, double fn0, double fn1, double t_s) {
+double normalForceAt(const PairMemory& mem, const StepState& s, double fn0, double fn1,
+                     double t_s) {
   const double t0 = s.t0_s, t1 = s.t0_s + s.h_s, tb = mem.cp_t_before_s;
   const double line = fn0 + (t_s - t0) / s.h_s * (fn1 - fn0);
   if (tb < 0.0 || tb < mem.episode_start_s || !(tb < t0)) return line;

@@ -30,20 +30,32 @@ namespace contact_phase {
 // prepareCandidates.
 bool applies(const event_driven::Ctx& c);
 
+// Whether the step from the data's time keeps the candidate pairs of the last contact-phase
+// step instead of listing them again (a Verlet list, as DEM codes keep theirs): the last step
+// was a contact-phase step that ended at this state, and no body can have moved half the
+// broad-phase margin since the list was built (each step moves at most another half: the
+// list, built with twice the margin, misses no pair). Sets plan->margin_m when it keeps them;
+// else the caller lists them (prepareCandidates) and the motion since is counted from zero.
+bool keepCandidates(const event_driven::Ctx& c, event_driven::StepPlan* plan);
+
 // One contact-phase step from the data's time, at most to t_end_s (v_bound_mps: the motion
 // bound of the step start, so the step cannot outrun the broad phase's margin margin_m).
 // Returns false, with the data unchanged, if a rigid-law pair would close over the step: the
 // adaptive step must take it (and locate the impact).
 bool step(const event_driven::Ctx& c, double t_end_s, double v_bound_mps, double margin_m);
 
+// forces.cc: whether the last step's end values (ws.cp.end_*) hold for the data's state and
+// candidates.
+bool endValuesHold(const event_driven::Ctx& c);
+
 // --- the stages (one file each) ---------------------------------------------------------------
 
 // What one contact-phase step carries from stage to stage.
 struct StepState {
-  double t0_s = 0;  // step start [s]
-  double h_s = 0;   // step length [s]
+  double t0_s = 0;                        // step start [s]
+  double h_s = 0;                         // step length [s]
   double torque0_Nm = 0, torque1_Nm = 0;  // contact torque on the drum at the ends [N m]
-  bool cached_h = false;  // h is the cached propagator's step (no truncation) [-]
+  bool cached_h = false;                  // h is the cached propagator's step (no truncation) [-]
 };
 
 // step_size.cc: the step length from the Hertz contact time of the closed contacts (the

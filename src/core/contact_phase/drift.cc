@@ -20,13 +20,12 @@ namespace {
 const MatX& stepMatrix(const Model& m, int k, double h_s, double omega_radps, Workspace* ws) {
   ContactPhaseScratch& cp = ws->cp;
   std::vector<ContactPhaseScratch::StepMatrix>& slots = cp.phi[k];
-  if (slots.size() != ContactPhaseScratch::kStepMatrices) slots.resize(ContactPhaseScratch::kStepMatrices);
+  if (slots.size() != ContactPhaseScratch::kStepMatrices)
+    slots.resize(ContactPhaseScratch::kStepMatrices);
   for (ContactPhaseScratch::StepMatrix& e : slots)
     if (e.h_s == h_s && e.omega_radps == omega_radps) return e.phi;
-  ContactPhaseScratch::StepMatrix& e =
-      *std::min_element(slots.begin(), slots.end(), [](const auto& a, const auto& b) {
-        return a.built < b.built;
-      });
+  ContactPhaseScratch::StepMatrix& e = *std::min_element(
+      slots.begin(), slots.end(), [](const auto& a, const auto& b) { return a.built < b.built; });
   const int n = m.teeth[k].n_modes;
   e.phi.resize(2 * n, 2 * n);
   growTo(&cp.y_unit, 2 * n);

@@ -11,8 +11,8 @@ namespace threshing_sim {
 namespace internal {
 namespace contact_phase {
 
-using event_driven::Ctx;
 using event_driven::candidateMemory;
+using event_driven::Ctx;
 using event_driven::isActive;
 
 namespace {
@@ -24,19 +24,6 @@ void smoothKick(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr, Vec
   smoothForces(m, c.d, z, u, dr, &c.ws.forces);
   for (const ToothModel& tm : m.teeth) c.ws.forces.segment(tm.dof_offset, tm.n_modes).setZero();
   freeAcceleration(m, nullptr, c.ws.forces, a);
-}
-
-// Whether the last step's end values hold for the data's state and candidates.
-bool endValuesHold(const Ctx& c) {
-  const ContactPhaseScratch& cp = c.ws.cp;
-  const Data& d = c.d;
-  if (!cp.end_valid || cp.end_t_s != d.t_s || cp.end_omega_radps != d.omega_radps) return false;
-  if (cp.end_z.size() != d.z.size() || cp.end_u.size() != d.u.size()) return false;
-  if (c.ws.geoms.size() != c.ws.candidates.size() || cp.end_candidates != c.ws.candidates)
-    return false;
-  const size_t bytes = sizeof(double) * static_cast<size_t>(d.z.size());
-  return bytes == 0 || (std::memcmp(cp.end_z.data(), d.z.data(), bytes) == 0 &&
-                        std::memcmp(cp.end_u.data(), d.u.data(), bytes) == 0);
 }
 
 // A closed pair's forces at the start of the phase (no end values): the compliant law's normal,
@@ -85,8 +72,10 @@ double normalCompliance(const Model& m, const ContactGeom& g) {
 // F = max(0, f(gap, vn + h/2 W (F - F_now))), f the compliant law and W its normal compliance:
 // the Hunt-Crossley damper reads the end's normal velocity, which the end's half kick of F
 // itself changes (explicit, the damper would bound the step by m*/c; a pressed contact whose
-// first touch was slow has a stiff damper). F - f falls with F: bisection and secant on the
-// bracket [0, f at F = 0].
+// first touch was slow has a stiff damper). The residual r(F) = F - f rises at least as fast as
+// F (f falls as vn rises with F), so from the present force F_now the root lies between F_now
+// and F_now - r(F_now): a bracket as wide as the present residual, closed by secant steps kept
+// inside it (bisection when one falls outside).
 double implicitNormal(const Ctx& c, size_t i, double half_h_s, double K, double v_in_mps) {
   const Model& m = c.m;
   const ContactPhaseScratch& cp = c.ws.cp;
@@ -99,9 +88,18 @@ double implicitNormal(const Ctx& c, size_t i, double half_h_s, double K, double 
     return F - std::max(0.0, compliantNormalForceAt(g, g.gap_m, vn, K, v_in_mps,
                                                     m.hc_min_impact_speed_mps));
   };
-  double lo = 0.0, r_lo = residual(0.0);
-  if (r_lo >= 0.0) return 0.0;
-  double hi = -r_lo, r_hi = residual(hi);  // f at F = 0 bounds the root: F - f(F) >= 0 there
+  const double r_now = residual(f_now);
+  if (r_now == 0.0) return f_now;
+  double lo = f_now, r_lo = r_now, hi = f_now, r_hi = r_now;
+  if (r_now < 0.0) {
+    hi = f_now - r_now;
+    r_hi = residual(hi);
+  } else {
+    lo = std::max(0.0, f_now - r_now);
+    r_lo = residual(lo);
+    if (r_lo > 0.0) return 0.0;  // (lo = 0: the contact carries no force at the end)
+    if (r_lo == 0.0) return lo;
+  }
   for (int it = 0; it < kNormalIterations && r_hi != 0.0 && hi - lo > 1e-13 * hi; ++it) {
     double F = lo - r_lo * (hi - lo) / (r_hi - r_lo);  // secant, kept inside the bracket
     if (!(F > lo && F < hi)) F = 0.5 * (lo + hi);
@@ -154,6 +152,18 @@ void solveNormals(const Ctx& c, const StepState& s) {
 }
 
 }  // namespace
+
+bool endValuesHold(const Ctx& c) {
+  const ContactPhaseScratch& cp = c.ws.cp;
+  const Data& d = c.d;
+  if (!cp.end_valid || cp.end_t_s != d.t_s || cp.end_omega_radps != d.omega_radps) return false;
+  if (cp.end_z.size() != d.z.size() || cp.end_u.size() != d.u.size()) return false;
+  if (c.ws.geoms.size() != c.ws.candidates.size() || cp.end_candidates != c.ws.candidates)
+    return false;
+  const size_t bytes = sizeof(double) * static_cast<size_t>(d.z.size());
+  return bytes == 0 || (std::memcmp(cp.end_z.data(), d.z.data(), bytes) == 0 &&
+                        std::memcmp(cp.end_u.data(), d.u.data(), bytes) == 0);
+}
 
 void addContactAcceleration(const Model& m, const ContactGeom& g, double fn, double ft,
                             double scale, VecX* a) {
@@ -293,9 +303,8 @@ bool endForces(const Ctx& c, StepState* s) {
       cp.opened[i] = 1;
       cp.t_open_s[i] = crossing(s->t0_s, s->h_s, cp.gap0_m[i], g.gap_m);
       const double frac = (cp.t_open_s[i] - s->t0_s) / s->h_s;
-      cp.v_in_mps[i] = std::isfinite(cp.gap0_m[i])
-                           ? -(cp.vn0_mps[i] + frac * (g.vn - cp.vn0_mps[i]))
-                           : -g.vn;
+      cp.v_in_mps[i] =
+          std::isfinite(cp.gap0_m[i]) ? -(cp.vn0_mps[i] + frac * (g.vn - cp.vn0_mps[i])) : -g.vn;
     }
     const double K = active ? mem.hertz_K : g.hertz_K;
     const double v_in = active ? mem.v_in_mps : cp.v_in_mps[i];

@@ -16,7 +16,7 @@ using event_driven::Ctx;
 
 namespace {
 
-constexpr int kMaxSweeps = 10;            // Gauss-Seidel sweeps over the closed contacts [-]
+constexpr int kMaxSweeps = 10;             // Gauss-Seidel sweeps over the closed contacts [-]
 constexpr double kSweepTolerance = 1e-10;  // largest change relative to mu fn that stops them [-]
 
 // w_t^T M^-1 w_t over both sides: the slip velocity's change per unit tangential impulse [1/kg].

@@ -1,5 +1,7 @@
 // The contact phase: the step as its list of stages (step) and when it applies (applies). The
 // method is summarised in contact_phase.h.
+#include <algorithm>
+
 #include "contact_phase.h"
 
 namespace threshing_sim {
@@ -30,6 +32,17 @@ bool applies(const Ctx& c) {
   return true;
 }
 
+bool keepCandidates(const Ctx& c, event_driven::StepPlan* plan) {
+  const double margin_m = std::max(c.m.broadphase_margin_m, 1e-6);
+  ContactPhaseScratch& cp = c.ws.cp;
+  if (c.m.integrator.contact_steps > 0 && cp.list_motion_m <= 0.5 * margin_m && endValuesHold(c)) {
+    plan->margin_m = margin_m;
+    return true;
+  }
+  cp.list_motion_m = 0.0;
+  return false;
+}
+
 bool step(const Ctx& c, double t_end_s, double v_bound_mps, double margin_m) {
   StepState s;
   s.t0_s = c.d.t_s;
@@ -41,6 +54,7 @@ bool step(const Ctx& c, double t_end_s, double v_bound_mps, double margin_m) {
   kickDrift(c, &s);
   if (!endForces(c, &s)) return false;
   acceptStep(c, s);
+  c.ws.cp.list_motion_m += v_bound_mps * s.h_s;
   return true;
 }
 

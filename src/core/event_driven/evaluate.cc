@@ -58,14 +58,17 @@ bool safelyApart(const PairMemory& mem, double t_s, double horizon_s, double spe
 }
 
 // kReach: after a separated pair's evaluation at t_s, the time until which it stays apart: 0.8
-// of its gap over its speed bound (none when touching or without a bound).
+// of its gap over its speed bound with kSpeedHeadroom on it (none when touching or without a
+// bound), so that the bound, which grows a little from step to step as a pile is pushed or a
+// mode swings, does not void the interval at the next step.
 void recordSafeInterval(const ContactGeom& g, double t_s, double speed_mps, PairMemory* mem) {
+  constexpr double kSpeedHeadroom = 1.1;  // [-]
+  const double speed = kSpeedHeadroom * speed_mps;
   mem->cp_safe_from_s = t_s;
-  mem->cp_safe_speed_mps = speed_mps;
+  mem->cp_safe_speed_mps = speed;
   mem->cp_safe_gap_m = g.gap_m;
-  mem->cp_safe_until_s = g.gap_m > 0.0 && speed_mps > 0.0 && std::isfinite(g.gap_m)
-                             ? t_s + 0.8 * g.gap_m / speed_mps
-                             : -kInf;
+  mem->cp_safe_until_s =
+      g.gap_m > 0.0 && speed > 0.0 && std::isfinite(g.gap_m) ? t_s + 0.8 * g.gap_m / speed : -kInf;
 }
 
 // The warm narrow phase (evaluateWarmToothKernel) of a tooth pair in contact (state) with a warm

@@ -63,11 +63,13 @@ StepStatus eventDrivenStep(const Model& m, Data* d, double t_end_s) {
   event_driven::StepPlan plan;
   plan.t_end_s = t_end_s;
   const double v_bound_mps = event_driven::motionBound(c);
-  event_driven::prepareCandidates(c, &plan);
+  // (The contact phase keeps its last step's candidates while they cannot have gone stale.)
+  const bool kept = contact_phase::keepCandidates(c, &plan);
+  if (!kept) event_driven::prepareCandidates(c, &plan);
   // While a compliant contact is closed: the contact phase's fixed step (contact_phase/).
-  if (contact_phase::applies(c) &&
-      contact_phase::step(c, t_end_s, v_bound_mps, plan.margin_m))
+  if (contact_phase::applies(c) && contact_phase::step(c, t_end_s, v_bound_mps, plan.margin_m))
     return StepStatus::kOk;
+  if (kept) event_driven::prepareCandidates(c, &plan);  // the adaptive step's own margin
   event_driven::openTouchingContacts(c);
   event_driven::planStep(c, v_bound_mps, &plan);
   event_driven::armEvents(c, &plan);
