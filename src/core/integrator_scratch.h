@@ -180,51 +180,63 @@ struct EventDrivenScratch {
 struct ContactPhaseScratch {
   // The last step's end, reused as the next step's start while the state, the drum speed and
   // the candidate pairs are still those.
-  bool end_valid = false;             // something is stored [-]
-  double end_t_s = 0;                 // its time [s]
-  double end_omega_radps = 0;         // its drum speed [rad/s]
-  VecX end_z, end_u;                  // its state [m or -, m/s or -]
+  bool end_valid = false;              // something is stored [-]
+  double end_t_s = 0;                  // its time [s]
+  double end_omega_radps = 0;          // its drum speed [rad/s]
+  VecX end_z, end_u;                   // its state [m or -, m/s or -]
   std::vector<PairId> end_candidates;  // its candidates [-]
   // The candidate list kept from step to step (keepCandidates): a bound of the distance any
   // body can have moved since the list was built [m].
   double list_motion_m = 0.0;
   // This step.
-  VecX a0, a1;              // kick accelerations at the start and the end
-  VecX u_drift;             // velocity after the first half kick and the drift
-  VecX u_pred;              // predicted end velocity, at which the end forces are evaluated
-  VecX u_end;               // end velocity while the friction is solved, then the step's end
-  VecX fn0, ft0, fn1, ft1;  // contact forces at the start and the end, per candidate [N]
-  std::vector<double> gap0_m;          // gaps at the start, per candidate [m]
-  std::vector<double> vt0_mps;         // slip velocities at the start, per candidate [m/s]
-  std::vector<double> at0_mps2;        // their rates under the start's forces [m/s^2]
-  std::vector<double> ft_trial;        // the last friction projection's force before the cone
-                                       // (its stick force), per candidate [N]
-  std::vector<int> friction_rows;            // the friction solve's contacts (candidates) [-]
-  std::vector<double> friction_compliance;   // and their tangential compliances [1/kg]
-  std::vector<double> vt_target;       // slip velocity the start's friction aims at [m/s]
-  std::vector<double> vt_half_mps;     // slip velocity after the first half kick [m/s]
+  VecX a0, a1;                   // kick accelerations at the start and the end
+  VecX u_drift;                  // velocity after the first half kick and the drift
+  VecX u_pred;                   // predicted end velocity, at which the end forces are evaluated
+  VecX u_end;                    // end velocity while the friction is solved, then the step's end
+  VecX fn0, ft0, fn1, ft1;       // contact forces at the start and the end, per candidate [N]
+  std::vector<double> gap0_m;    // gaps at the start, per candidate [m]
+  std::vector<double> vt0_mps;   // slip velocities at the start, per candidate [m/s]
+  std::vector<double> at0_mps2;  // their rates under the start's forces [m/s^2]
+  std::vector<double> ft_trial;  // the last friction projection's force before the cone
+                                 // (its stick force), per candidate [N]
+  // The closed contacts in contact space (contact_space.cc): the solves of one kick work on
+  // these scalars and the velocity vector is touched once, when the changes are applied.
+  struct ContactSpace {
+    std::vector<int> cand;       // per row: its candidate [-]
+    std::vector<int> row_of;     // per candidate: its row, -1 if none [-]
+    MatX W;                      // W(2j + d, 3i + e): the change of row j's normal (d = 0) or
+                                 // slip (d = 1) velocity per unit generalised force of row i
+                                 // along its normal (e = 0), tangent (1) or residual gradient
+                                 // (2): w_d(j)^T M^-1 w_e(i) over the bodies they share
+                                 // [1/kg; 1/(kg N) for e = 2]; grow-only
+    std::vector<double> vn, vt;  // per row: normal and slip velocity now [m/s]
+    std::vector<double> dfn, dft, dfr;  // per row: changes not yet applied to the vectors
+                                        // [N, N, N^2 / 2 (the residual factor)]
+  } cs;
+  std::vector<double> vt_target;        // slip velocity the start's friction aims at [m/s]
+  std::vector<double> vt_half_mps;      // slip velocity after the first half kick [m/s]
   std::vector<double> drift_rate_mps2;  // the drift's change of it per second [m/s^2]
-  std::vector<double> fs0_N;           // signed normal force at the start (compliant law) [N]
-  std::vector<std::uint8_t> opened;    // per candidate: closed over this step [-]
-  std::vector<std::uint8_t> released;  // per candidate: opened over this step [-]
-  std::vector<double> t_open_s;        // the interpolated time of that transition [s]
-  std::vector<double> v_in_mps;        // a closing pair's approach speed there [m/s]
-  std::vector<double> vn0_mps;         // normal velocities at the start, per candidate [m/s]
+  std::vector<double> fs0_N;            // signed normal force at the start (compliant law) [N]
+  std::vector<std::uint8_t> opened;     // per candidate: closed over this step [-]
+  std::vector<std::uint8_t> released;   // per candidate: opened over this step [-]
+  std::vector<double> t_open_s;         // the interpolated time of that transition [s]
+  std::vector<double> v_in_mps;         // a closing pair's approach speed there [m/s]
+  std::vector<double> vn0_mps;          // normal velocities at the start, per candidate [m/s]
   // The teeth's exact propagators over the fixed steps as real 2n x 2n matrices [q; qd] ->
   // [q; qd] (built from the event-driven integrator's ToothPropagator), kStepMatrices per tooth,
   // keyed on the step and the drum speed.
   struct StepMatrix {
-    double h_s = -1;          // the step [s]
-    double omega_radps = 0;   // the drum speed [rad/s]
-    long built = 0;           // when it was built (matrices_built then) [-]
-    MatX phi;                 // the propagator [mixed]
+    double h_s = -1;         // the step [s]
+    double omega_radps = 0;  // the drum speed [rad/s]
+    long built = 0;          // when it was built (matrices_built then) [-]
+    MatX phi;                // the propagator [mixed]
   };
   static constexpr size_t kStepMatrices = 4;
   std::vector<std::vector<StepMatrix>> phi;  // per tooth
   long matrices_built = 0;                   // step matrices built since construction [-]
   VecX y0, y1;                               // scratch: one tooth's [q; qd], 2n
   VecX y_unit;                               // scratch: a unit state, 2n
-  long steps = 0;                       // contact-phase steps since construction [-]
+  long steps = 0;                            // contact-phase steps since construction [-]
 };
 
 // The time-stepping integrator's state carried across steps and its scratch

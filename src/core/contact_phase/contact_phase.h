@@ -83,15 +83,31 @@ bool endForces(const event_driven::Ctx& c, StepState* s);
 // friction.cc: the tangential forces at the step end (cone projection, Gauss-Seidel), applied
 // to ws.cp.a1 and ws.cp.u_end.
 void solveFriction(const event_driven::Ctx& c, const StepState& s);
-// friction.cc: projects the tangential forces *ft of the contacts with normal force fn > 0 on
-// their cones |ft| <= mu fn so that each one's slip velocity at *u is its target (zero, or
-// (*target)[i]) where its cone allows (stick) and opposed at the cone's edge otherwise (slip),
-// *u being a velocity that the acceleration *a kicks over half_h_s; each change is applied to *a
-// and *u. The geometry in ws.geoms was evaluated at the velocity u_eval. Gauss-Seidel over the
+// friction.cc: projects the tangential forces *ft of the contact space's rows (closed contacts,
+// buildContactSpace) with normal force fn > 0 on their cones |ft| <= mu fn so that each one's
+// slip velocity is its target (zero, or (*target)[i]) where its cone allows (stick) and opposed
+// at the cone's edge otherwise (slip), the velocity being one that the forces kick over
+// half_h_s; each change goes into the contact space (addForceChange). Gauss-Seidel over the
 // contacts (they share bodies), a bounded number of sweeps.
 void projectFriction(const event_driven::Ctx& c, double half_h_s, const VecX& fn,
-                     const VecX& u_eval, const std::vector<double>* target, VecX* ft, VecX* a,
-                     VecX* u);
+                     const std::vector<double>* target, VecX* ft);
+
+// contact_space.cc: the contact space of the candidates with fn[i] > 0 (the rows), their normal
+// and slip velocities at the velocity u (the geometry in ws.geoms evaluated at u_eval) and their
+// couplings W; no changes pending.
+void buildContactSpace(const event_driven::Ctx& c, const VecX& fn, const VecX& u,
+                       const VecX& u_eval);
+// contact_space.cc: a change of row r's normal force dfn_N, tangential force dft_N and residual
+// factor dfr (residualForceFactor's change) kicked over half_h_s: every row's velocities follow,
+// the change is kept for applyContactSpace.
+void addForceChange(ContactPhaseScratch::ContactSpace* cs, int r, double dfn_N, double dft_N,
+                    double dfr, double half_h_s);
+// contact_space.cc: the pending changes applied to the acceleration *a and to the velocity *u it
+// kicks over half_h_s (and cleared).
+void applyContactSpace(const event_driven::Ctx& c, double half_h_s, VecX* a, VecX* u);
+// forces.cc: the normal velocity of contact g at the velocity u, from its value g.vn at the
+// velocity u_eval its geometry was evaluated at [m/s].
+double normalVelocity(const Model& m, const ContactGeom& g, const VecX& u, const VecX& u_eval);
 // friction.cc: the slip velocity of contact g at the velocity u, from its value g.vt at the
 // velocity u_eval its geometry was evaluated at [m/s].
 double slipVelocity(const Model& m, const ContactGeom& g, const VecX& u, const VecX& u_eval);

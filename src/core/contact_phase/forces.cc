@@ -48,26 +48,6 @@ double crossing(double t0_s, double h_s, double v0, double v1) {
 constexpr int kNormalSweeps = 4;
 constexpr int kNormalIterations = 30;
 
-// The normal velocity of contact g at the velocity u, from its value g.vn at the velocity u_eval
-// its geometry was evaluated at [m/s].
-double normalVelocity(const Model& m, const ContactGeom& g, const VecX& u, const VecX& u_eval) {
-  double vn = g.vn;
-  for (const BodyJac& b : g.side) {
-    if (b.body < 0 || b.w_n.size() == 0) continue;
-    const int off = bodyDofOffset(m, b.body);
-    for (int j = 0; j < b.w_n.size(); ++j) vn += b.w_n[j] * (u[off + j] - u_eval[off + j]);
-  }
-  return vn;
-}
-
-// w_n^T M^-1 w_n over both sides: the normal velocity's change per unit normal impulse [1/kg].
-double normalCompliance(const Model& m, const ContactGeom& g) {
-  double w = 0.0;
-  for (const BodyJac& b : g.side)
-    if (b.body >= 0 && b.w_n.size() > 0) w += weightedDot(m, nullptr, b.body, b.w_n, b.w_n);
-  return w;
-}
-
 // Contact i's normal force at the step end, implicit in its own damping: the root F of
 // F = max(0, f(gap, vn + h/2 W (F - F_now))), f the compliant law and W its normal compliance:
 // the Hunt-Crossley damper reads the end's normal velocity, which the end's half kick of F
@@ -76,13 +56,14 @@ double normalCompliance(const Model& m, const ContactGeom& g) {
 // F (f falls as vn rises with F), so from the present force F_now the root lies between F_now
 // and F_now - r(F_now): a bracket as wide as the present residual, closed by secant steps kept
 // inside it (bisection when one falls outside).
-double implicitNormal(const Ctx& c, size_t i, double half_h_s, double K, double v_in_mps) {
+double implicitNormal(const Ctx& c, int r, double half_h_s, double K, double v_in_mps) {
   const Model& m = c.m;
   const ContactPhaseScratch& cp = c.ws.cp;
+  const size_t i = static_cast<size_t>(cp.cs.cand[r]);
   const ContactGeom& g = c.ws.geoms[i];
   const double f_now = cp.fn1[i];
-  const double vn_now = normalVelocity(m, g, cp.u_end, cp.u_pred);
-  const double w = normalCompliance(m, g);
+  const double vn_now = cp.cs.vn[r];
+  const double w = cp.cs.W(2 * r, 3 * r);
   auto residual = [&](double F) {
     const double vn = vn_now + half_h_s * w * (F - f_now);
     return F - std::max(0.0, compliantNormalForceAt(g, g.gap_m, vn, K, v_in_mps,
@@ -119,32 +100,28 @@ double implicitNormal(const Ctx& c, size_t i, double half_h_s, double K, double 
 // contacts that share a body by Gauss-Seidel sweeps; each change applied to the kick
 // acceleration and the end velocity.
 void solveNormals(const Ctx& c, const StepState& s) {
-  const Model& m = c.m;
   Workspace& ws = c.ws;
   ContactPhaseScratch& cp = ws.cp;
+  ContactPhaseScratch::ContactSpace& cs = cp.cs;
   const double half_h = 0.5 * s.h_s;
+  const int k = static_cast<int>(cs.cand.size());
   int closed = 0;
-  for (size_t i = 0; i < ws.candidates.size(); ++i) closed += cp.fn1[i] > 0.0 ? 1 : 0;
+  for (int r = 0; r < k; ++r) closed += cp.fn1[cs.cand[r]] > 0.0 ? 1 : 0;
   const int sweeps = closed <= 1 ? 1 : kNormalSweeps;  // one contact: solved by its first
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     double largest = 0.0;
-    for (size_t i = 0; i < ws.candidates.size(); ++i) {
+    for (int r = 0; r < k; ++r) {
+      const size_t i = static_cast<size_t>(cs.cand[r]);
       if (cp.fn1[i] <= 0.0) continue;
       const ContactGeom& g = ws.geoms[i];
       const PairMemory& mem = candidateMemory(ws, i);
       const bool active = isActive(mem);
-      const double f = implicitNormal(c, i, half_h, active ? mem.hertz_K : g.hertz_K,
+      const double f = implicitNormal(c, r, half_h, active ? mem.hertz_K : g.hertz_K,
                                       active ? mem.v_in_mps : cp.v_in_mps[i]);
       if (f == cp.fn1[i]) continue;
       largest = std::max(largest, std::abs(f - cp.fn1[i]) / cp.fn1[i]);
       const double dfr = residualForceFactor(g, f) - residualForceFactor(g, cp.fn1[i]);
-      for (const BodyJac& b : g.side) {
-        applyInverseMass(m, nullptr, b.body, b.w_n, f - cp.fn1[i], &cp.a1);
-        applyInverseMass(m, nullptr, b.body, b.w_n, half_h * (f - cp.fn1[i]), &cp.u_end);
-        if (dfr == 0.0) continue;
-        applyInverseMass(m, nullptr, b.body, b.w_r, dfr, &cp.a1);
-        applyInverseMass(m, nullptr, b.body, b.w_r, half_h * dfr, &cp.u_end);
-      }
+      addForceChange(&cs, r, f - cp.fn1[i], 0.0, dfr, half_h);
       cp.fn1[i] = f;
     }
     if (largest <= 1e-12) break;
@@ -163,6 +140,16 @@ bool endValuesHold(const Ctx& c) {
   const size_t bytes = sizeof(double) * static_cast<size_t>(d.z.size());
   return bytes == 0 || (std::memcmp(cp.end_z.data(), d.z.data(), bytes) == 0 &&
                         std::memcmp(cp.end_u.data(), d.u.data(), bytes) == 0);
+}
+
+double normalVelocity(const Model& m, const ContactGeom& g, const VecX& u, const VecX& u_eval) {
+  double vn = g.vn;
+  for (const BodyJac& b : g.side) {
+    if (b.body < 0 || b.w_n.size() == 0) continue;
+    const int off = bodyDofOffset(m, b.body);
+    for (int j = 0; j < b.w_n.size(); ++j) vn += b.w_n[j] * (u[off + j] - u_eval[off + j]);
+  }
+  return vn;
 }
 
 void addContactAcceleration(const Model& m, const ContactGeom& g, double fn, double ft,
@@ -254,7 +241,9 @@ void startFriction(const Ctx& c, StepState* s) {
     cp.vt_target[i] = isActive(mem) ? -0.5 * s->h_s * mem.cp_drift_mps2 : 0.0;
   }
   cp.u_drift = c.d.u + half_h * cp.a0;
-  projectFriction(c, half_h, cp.fn0, cp.u_pred, &cp.vt_target, &cp.ft0, &cp.a0, &cp.u_drift);
+  buildContactSpace(c, cp.fn0, cp.u_drift, cp.u_pred);
+  projectFriction(c, half_h, cp.fn0, &cp.vt_target, &cp.ft0);
+  applyContactSpace(c, half_h, &cp.a0, &cp.u_drift);
   cp.vt_half_mps.resize(n);
   for (size_t i = 0; i < n; ++i)
     cp.vt_half_mps[i] = slipVelocity(c.m, ws.geoms[i], cp.u_drift, cp.u_pred);
@@ -320,11 +309,14 @@ bool endForces(const Ctx& c, StepState* s) {
   }
   cp.u_end = cp.u_drift + (0.5 * s->h_s) * cp.a1;
   // Normal and friction forces are coupled through the end velocity (a kernel's turn, the
-  // contact frame): the normals again after the friction, then the friction after them.
+  // contact frame): the normals again after the friction, then the friction after them; all in
+  // contact space, applied to the end's acceleration and velocity once.
+  buildContactSpace(c, cp.fn1, cp.u_end, cp.u_pred);
   solveNormals(c, *s);
   solveFriction(c, *s);
   solveNormals(c, *s);
-  projectFriction(c, 0.5 * s->h_s, cp.fn1, cp.u_pred, nullptr, &cp.ft1, &cp.a1, &cp.u_end);
+  projectFriction(c, 0.5 * s->h_s, cp.fn1, nullptr, &cp.ft1);
+  applyContactSpace(c, 0.5 * s->h_s, &cp.a1, &cp.u_end);
   s->torque1_Nm = 0.0;
   for (size_t i = 0; i < n; ++i)
     if (cp.fn1[i] != 0.0 || cp.ft1[i] != 0.0)

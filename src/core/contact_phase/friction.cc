@@ -19,24 +19,6 @@ namespace {
 constexpr int kMaxSweeps = 10;             // Gauss-Seidel sweeps over the closed contacts [-]
 constexpr double kSweepTolerance = 1e-10;  // largest change relative to mu fn that stops them [-]
 
-// w_t^T M^-1 w_t over both sides: the slip velocity's change per unit tangential impulse [1/kg].
-double tangentialCompliance(const Model& m, const ContactGeom& g) {
-  double w = 0.0;
-  for (const BodyJac& s : g.side)
-    if (s.body >= 0 && s.w_t.size() > 0) w += weightedDot(m, nullptr, s.body, s.w_t, s.w_t);
-  return w;
-}
-
-// Adds a change dft of contact g's tangential force to the kick acceleration *a and to the
-// velocity *u it kicks over half_h_s.
-void applyChange(const Model& m, const ContactGeom& g, double dft, double half_h_s, VecX* a,
-                 VecX* u) {
-  for (const BodyJac& s : g.side) {
-    applyInverseMass(m, nullptr, s.body, s.w_t, dft, a);
-    applyInverseMass(m, nullptr, s.body, s.w_t, half_h_s * dft, u);
-  }
-}
-
 }  // namespace
 
 double slipVelocity(const Model& m, const ContactGeom& g, const VecX& u, const VecX& u_eval) {
@@ -49,41 +31,35 @@ double slipVelocity(const Model& m, const ContactGeom& g, const VecX& u, const V
   return vt;
 }
 
-void projectFriction(const Ctx& c, double half_h_s, const VecX& fn, const VecX& u_eval,
-                     const std::vector<double>* target, VecX* ft, VecX* a, VecX* u) {
-  const Model& m = c.m;
+void projectFriction(const Ctx& c, double half_h_s, const VecX& fn,
+                     const std::vector<double>* target, VecX* ft) {
   Workspace& ws = c.ws;
-  const size_t n = ws.candidates.size();
-  ws.cp.ft_trial.assign(n, 0.0);
-  // The contacts that carry friction, with their tangential compliances.
-  std::vector<int>& rows = ws.cp.friction_rows;
-  std::vector<double>& compliance = ws.cp.friction_compliance;
-  rows.clear();
-  compliance.clear();
-  for (size_t i = 0; i < n; ++i) {
-    const ContactGeom& g = ws.geoms[i];
-    if (fn[i] <= 0.0 || g.params->friction <= 0.0) continue;
-    const double w = tangentialCompliance(m, g);
-    if (!(w > 0.0)) continue;
-    rows.push_back(static_cast<int>(i));
-    compliance.push_back(w);
+  ContactPhaseScratch::ContactSpace& cs = ws.cp.cs;
+  ws.cp.ft_trial.assign(ws.candidates.size(), 0.0);
+  const int k = static_cast<int>(cs.cand.size());
+  // The rows that carry friction (normal force, a friction coefficient, a tangential
+  // compliance); one alone is solved by its first sweep (the second only confirms it).
+  int rows = 0;
+  for (int r = 0; r < k; ++r) {
+    const size_t i = static_cast<size_t>(cs.cand[r]);
+    rows += fn[i] > 0.0 && ws.geoms[i].params->friction > 0.0 && cs.W(2 * r + 1, 3 * r + 1) > 0.0;
   }
-  // One contact alone is solved by its first sweep (the second only confirms it).
-  const int sweeps = rows.size() == 1 ? 1 : kMaxSweeps;
-  for (int sweep = 0; sweep < sweeps; ++sweep) {
+  const int sweeps = rows == 1 ? 1 : kMaxSweeps;
+  for (int sweep = 0; sweep < sweeps && rows > 0; ++sweep) {
     double largest = 0.0;
-    for (size_t r = 0; r < rows.size(); ++r) {
-      const size_t i = static_cast<size_t>(rows[r]);
-      const ContactGeom& g = ws.geoms[i];
-      const double limit = g.params->friction * fn[i];
-      const double w = compliance[r];
-      const double vt = slipVelocity(m, g, *u, u_eval) - (target ? (*target)[i] : 0.0);
+    for (int r = 0; r < k; ++r) {
+      const size_t i = static_cast<size_t>(cs.cand[r]);
+      const double w = cs.W(2 * r + 1, 3 * r + 1);
+      const double mu = ws.geoms[i].params->friction;
+      if (fn[i] <= 0.0 || mu <= 0.0 || !(w > 0.0)) continue;
+      const double limit = mu * fn[i];
+      const double vt = cs.vt[r] - (target ? (*target)[i] : 0.0);
       const double trial = (*ft)[i] - vt / (half_h_s * w);
       ws.cp.ft_trial[i] = trial;
       const double f = std::clamp(trial, -limit, limit);
       const double df = f - (*ft)[i];
       if (df == 0.0) continue;
-      applyChange(m, g, df, half_h_s, a, u);
+      addForceChange(&cs, r, 0.0, df, 0.0, half_h_s);
       (*ft)[i] = f;
       largest = std::max(largest, std::abs(df) / limit);
     }
@@ -92,19 +68,18 @@ void projectFriction(const Ctx& c, double half_h_s, const VecX& fn, const VecX& 
 }
 
 void solveFriction(const Ctx& c, const StepState& s) {
-  const Model& m = c.m;
   Workspace& ws = c.ws;
   ContactPhaseScratch& cp = ws.cp;
-  const size_t n = ws.candidates.size();
   const double half_h = 0.5 * s.h_s;
   // Warm start: the start's force, within the end's cone.
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t r = 0; r < cp.cs.cand.size(); ++r) {
+    const size_t i = static_cast<size_t>(cp.cs.cand[r]);
     const double limit = ws.geoms[i].params->friction * cp.fn1[i];
     if (cp.fn1[i] <= 0.0 || limit <= 0.0 || cp.released[i] || cp.opened[i]) continue;
     cp.ft1[i] = std::clamp(cp.ft0[i], -limit, limit);
-    if (cp.ft1[i] != 0.0) applyChange(m, ws.geoms[i], cp.ft1[i], half_h, &cp.a1, &cp.u_end);
+    if (cp.ft1[i] != 0.0) addForceChange(&cp.cs, static_cast<int>(r), 0.0, cp.ft1[i], 0.0, half_h);
   }
-  projectFriction(c, half_h, cp.fn1, cp.u_pred, nullptr, &cp.ft1, &cp.a1, &cp.u_end);
+  projectFriction(c, half_h, cp.fn1, nullptr, &cp.ft1);
 }
 
 }  // namespace contact_phase
