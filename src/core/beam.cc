@@ -444,6 +444,7 @@ void tabulateModes(ToothModel* tooth) {
   const int n = t.n_modes;
   t.mode_table.reset();
   t.beta4_per_m4.resize(n);
+  t.ddphi_bound.setZero(n);
   t.mode_table_intervals = 0;
   t.mode_table_dx_m = 0;
   if (n == 0) return;
@@ -473,6 +474,11 @@ void tabulateModes(ToothModel* tooth) {
     }
     for (int i = 0; i < n; ++i) modeDerivatives(t, i, terms[i], d);
   }
+  t.ddphi_bound.setZero(n);
+  for (int j = 0; j <= intervals; ++j)
+    for (int i = 0; i < n; ++i)
+      t.ddphi_bound[i] = std::max(
+          t.ddphi_bound[i], 1.25 * std::abs((*table)[static_cast<size_t>(4) * n * j + 2 * n + i]));
   t.mode_table = std::move(table);
   t.mode_table_intervals = intervals;
   t.mode_table_dx_m = t.length_m / intervals;
@@ -550,8 +556,8 @@ void interpolateDeflection(const ToothModel& tooth, const double* q, double x_m,
   const double* b = interval->at[1];
   *w = hb.w[0] * a[0] + hb.w[1] * a[1] + hb.w[2] * a[2] + hb.w[3] * b[0] + hb.w[4] * b[1] +
        hb.w[5] * b[2];
-  *w1 = hb.dw[0] * a[0] + hb.dw[1] * a[1] + hb.dw[2] * a[2] + hb.dw[3] * b[0] +
-        hb.dw[4] * b[1] + hb.dw[5] * b[2];
+  *w1 = hb.dw[0] * a[0] + hb.dw[1] * a[1] + hb.dw[2] * a[2] + hb.dw[3] * b[0] + hb.dw[4] * b[1] +
+        hb.dw[5] * b[2];
   *w2 = hb.w[0] * a[2] + hb.w[1] * a[3] + hb.w[2] * a[4] + hb.w[3] * b[2] + hb.w[4] * b[3] +
         hb.w[5] * b[4];
 }

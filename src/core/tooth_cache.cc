@@ -11,7 +11,7 @@ namespace {
 // A new ToothModel field must be sorted here: into toothCompileKey if compileTooth (beam.cc,
 // large_deflection.cc) reads it, into copyCompiled if compileTooth writes it, else nowhere
 // (then update the size). test_tooth_cache checks a cached compile against a fresh one.
-static_assert(sizeof(ToothModel) == 832,
+static_assert(sizeof(ToothModel) == 848,
               "ToothModel changed: sort its new field into toothCompileKey or copyCompiled");
 
 template <typename T>
@@ -46,6 +46,7 @@ void copyCompiled(const ToothModel& from, ToothModel* to) {
   t.mode_table_dx_m = from.mode_table_dx_m;
   t.mode_table = from.mode_table;  // immutable once compiled: shared
   t.beta4_per_m4 = from.beta4_per_m4;
+  t.ddphi_bound = from.ddphi_bound;
   t.ld_intervals = from.ld_intervals;
   t.ld_node_s_m = from.ld_node_s_m;
   t.ld_node_mass_kg = from.ld_node_mass_kg;

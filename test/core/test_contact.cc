@@ -783,13 +783,13 @@ TEST(ContactDrift, KernelPairsMatchCentralDifferences) {
 
 // The warm path at (z, u, theta) from warm_x_m; false if its guard refused.
 bool evaluateWarm(const Model& m, const Motion& mo, const PairId& pair, double warm_x_m,
-                  ContactGeom* g) {
+                  ContactGeom* g, bool apart_ok = false) {
   Drive dr;
   dr.theta_rad = mo.theta;
   dr.omega_radps = mo.omega;
   internal::ToothFrame frame;
   frame.update(m, pair.a, mo.theta);
-  return internal::evaluateWarmToothKernel(m, mo.z, mo.u, dr, pair, frame, warm_x_m, g);
+  return internal::evaluateWarmToothKernel(m, mo.z, mo.u, dr, pair, frame, warm_x_m, g, apart_ok);
 }
 
 // Largest relative difference of two Jacobian rows, on the scale of the larger row [-].
@@ -827,7 +827,8 @@ void expectWarmMatchesFull(const ContactGeom& w, const ContactGeom& f, const std
   EXPECT_NEAR(w.wtilde_t, f.wtilde_t, kRel * drum) << at;
   EXPECT_NEAR(w.residual_mpN, f.residual_mpN, kRel * f.residual_mpN) << at;
   EXPECT_NEAR(w.residual_dtheta_mpNprad, f.residual_dtheta_mpNprad,
-              kRel * std::abs(f.residual_dtheta_mpNprad) + 1e-30) << at;
+              kRel * std::abs(f.residual_dtheta_mpNprad) + 1e-30)
+      << at;
   EXPECT_NEAR(w.rho1_m, f.rho1_m, kRel * f.rho1_m) << at;
   EXPECT_NEAR(w.hertz_K, f.hertz_K, kRel * f.hertz_K) << at;
 }
@@ -899,6 +900,40 @@ TEST(WarmNarrowPhase, FallsBackToTheFullPathWhenTheWarmStartIsDoubtful) {
   mr.theta = 0.0;
   mr.omega = 83.78;
   EXPECT_FALSE(evaluateWarm(rigid, mr, pair, 0.033, &warm));
+}
+
+// A separated pair (the contact phase's pairs within reach) takes the warm path where the
+// distance has a single minimum over the tooth (the centreline's curvature bound against the
+// kernel's): the same exact geometry as the full path, apart by 0.1 to 3 mm, at mid-tooth and at
+// the tip, on a tooth deflected 0.2 % of its length at the tip (the strikes: 0.1 %); deflected
+// ten times more (2 %: curvature bound 8 /m against the 80 mm the guard spans) or beyond, the
+// guard leaves the pair to the full path.
+TEST(WarmNarrowPhase, AnswersASeparatedPairWhereTheDistanceHasOneMinimum) {
+  const Model m = contactModel(4);
+  const PairId pair{PairKind::kToothKernel, 0, 0};
+  const int q0 = m.teeth[0].dof_offset;
+  for (double x_c : {0.0300, 0.0560}) {
+    for (double gap_m : {1e-4, 1e-3, 3e-3}) {
+      Motion mo = toothKernelMotion(m, x_c, 0.2);
+      mo.z.segment(q0, 4) *= 0.1;
+      placeAtGap(m, &mo, pair, 0, gap_m);
+      const ContactGeom full = evaluate(m, mo.z, mo.u, mo.theta, mo.omega, pair);
+      ASSERT_GT(full.gap_m, 0.0);
+      const std::string at = "x_c = " + fmt(x_c) + ", gap = " + fmt(gap_m);
+      ContactGeom warm;
+      EXPECT_FALSE(evaluateWarm(m, mo, pair, full.tooth_x_m + 2e-6, &warm)) << at;
+      ASSERT_TRUE(evaluateWarm(m, mo, pair, full.tooth_x_m + 2e-6, &warm, true)) << at;
+      expectWarmMatchesFull(warm, full, at);
+    }
+  }
+  for (double scale : {1.0, 1e3}) {
+    Motion bent = toothKernelMotion(m, 0.03, 0.2);
+    bent.z.segment(q0, 4) *= scale;
+    placeAtGap(m, &bent, pair, 0, 1e-3);
+    const ContactGeom full = evaluate(m, bent.z, bent.u, bent.theta, bent.omega, pair);
+    ContactGeom warm;
+    EXPECT_FALSE(evaluateWarm(m, bent, pair, full.tooth_x_m, &warm, true)) << scale;
+  }
 }
 
 }  // namespace threshing_sim

@@ -111,7 +111,11 @@ struct ToothModel {
   int mode_table_intervals = 0;  // intervals of the mode table (0: no modes) [-]
   double mode_table_dx_m = 0;    // spacing of its points, L / intervals [m]
   std::shared_ptr<const std::vector<double>> mode_table;  // 4 n (intervals + 1) values, or null
-  VecX beta4_per_m4;   // beta_i^4, the fourth derivative over phi [1/m^4], size n
+  VecX beta4_per_m4;  // beta_i^4, the fourth derivative over phi [1/m^4], size n
+  // A bound of each mode's curvature |phi_i''(x)| over the tooth (its largest at the mode
+  // table's points, with a quarter more for between them): sum |q_i| of it bounds the deformed
+  // centreline's curvature [1/(sqrt(kg) m^2)], size n.
+  VecX ddphi_bound;
   int dof_offset = 0;  // first index of this tooth's q in the generalised vector
   // Large-deflection tooth only (beam_model kLargeDeflection; q in rad, section angle
   // theta(s) = sum_i q_i phi_i(s)); see large_deflection.h. N collocation nodes s_a.

@@ -341,10 +341,10 @@ struct ClosestPointSensitivity {
 
 // What the residual's gradient needs of a modal tooth pair besides the contact frame.
 struct ResidualInputs {
-  double r_ww_mpN = 0;         // residual table at x*, w under a force [m/N]
-  double dr_ww_dx_mpNpm = 0;   // its derivative in x (C^1 interpolant) [1/N]
-  double wc_slope = 0;         // d w_c / dx of the stations' foreshortening at x* [-]
-  const double* hq = nullptr;  // H(x*) q per mode, blended as the narrow phase does [1/sqrt(kg)]
+  double r_ww_mpN = 0;           // residual table at x*, w under a force [m/N]
+  double dr_ww_dx_mpNpm = 0;     // its derivative in x (C^1 interpolant) [1/N]
+  double wc_slope = 0;           // d w_c / dx of the stations' foreshortening at x* [-]
+  const double* hq = nullptr;    // H(x*) q per mode, blended as the narrow phase does [1/sqrt(kg)]
   const double* phi = nullptr;   // phi(x*) per mode [1/sqrt(kg)]
   const double* dphi = nullptr;  // phi'(x*) per mode [1/(sqrt(kg) m)]
   double w1 = 0, w2 = 0;         // w'(x*) = phi' . q [-], w''(x*) = phi'' . q [1/m]
@@ -674,7 +674,6 @@ void resetGeom(const Model& m, const PairId& pair, ContactGeom* g) {
   g->side[0].w_t.resize(0);
 }
 
-
 // --- tooth against kernel, warm (the contact phase) -------------------------------------------
 
 // Newton steps on the closest-point condition of a warm pair: at most this many evaluations
@@ -693,30 +692,34 @@ struct WarmQuery {
   // arrays, a kilobyte per pair.)
   WarmQuery(const ToothModel& tooth, const double* coordinates, const ToothFrame& tooth_frame,
             const Ellipse& kernel, double cos_angle, double sin_angle)
-      : tm(tooth), q(coordinates), frame(tooth_frame), e(kernel), cos_e(cos_angle),
+      : tm(tooth),
+        q(coordinates),
+        frame(tooth_frame),
+        e(kernel),
+        cos_e(cos_angle),
         sin_e(sin_angle) {}
-  const ToothModel& tm;       // the tooth
-  const double* q;            // its modal coordinates [sqrt(kg) m]
-  const ToothFrame& frame;    // its axes in world at the drum angle
-  const Ellipse& e;           // the kernel
-  double cos_e, sin_e;        // cos and sin of the kernel's angle [-]
-  StationPair stations;       // H q and w_c at the stations bracketing the last point
+  const ToothModel& tm;           // the tooth
+  const double* q;                // its modal coordinates [sqrt(kg) m]
+  const ToothFrame& frame;        // its axes in world at the drum angle
+  const Ellipse& e;               // the kernel
+  double cos_e, sin_e;            // cos and sin of the kernel's angle [-]
+  StationPair stations;           // H q and w_c at the stations bracketing the last point
   DeflectionInterval deflection;  // the mode table's interval of the last point, times q
 };
 
 // The deformed centreline of a modal tooth at material coordinate x_m against the kernel:
 // everything the closest-point condition h = n . rt_x and its derivative need.
 struct WarmPoint {
-  double x_m = 0;           // material coordinate [m]
-  int s = 0;                // station interval holding x [-]
-  double t = 0;             // blend weight of its station s + 1 [-]
-  double w1 = 0, w2 = 0;    // w' [-], w'' [1/m]
-  double wc_slope = 0;      // d w_c / dx [-]
-  Vec2 r = Vec2::Zero();    // centreline point, world [m]
-  Vec2 rt_x = Vec2::Zero(); // the condition's tangent (1 - w'^2/2) e1 + w' e2, world [-]
-  Proximity p;              // the centreline point against the kernel
-  double h = 0;             // the condition n . rt_x [-]
-  double dh = 0;            // its derivative in x [1/m]
+  double x_m = 0;            // material coordinate [m]
+  int s = 0;                 // station interval holding x [-]
+  double t = 0;              // blend weight of its station s + 1 [-]
+  double w1 = 0, w2 = 0;     // w' [-], w'' [1/m]
+  double wc_slope = 0;       // d w_c / dx [-]
+  Vec2 r = Vec2::Zero();     // centreline point, world [m]
+  Vec2 rt_x = Vec2::Zero();  // the condition's tangent (1 - w'^2/2) e1 + w' e2, world [-]
+  Proximity p;               // the centreline point against the kernel
+  double h = 0;              // the condition n . rt_x [-]
+  double dh = 0;             // its derivative in x [1/m]
 };
 
 // The centreline at x_m into *pt (the stations' H q and w_c computed directly), not its
@@ -781,8 +784,8 @@ constexpr double kWarmPolish_L = 1e-9;
 void movedProximity(const WarmQuery& wq, const Vec2& delta_m, Proximity* p) {
   const Vec2 n0 = p->normal, t0 = perp(n0);
   const double kappa = 1.0 / (p->radius2_m + p->distance_m);  // [1/m]
-  const double along = t0.dot(delta_m);                        // [m]
-  const double turn = -kappa * along;                           // [rad]
+  const double along = t0.dot(delta_m);                       // [m]
+  const double turn = -kappa * along;                         // [rad]
   p->distance_m += -n0.dot(delta_m) + 0.5 * kappa * along * along;
   p->normal = (1.0 - 0.5 * turn * turn) * n0 + turn * t0;
   p->point1 += delta_m;
@@ -804,7 +807,23 @@ void polish(WarmQuery* wq, double x_m, WarmPoint* pt) {
   movedProximity(*wq, pt->r - r_before, &pt->p);
 }
 
-bool warmNewton(WarmQuery* wq, double x_warm_m, WarmPoint* pt) {
+// Whether the distance from the tooth's centreline to the kernel has one local minimum over
+// the tooth, so that the warm answer at centreline distance d_m is the pair's closest point even
+// where the bodies are apart. At a critical point of the distance f(x) (the centreline's
+// tangent normal to the line to the ellipse), f'' >= 1 / (rho + d) - kappa, rho the ellipse's
+// radius of curvature at the foot (at most a^2 / b), d the distance there (at most d_m + L) and
+// kappa the centreline's curvature (at most sum |q_i| max |phi_i''|): with f'' > 0 at every
+// critical point there is no interior maximum, hence at most one minimum, ends included. Held
+// with a factor 2 to spare.
+bool singleMinimum(const WarmQuery& wq, double d_m) {
+  const ToothModel& tm = wq.tm;
+  double kappa_bound = 0.0;  // [1/m]
+  for (int i = 0; i < tm.n_modes; ++i) kappa_bound += std::abs(wq.q[i]) * tm.ddphi_bound[i];
+  const double rho_max_m = wq.e.a_m * wq.e.a_m / wq.e.b_m;
+  return 2.0 * kappa_bound * (rho_max_m + d_m + tm.length_m) < 1.0;
+}
+
+bool warmNewton(WarmQuery* wq, double x_warm_m, bool apart_ok, WarmPoint* pt) {
   const ToothModel& tm = wq->tm;
   const double L = tm.length_m;
   const double max_move_m = kWarmMaxMove_intervals * L / std::max(1, tm.n_stations - 1);
@@ -812,12 +831,16 @@ bool warmNewton(WarmQuery* wq, double x_warm_m, WarmPoint* pt) {
   for (int it = 0; it < kWarmMaxEvaluations; ++it) {
     warmPointAt(wq, x, pt);
     if (std::abs(x - x_warm_m) > max_move_m) return false;
-    if (atEndMinimum(tm, *pt)) return pt->p.distance_m <= 0.5 * tm.diameter_m;
+    // Apart: the full path decides, unless the distance has a single minimum.
+    if (atEndMinimum(tm, *pt))
+      return pt->p.distance_m <= 0.5 * tm.diameter_m ||
+             (apart_ok && singleMinimum(*wq, pt->p.distance_m));
     if (!(pt->dh < 0.0)) return false;  // not a strict minimum of the distance
     const double x_next = std::clamp(x - pt->h / pt->dh, 0.0, L);
     if (std::abs(x_next - x) <= kWarmPolish_L * L) {
       if (std::abs(x_next - x) > kWarmTol_L * L) polish(wq, x_next, pt);
-      return pt->p.distance_m <= 0.5 * tm.diameter_m;  // apart: the full path decides
+      return pt->p.distance_m <= 0.5 * tm.diameter_m ||
+             (apart_ok && singleMinimum(*wq, pt->p.distance_m));
     }
     x = x_next;
   }
@@ -894,7 +917,7 @@ void ToothFrame::update(const Model& m, int tooth_index, double drum_angle_rad) 
 
 bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                              const PairId& pair, const ToothFrame& frame, double warm_x_m,
-                             ContactGeom* g) {
+                             ContactGeom* g, bool apart_ok) {
   const ToothModel& tm = m.teeth[pair.a];
   if (tm.n_modes == 0 || tm.beam_model != ToothBeamModel::kModal || !(warm_x_m >= 0.0))
     return false;
@@ -902,7 +925,7 @@ bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const
   const CosSin cs = cosSinOf(e.angle_rad);  // the kernel's angle, once per evaluation
   WarmQuery wq(tm, z.data() + tm.dof_offset, frame, e, cs.c, cs.s);
   WarmPoint pt;
-  if (!warmNewton(&wq, warm_x_m, &pt)) return false;
+  if (!warmNewton(&wq, warm_x_m, apart_ok, &pt)) return false;
   resetGeom(m, pair, g);
   g->tooth_x_m = pt.x_m;
   Proximity best = pt.p;

@@ -100,10 +100,13 @@ struct ToothFrame {
 // one). frame: ToothFrame::update for the pair's tooth and the drive's angle. Returns false
 // when its guard doubts the warm answer (no strict minimum of the distance, no convergence in
 // a few steps, a move of more than a quarter station interval, or a point that says the bodies
-// are apart): then call evaluateContact, whose full path decides.
+// are apart): then call evaluateContact, whose full path decides. apart_ok: a point that says
+// they are apart is answered too where the distance has a single minimum over the tooth (the
+// centreline's curvature bound against the kernel's, narrow_phase.cc singleMinimum); the
+// geometry is then the exact one of a separated pair, never marked far.
 bool evaluateWarmToothKernel(const Model& m, const VecX& z, const VecX& u, const Drive& drive,
                              const PairId& pair, const ToothFrame& frame, double warm_x_m,
-                             ContactGeom* g);
+                             ContactGeom* g, bool apart_ok = false);
 
 }  // namespace internal
 }  // namespace threshing_sim

@@ -77,9 +77,10 @@ void recordSafeInterval(const ContactGeom& g, double t_s, double speed_mps, Pair
 bool evaluateWarm(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr, const PairId& p,
                   ContactState state, double x_warm_m, ToothFrame* frame, ContactGeom* g,
                   double* warm) {
-  if (x_warm_m < 0.0 || state == ContactState::kSeparated) return false;
+  if (x_warm_m < 0.0) return false;
   frame->update(c.m, p.a, dr.theta_rad);
-  if (!evaluateWarmToothKernel(c.m, z, u, dr, p, *frame, x_warm_m, g)) return false;
+  const bool apart_ok = state == ContactState::kSeparated;
+  if (!evaluateWarmToothKernel(c.m, z, u, dr, p, *frame, x_warm_m, g, apart_ok)) return false;
   *warm = g->tooth_x_m;
   return true;
 }
@@ -137,6 +138,11 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
     double x_warm = -1;
     double* warm = p.kind == PairKind::kToothKernel ? &x_warm : nullptr;
     if (warm && mem.state != ContactState::kSeparated) x_warm = warmStart(c.m, mem, p, dr.t_s);
+    // A separated tooth pair within reach at the contact phase's step ends starts from its last
+    // closest point too (evaluateWarm: where the distance has a single minimum).
+    double x_apart = -1;
+    if (warm && fast_warm && mem.state == ContactState::kSeparated)
+      x_apart = warmStart(c.m, mem, p, dr.t_s);
     if (mem.state == ContactState::kSeparated) {
       mem.warm_x_m = -1;
       if (separated == SeparatedPairs::kNone) {
@@ -170,7 +176,8 @@ void evaluateAll(const Ctx& c, const VecX& z, const VecX& u, const Drive& dr,
       tight = !tooth;  // kernel and obstacle pairs: the supporting-line bound
     }
     double* warm_theta = p.kind == PairKind::kKernelKernel ? &mem.warm_theta_rad : nullptr;
-    if (!(fast_warm && warm && evaluateWarm(c, z, u, dr, p, mem.state, x_warm, &frame, &g, warm)))
+    const double x_start = mem.state == ContactState::kSeparated ? x_apart : x_warm;
+    if (!(fast_warm && warm && evaluateWarm(c, z, u, dr, p, mem.state, x_start, &frame, &g, warm)))
       evaluateContact(c.m, z, u, dr, p, &c.ws, &g, far_m, tight, warm, warm_theta);
     if (reach_speed_mps >= 0.0) recordSafeInterval(g, dr.t_s, reach_speed_mps, &mem);
     if (warm && !g.far) {
