@@ -635,26 +635,30 @@ std::string wrap(const std::string& text, size_t width) {
 void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
   char peak[64] = "(none yet)";
   if (have_strike_) std::snprintf(peak, sizeof(peak), "%.1f N", last_strike_.peakNormalForce());
-  char head[400];
-  std::snprintf(head, sizeof(head),
+  char line[400];
+  std::snprintf(line, sizeof(line),
                 "t = %.6f s   drum %.2f rad/s = %.0f rpm (target %.2f)\n"
                 "real-time factor %.3g (requested %.3g, pace now %.3g)\n"
                 "last strike peak %s",
                 s.t_s, s.omega_radps, s.omega_radps * 30 / kPi, s.omega_target_radps,
                 s.measured_rtf, s.requested_rtf, s.target_rtf, peak);
-  // A fed drum: the running fractions below.
-  const std::string line =
-      s.feed.present ? std::string(head) + "\n" + feedOverlayLine(s.feed) : std::string(head);
   // Unless simply running, the status line comes first, in letters small enough for four
   // lines to take the room of three.
   const bool plain = plainRunning(status_);
   const double h_m = extent_.size().y();
   visualization_msgs::Marker m =
       text(s, "overlay", 0, Vec2(extent_.center().x(), extent_.max_m.y() + 0.02 * h_m),
-           (plain && !s.feed.present ? 0.03 : 0.0225) * h_m,
-           plain ? line : statusLine(status_) + "\n" + line);
+           (plain ? 0.03 : 0.0225) * h_m, plain ? line : statusLine(status_) + "\n" + line);
   m.color = statusColor(status_);
   out->markers.push_back(m);
+  // A fed drum: the feed and its running fractions at the scene's foot, below the grate (id 1).
+  if (s.feed.present) {
+    visualization_msgs::Marker f =
+        text(s, "overlay", 1, Vec2(extent_.center().x(), extent_.min_m.y()), 0.0225 * h_m,
+             feedOverlayLine(s.feed));
+    f.color = statusColor(status_);
+    out->markers.push_back(f);
+  }
 }
 
 // Unless the run is simply running: its state in large letters at the scene's top left corner
