@@ -1,5 +1,5 @@
 // A scene with a continuous feed (core/feed.h) run to its duration: the feed updated every
-// kFeedStep_s of simulated time (at the first step end at or past it: no step is cut for it),
+// kFeedUpdateStep_s of simulated time (at the first step end at or past it: no step is cut for it),
 // each retired kernel's outcome row, the time series per --feed-interval and the totals.
 //
 // Drum load: the drive's work over an interval (RunStats::drive_work_J, integrated by the
@@ -23,10 +23,6 @@
 namespace threshing_sim {
 namespace app {
 namespace {
-
-// Simulated time between two feed updates [s]: kernels are placed and retired at the first
-// step end at or past each multiple.
-constexpr double kFeedStep_s = 1e-4;
 
 void writeSeriesHeader(std::ostream& out) {
   out << "t_start_s,t_end_s,fed,threshed,damaged,separated,carried_over_detached,"
@@ -103,11 +99,12 @@ void reportFeed(const Model& model, const FeedSpec& spec, const Data& d, const F
       "\"separated\": %ld, \"carried_over_detached\": %ld, \"carried_over_unthreshed\": %ld, "
       "\"out_of_bounds\": %ld, \"threshed\": %ld, \"damaged\": %ld, \"balanced\": %s, "
       "\"peak_force_mean_N\": %.6g, \"drive_work_J\": %.9g, \"power_W\": %.6g, "
-      "\"torque_Nm\": %.6g}}\n",
+      "\"torque_Nm\": %.6g}, \"peak_normal_force_N\": %.17g}\n",
       status.c_str(), d.t_s, wall_s, d.steps, d.stats.impacts, spec.rate_per_s, rate_kgps,
       spec.mat_speed_mps, spec.capacity, c.fed, c.in_drum, c.separated, c.carried_detached,
       c.carried_unthreshed, c.out_of_bounds, totals.threshed, totals.damaged,
-      c.balanced() ? "true" : "false", peak_mean_N, d.stats.drive_work_J, power_W, torque_Nm);
+      c.balanced() ? "true" : "false", peak_mean_N, d.stats.drive_work_J, power_W, torque_Nm,
+      d.stats.peak_normal_force_N);
   if (json != nullptr) *json << text;
   if (quiet) return;
   std::printf(
@@ -147,8 +144,7 @@ int runFeedToFiles(Model model, const FeedSpec& spec, const DamageThresholds& da
   double next_row_s = options.feed_interval_s;
   // Bounded: each pass advances time by at least one step (advancePast's guards fail a stall).
   while (ok && data.t_s < t_end_s) {
-    const double t_next_s =
-        std::min(t_end_s, (std::floor(data.t_s / kFeedStep_s) + 1) * kFeedStep_s);
+    const double t_next_s = std::min(t_end_s, nextFeedUpdate(data.t_s));
     if (advancePast(model, &data, t_next_s, t_end_s) == StepStatus::kFailed) {
       status = "failed: " + describe(data.stats.failure);
       break;

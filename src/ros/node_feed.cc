@@ -16,6 +16,7 @@ bool NodeFeed::start(std::shared_ptr<const Model>* model, Data* data) {
   // Later than t = 0 (a reset): kernels arrive from now on at the rate in force.
   if (data->t_s > 0) setFeedRate(spec_.rate_per_s, data->t_s, &spec_, &state_);
   series_.start(*data, state_.counts, spec_.capacity);
+  next_update_s_ = nextFeedUpdate(data->t_s);
   return place(model, data);
 }
 
@@ -40,11 +41,17 @@ void NodeFeed::drain() {
   state_.retired.clear();
 }
 
-bool NodeFeed::update(std::shared_ptr<const Model>* model, Data* data, long k,
-                      const ros::Time& stamp) {
-  retireFeedKernels(spec_, **model, data, &state_);
-  const bool ok = place(model, data);
-  drain();
+bool NodeFeed::update(std::shared_ptr<const Model>* model, Data* data, long k, double t_k_s,
+                      bool last, const ros::Time& stamp) {
+  bool ok = true;
+  // As simulate's loop: advancePast(nextFeedUpdate(t)) then the update (a boundary within a
+  // picosecond of the multiple is on it: k * dt in floating point).
+  if (last || t_k_s >= next_update_s_ - 1e-12) {
+    retireFeedKernels(spec_, **model, data, &state_);
+    ok = place(model, data);
+    drain();
+    next_update_s_ = nextFeedUpdate(data->t_s);
+  }
   if (k > 0 && k % interval_steps_ == 0) {
     FeedIntervalRecord r;
     r.stamp = stamp;

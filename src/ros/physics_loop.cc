@@ -303,7 +303,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   // The feed at the boundary: kernels that left retired, kernels due placed, the throughput
   // interval closed on the step grid.
   if (feed_ && status != StepStatus::kFailed &&
-      !feed_->update(&model_, &data_, k, timing_.stampOf(k)))
+      !feed_->update(&model_, &data_, k, t_target_s, final, timing_.stampOf(k)))
     fail(feed_->error());
 
   // The last step of a bounded run (or the failed one that ends it) and a periodic reset

@@ -22,6 +22,7 @@
 // kernel hanging below its anchor.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -135,6 +136,16 @@ bool updateFeed(const FeedSpec& spec, Model* model, Data* data, FeedState* state
 void retireFeedKernels(const FeedSpec& spec, const Model& model, Data* data, FeedState* state);
 bool placeFeedKernels(const FeedSpec& spec, Model* model, Data* data, FeedState* state);
 bool feedKernelDue(const FeedSpec& spec, const FeedState& state, double t_s);
+
+// Simulated time between two feed updates [s]: `simulate` and the node update the feed at the
+// first step end at or past the next multiple of it after the last update (nextFeedUpdate), so
+// that both run a fed scene with the same steps.
+constexpr double kFeedUpdateStep_s = 1e-4;
+// The time the next update is due after one at a step end at t_s: the next multiple of
+// kFeedUpdateStep_s [s].
+inline double nextFeedUpdate(double t_s) {
+  return (std::floor(t_s / kFeedUpdateStep_s) + 1) * kFeedUpdateStep_s;
+}
 
 // Arrival time of the next kernel to be fed (+inf at rate 0) [s].
 double nextFeedArrival(const FeedSpec& spec, const FeedState& state);
