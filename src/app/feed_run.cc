@@ -1,10 +1,11 @@
 // A scene with a continuous feed (core/feed.h) run to its duration: the feed updated every
-// kFeedStep_s of simulated time (at the first step end at or past it: no step is cut for it),
+// kFeedUpdateStep_s of simulated time (at the first step end at or past it: no step is cut for it),
 // each retired kernel's outcome row, the time series per --feed-interval and the totals.
 //
 // Drum load: the drive's work over an interval (RunStats::drive_work_J, integrated by the
 // integrator with the teeth's contact forces in it) over the interval's length is the mean
-// power the drum delivers; over the mean drum speed, the mean load torque.
+// power the drum delivers; over the drum angle turned, the mean load torque (core/feed.h
+// FeedSeries: the node's feed_throughput computes the same).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -23,66 +24,22 @@ namespace threshing_sim {
 namespace app {
 namespace {
 
-// Simulated time between two feed updates [s]: kernels are placed and retired at the first
-// step end at or past each multiple.
-constexpr double kFeedStep_s = 1e-4;
-
-// One interval of the time series: counts of the kernels fed and retired in it, their peak
-// forces, the drive's work.
-struct FeedInterval {
-  double t_start_s = 0;           // [s]
-  long fed_at_start = 0;          // FeedCounts::fed at the start [-]
-  FeedCounts at_start;            // the counts at the start
-  long threshed = 0;              // retired off their pedicels [-]
-  long damaged = 0;               // retired with a contact force >= the plastic force [-]
-  std::vector<double> peaks_N;    // retired kernels' peak tooth normal forces [N]
-  double drive_work_start_J = 0;  // RunStats::drive_work_J at the start [J]
-  double theta_start_rad = 0;     // drum angle at the start [rad]
-};
-
-// Nearest-rank percentile p in [0, 1] of sorted values (0 for none).
-double percentile(const std::vector<double>& sorted, double p) {
-  if (sorted.empty()) return 0.0;
-  const size_t rank = static_cast<size_t>(std::ceil(p * sorted.size()));
-  return sorted[std::min(sorted.size() - 1, rank == 0 ? 0 : rank - 1)];
-}
-
 void writeSeriesHeader(std::ostream& out) {
   out << "t_start_s,t_end_s,fed,threshed,damaged,separated,carried_over_detached,"
          "carried_over_unthreshed,out_of_bounds,in_drum,peak_force_mean_N,peak_force_p50_N,"
          "peak_force_p90_N,peak_force_max_N,drive_work_J,power_W,torque_Nm\n";
 }
 
-// The row of the interval ending now; the next interval starts.
-void closeInterval(const Data& d, const FeedCounts& c, std::ostream* out, FeedInterval* iv) {
-  std::vector<double>& peaks = iv->peaks_N;
-  std::sort(peaks.begin(), peaks.end());
-  double mean_N = 0;
-  for (double f : peaks) mean_N += f;
-  if (!peaks.empty()) mean_N /= static_cast<double>(peaks.size());
-  const double dt_s = d.t_s - iv->t_start_s;
-  const double work_J = d.stats.drive_work_J - iv->drive_work_start_J;
-  const double power_W = dt_s > 0 ? work_J / dt_s : 0.0;
-  const double dtheta_rad = d.theta_rad - iv->theta_start_rad;
-  const double torque_Nm = dtheta_rad != 0 ? work_J / dtheta_rad : 0.0;
-  if (out != nullptr) {
-    char row[512];
-    std::snprintf(
-        row, sizeof(row),
-        "%.9g,%.9g,%ld,%ld,%ld,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g,%.6g,%.9g,%.6g,%.6g\n",
-        iv->t_start_s, d.t_s, c.fed - iv->at_start.fed, iv->threshed, iv->damaged,
-        c.separated - iv->at_start.separated, c.carried_detached - iv->at_start.carried_detached,
-        c.carried_unthreshed - iv->at_start.carried_unthreshed,
-        c.out_of_bounds - iv->at_start.out_of_bounds, c.in_drum, mean_N, percentile(peaks, 0.5),
-        percentile(peaks, 0.9), peaks.empty() ? 0.0 : peaks.back(), work_J, power_W, torque_Nm);
-    *out << row;
-  }
-  iv->t_start_s = d.t_s;
-  iv->at_start = c;
-  iv->threshed = iv->damaged = 0;
-  peaks.clear();
-  iv->drive_work_start_J = d.stats.drive_work_J;
-  iv->theta_start_rad = d.theta_rad;
+// The row of an interval (FeedSeries::close, the node's feed_throughput computes the same).
+void writeSeriesRow(std::ostream& out, const FeedIntervalRow& r) {
+  char row[512];
+  std::snprintf(row, sizeof(row),
+                "%.9g,%.9g,%ld,%ld,%ld,%ld,%ld,%ld,%ld,%ld,%.6g,%.6g,%.6g,%.6g,%.9g,%.6g,%.6g\n",
+                r.t_start_s, r.t_end_s, r.fed, r.threshed, r.damaged, r.separated,
+                r.carried_detached, r.carried_unthreshed, r.out_of_bounds, r.in_drum,
+                r.peak_force_mean_N, r.peak_force_p50_N, r.peak_force_p90_N, r.peak_force_max_N,
+                r.drive_work_J, r.power_W, r.torque_Nm);
+  out << row;
 }
 
 void writeOutcomesHeader(std::ostream& out) {
@@ -100,28 +57,11 @@ void writeOutcomeRow(std::ostream& out, const FeedRecord& r, const DamageThresho
   out << row;
 }
 
-// Totals of a run.
-struct FeedTotals {
-  long threshed = 0;  // retired off their pedicels [-]
-  long damaged = 0;   // retired with a contact force >= the plastic force [-]
-  double peak_sum_N = 0;
-  long peak_count = 0;
-};
-
-// Drains the kernels retired since the last update into the interval, the totals and the
-// outcome rows.
+// Drains the kernels retired since the last update into the series and the outcome rows.
 void drainRetired(const DamageThresholds& damage, std::ostream* outcomes, FeedState* state,
-                  FeedInterval* iv, FeedTotals* totals) {
+                  FeedSeries* series) {
   for (const FeedRecord& r : state->retired) {
-    const bool threshed = r.detach_s >= 0;
-    const bool damaged = r.peak_contact_N >= damage.plastic_force_N;
-    iv->threshed += threshed;
-    iv->damaged += damaged;
-    totals->threshed += threshed;
-    totals->damaged += damaged;
-    iv->peaks_N.push_back(r.peak_normal_N);
-    totals->peak_sum_N += r.peak_normal_N;
-    ++totals->peak_count;
+    series->add(r, damage.plastic_force_N);
     if (outcomes != nullptr) writeOutcomeRow(*outcomes, r, damage);
   }
   state->retired.clear();
@@ -149,7 +89,7 @@ void reportFeed(const Model& model, const FeedSpec& spec, const Data& d, const F
   const double power_W = d.t_s > 0 ? d.stats.drive_work_J / d.t_s : 0.0;
   const double dtheta_rad = d.theta_rad - model.drum.initial_angle_rad;
   const double torque_Nm = dtheta_rad != 0 ? d.stats.drive_work_J / dtheta_rad : 0.0;
-  const double peak_mean_N = totals.peak_count > 0 ? totals.peak_sum_N / totals.peak_count : 0.0;
+  const double peak_mean_N = totals.peakMean_N();
   char text[2048];
   std::snprintf(
       text, sizeof(text),
@@ -159,11 +99,12 @@ void reportFeed(const Model& model, const FeedSpec& spec, const Data& d, const F
       "\"separated\": %ld, \"carried_over_detached\": %ld, \"carried_over_unthreshed\": %ld, "
       "\"out_of_bounds\": %ld, \"threshed\": %ld, \"damaged\": %ld, \"balanced\": %s, "
       "\"peak_force_mean_N\": %.6g, \"drive_work_J\": %.9g, \"power_W\": %.6g, "
-      "\"torque_Nm\": %.6g}}\n",
+      "\"torque_Nm\": %.6g}, \"peak_normal_force_N\": %.17g}\n",
       status.c_str(), d.t_s, wall_s, d.steps, d.stats.impacts, spec.rate_per_s, rate_kgps,
       spec.mat_speed_mps, spec.capacity, c.fed, c.in_drum, c.separated, c.carried_detached,
       c.carried_unthreshed, c.out_of_bounds, totals.threshed, totals.damaged,
-      c.balanced() ? "true" : "false", peak_mean_N, d.stats.drive_work_J, power_W, torque_Nm);
+      c.balanced() ? "true" : "false", peak_mean_N, d.stats.drive_work_J, power_W, torque_Nm,
+      d.stats.peak_normal_force_N);
   if (json != nullptr) *json << text;
   if (quiet) return;
   std::printf(
@@ -194,9 +135,8 @@ int runFeedToFiles(Model model, const FeedSpec& spec, const DamageThresholds& da
   resetData(model, &data);
   FeedState state;
   startFeed(spec, model, &data, &state);
-  FeedInterval interval;
-  closeInterval(data, state.counts, nullptr, &interval);
-  FeedTotals totals;
+  FeedSeries feed_series;
+  feed_series.start(data, state.counts, spec.capacity);
   std::string status = "ok";
   const auto started = std::chrono::steady_clock::now();
   const double t_end_s = model.duration_s;
@@ -204,17 +144,17 @@ int runFeedToFiles(Model model, const FeedSpec& spec, const DamageThresholds& da
   double next_row_s = options.feed_interval_s;
   // Bounded: each pass advances time by at least one step (advancePast's guards fail a stall).
   while (ok && data.t_s < t_end_s) {
-    const double t_next_s =
-        std::min(t_end_s, (std::floor(data.t_s / kFeedStep_s) + 1) * kFeedStep_s);
+    const double t_next_s = std::min(t_end_s, nextFeedUpdate(data.t_s));
     if (advancePast(model, &data, t_next_s, t_end_s) == StepStatus::kFailed) {
       status = "failed: " + describe(data.stats.failure);
       break;
     }
     data.events.clear();
     ok = updateFeed(spec, &model, &data, &state);
-    drainRetired(damage, outcomes_out, &state, &interval, &totals);
+    drainRetired(damage, outcomes_out, &state, &feed_series);
     if (data.t_s >= next_row_s - 1e-12 || data.t_s >= t_end_s) {
-      closeInterval(data, state.counts, series_out, &interval);
+      const FeedIntervalRow row = feed_series.close(data, state.counts);
+      if (series_out != nullptr) writeSeriesRow(*series_out, row);
       next_row_s =
           (std::floor(data.t_s / options.feed_interval_s + 1e-9) + 1) * options.feed_interval_s;
     }
@@ -223,7 +163,7 @@ int runFeedToFiles(Model model, const FeedSpec& spec, const DamageThresholds& da
   if (!state.counts.balanced()) status = "failed: the feed's counts do not balance";
   const double wall_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-  reportFeed(model, spec, data, state, totals, status, wall_s,
+  reportFeed(model, spec, data, state, feed_series.totals(), status, wall_s,
              summary.is_open() ? &summary : nullptr, options.quiet);
   closeFile(options.summary_path, "--summary", &summary);
   closeFile(options.outcomes_path, "--outcomes", &outcomes);

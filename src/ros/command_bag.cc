@@ -15,6 +15,7 @@
 
 #include "threshing_sim/ContactStateArray.h"
 #include "threshing_sim/DrumSpeedCommand.h"
+#include "threshing_sim/FeedRateCommand.h"
 
 namespace threshing_sim {
 namespace {
@@ -297,6 +298,25 @@ CommandBagContents readCommandBag(const std::string& path, std::int64_t dt_ns,
     }
     std::stable_sort(out.commands.begin(), out.commands.end(),
                      [](const BagCommand& a, const BagCommand& b) { return a.step < b.step; });
+    n = 0;
+    for (const rosbag::MessageInstance& m :
+         rosbag::View(bag, rosbag::TypeQuery("threshing_sim/FeedRateCommand"))) {
+      const auto c = instantiate<FeedRateCommand>(path, m, n);
+      const long step = stepOf(path, c->header.stamp.toNSec(), dt_ns);
+      // The live topic's first test (the pool's is the node's, at the boundary).
+      if (!std::isfinite(c->rate_per_s) || c->rate_per_s < 0 || c->rate_per_s > 1e6) {
+        char text[160];
+        std::snprintf(text, sizeof(text),
+                      "feed rate command %zu at %s: rate %g 1/s is not in [0, 1e6]", n,
+                      stampText(c->header.stamp.toNSec()).c_str(), c->rate_per_s);
+        throw std::invalid_argument(where(path) + text);
+      }
+      out.feed_commands.push_back({step, c->rate_per_s});
+      ++n;
+    }
+    std::stable_sort(
+        out.feed_commands.begin(), out.feed_commands.end(),
+        [](const BagFeedCommand& a, const BagFeedCommand& b) { return a.step < b.step; });
     n = 0;
     for (const rosbag::MessageInstance& m :
          rosbag::View(bag, rosbag::TypeQuery("threshing_sim/ContactStateArray"))) {

@@ -141,7 +141,18 @@ std::vector<KernelForces> KernelImpulses::forces(const Model& model, const Data&
   return out;
 }
 
-SceneExtent sceneExtent(const Model& model) {
+double contactLoadTorque(const std::vector<ContactInfo>& contacts) {
+  double torque_Nm = 0;
+  for (const ContactInfo& c : contacts) {
+    if (c.pair.kind != PairKind::kToothKernel || c.state == ContactState::kSeparated) continue;
+    const Vec2 t_W(-c.n_W.y(), c.n_W.x());
+    const Vec2 f_W = c.normal_force_N * c.n_W + c.tangential_force_N * t_W;
+    torque_Nm += c.p_W.x() * f_W.y() - c.p_W.y() * f_W.x();
+  }
+  return torque_Nm;
+}
+
+SceneExtent sceneExtent(const Model& model, const FeedSpec* feed) {
   double reach_m = model.drum.radius_m;
   for (const ToothModel& t : model.teeth)
     reach_m = std::max(reach_m, t.p_DR_D.norm() + t.length_m + 0.5 * t.diameter_m);
@@ -163,7 +174,12 @@ SceneExtent sceneExtent(const Model& model) {
       include(o.point_b_m, o.radius_m);
     }
   }
-  for (const KernelModel& k : model.kernels) include(k.initial_position_m, k.semi_axis_a_m);
+  for (const KernelModel& k : model.kernels)
+    if (!k.pool_slot) include(k.initial_position_m, k.semi_axis_a_m);
+  if (feed != nullptr) {
+    include(Vec2(feed->inlet_x_m, feed->anchor_y_m), 0.0);
+    include(Vec2(feed->exit_x_m, feed->grate_y_m), 0.0);
+  }
   const double margin_m = 0.05 * std::max(e.size().x(), e.size().y());
   e.min_m -= Vec2(margin_m, margin_m);
   e.max_m += Vec2(margin_m, margin_m);

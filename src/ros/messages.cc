@@ -262,7 +262,8 @@ KernelStateArray kernelStatesMsg(const Snapshot& s) {
   msg.header.stamp = s.stamp;
   msg.header.frame_id = kWorldFrame;
   for (size_t i = 0; i < model.kernels.size(); ++i) {
-    const int o = model.kernels[i].dof_offset;  // c_x, c_y, psi
+    if (i < s.kernel_active.size() && s.kernel_active[i] == 0) continue;  // a parked pool slot
+    const int o = model.kernels[i].dof_offset;                            // c_x, c_y, psi
     KernelState k;
     k.index = static_cast<int>(i);
     k.pose.x = s.z[o];
@@ -349,6 +350,7 @@ visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Da
     clear.action = visualization_msgs::Marker::DELETEALL;
     out.markers.push_back(clear);
     live_force_arrows_.clear();
+    kernel_drawn_.assign(kernel_drawn_.size(), 0);
   }
   if (with_static || s.reset) {
     const visualization_msgs::MarkerArray geometry = staticGeometry(s);
@@ -376,11 +378,21 @@ visualization_msgs::MarkerArray MarkerBuilder::build(const Snapshot& s, const Da
   }
 
   // Kernels: flat elliptic cylinders, semi-axes a along the kernel's x axis.
+  kernel_drawn_.resize(model.kernels.size(), 0);
   for (size_t i = 0; i < model.kernels.size(); ++i) {
     const KernelModel& kernel = model.kernels[i];
     const int o = kernel.dof_offset;
     visualization_msgs::Marker m =
         marker(s, "kernels", static_cast<int>(i), visualization_msgs::Marker::CYLINDER);
+    // A feed's parked pool slot is not drawn (deleted once: its last kernel left).
+    if (i < s.kernel_active.size() && s.kernel_active[i] == 0) {
+      if (!kernel_drawn_[i]) continue;
+      kernel_drawn_[i] = 0;
+      m.action = visualization_msgs::Marker::DELETE;
+      out.markers.push_back(m);
+      continue;
+    }
+    kernel_drawn_[i] = 1;
     m.pose.position = point(s.z.segment<2>(o));
     m.pose.orientation = yaw(s.z[o + 2]);
     m.scale.x = 2 * kernel.semi_axis_a_m;
@@ -429,7 +441,67 @@ DrumState drumStateMsg(const Snapshot& s) {
   msg.target_speed = s.omega_target_radps;
   msg.acceleration = s.alpha_radps2;
   msg.loops = s.loops;
+  msg.load_torque = contactLoadTorque(s.contacts);
+  msg.load_power = msg.load_torque * s.omega_radps;
   return msg;
+}
+
+FeedRateCommand feedRateCommandMsg(const AppliedFeedCommand& c) {
+  FeedRateCommand msg;
+  msg.header.stamp = c.stamp;
+  msg.header.frame_id = kWorldFrame;
+  msg.rate_per_s = c.rate_per_s;
+  return msg;
+}
+
+FeedThroughput feedThroughputMsg(const FeedIntervalRecord& r) {
+  FeedThroughput msg;
+  msg.header.stamp = r.stamp;
+  msg.header.frame_id = kWorldFrame;
+  msg.start_time = r.row.t_start_s;
+  msg.end_time = r.row.t_end_s;
+  msg.feed_rate_per_s = r.rate_per_s;
+  msg.feed_rate_kgps = r.rate_kgps;
+  msg.fed = r.row.fed;
+  msg.threshed = r.row.threshed;
+  msg.damaged = r.row.damaged;
+  msg.separated = r.row.separated;
+  msg.carried_over_detached = r.row.carried_detached;
+  msg.carried_over_unthreshed = r.row.carried_unthreshed;
+  msg.out_of_bounds = r.row.out_of_bounds;
+  msg.total_fed = r.counts.fed;
+  msg.in_drum = r.counts.in_drum;
+  msg.total_threshed = r.totals.threshed;
+  msg.total_damaged = r.totals.damaged;
+  msg.total_separated = r.counts.separated;
+  msg.total_carried_over_detached = r.counts.carried_detached;
+  msg.total_carried_over_unthreshed = r.counts.carried_unthreshed;
+  msg.total_out_of_bounds = r.counts.out_of_bounds;
+  msg.peak_force_mean = r.row.peak_force_mean_N;
+  msg.peak_force_p50 = r.row.peak_force_p50_N;
+  msg.peak_force_p90 = r.row.peak_force_p90_N;
+  msg.peak_force_max = r.row.peak_force_max_N;
+  msg.drive_work = r.row.drive_work_J;
+  msg.power = r.row.power_W;
+  msg.torque = r.row.torque_Nm;
+  return msg;
+}
+
+std::string feedOverlayLine(const SnapshotFeed& feed) {
+  const FeedCounts& c = feed.counts;
+  const long retired = c.fed - c.in_drum;
+  // Percent of the kernels retired so far.
+  auto pct = [retired](long n) { return retired > 0 ? 100.0 * n / retired : 0.0; };
+  char line[320];
+  std::snprintf(line, sizeof(line),
+                "feed %.4g kernels/s (%.3g g/s): fed %ld, in drum %ld, retired %ld\n"
+                "threshed %.0f%%  damaged %.0f%%  separated %.0f%%  carried over %.0f%% "
+                "(unthreshed %.0f%%)  out %.0f%%",
+                feed.rate_per_s, feed.rate_kgps * 1e3, c.fed, c.in_drum, retired,
+                pct(feed.totals.threshed), pct(feed.totals.damaged), pct(c.separated),
+                pct(c.carried_detached + c.carried_unthreshed), pct(c.carried_unthreshed),
+                pct(c.out_of_bounds));
+  return line;
 }
 
 KernelContactForces kernelContactForcesMsg(const Snapshot& s) {
@@ -481,6 +553,7 @@ StrikeHistory strikeHistoryMsg(const StrikeRecord& r, const ros::Time& stamp) {
 visualization_msgs::MarkerArray MarkerBuilder::staticGeometry(const Snapshot& s) const {
   visualization_msgs::MarkerArray out;
   addStaticGeometry(s, &out);
+  addFeedGeometry(s, &out);
   // The chart's frame: a box with a zero line.
   const SceneExtent c = chartBox(extent_);
   visualization_msgs::Marker frame =
@@ -492,6 +565,32 @@ visualization_msgs::MarkerArray MarkerBuilder::staticGeometry(const Snapshot& s)
   frame.color = rgba(0.55f, 0.55f, 0.55f);  // darker than the drum rim
   out.markers.push_back(frame);
   return out;
+}
+
+// A fed scene: the grate (a dashed line from the inlet to the exit, its gaps where kernels
+// fall through) and the mat's band at the inlet and the exit (two short vertical bars).
+void MarkerBuilder::addFeedGeometry(const Snapshot& s, visualization_msgs::MarkerArray* out) const {
+  if (!has_feed_) return;
+  const FeedSpec& f = feed_;
+  visualization_msgs::Marker grate = marker(s, "feed", 0, visualization_msgs::Marker::LINE_LIST);
+  constexpr int kBars = 40;
+  const double span_m = f.exit_x_m - f.inlet_x_m;
+  for (int j = 0; j < kBars; ++j) {
+    const double x0 = f.inlet_x_m + span_m * j / kBars;
+    grate.points.push_back(point(Vec2(x0, f.grate_y_m)));
+    grate.points.push_back(point(Vec2(x0 + 0.6 * span_m / kBars, f.grate_y_m)));
+  }
+  grate.scale.x = 2e-3;
+  grate.color = rgba(0.45f, 0.5f, 0.55f);
+  out->markers.push_back(grate);
+  visualization_msgs::Marker mat = marker(s, "feed", 1, visualization_msgs::Marker::LINE_LIST);
+  for (double x : {f.inlet_x_m, f.exit_x_m}) {
+    mat.points.push_back(point(Vec2(x, f.anchor_y_m - 0.5 * f.mat_thickness_m)));
+    mat.points.push_back(point(Vec2(x, f.anchor_y_m + 0.5 * f.mat_thickness_m)));
+  }
+  mat.scale.x = 2e-3;
+  mat.color = rgba(0.8f, 0.7f, 0.3f);
+  out->markers.push_back(mat);
 }
 
 namespace {
@@ -552,6 +651,14 @@ void MarkerBuilder::addOverlay(const Snapshot& s, visualization_msgs::MarkerArra
            (plain ? 0.03 : 0.0225) * h_m, plain ? line : statusLine(status_) + "\n" + line);
   m.color = statusColor(status_);
   out->markers.push_back(m);
+  // A fed drum: the feed and its running fractions at the scene's foot, below the grate (id 1).
+  if (s.feed.present) {
+    visualization_msgs::Marker f =
+        text(s, "overlay", 1, Vec2(extent_.center().x(), extent_.min_m.y()), 0.0225 * h_m,
+             feedOverlayLine(s.feed));
+    f.color = statusColor(status_);
+    out->markers.push_back(f);
+  }
 }
 
 // Unless the run is simply running: its state in large letters at the scene's top left corner

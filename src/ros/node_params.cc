@@ -50,6 +50,7 @@ const std::set<std::string> kNodeKeys = {"scene",
                                          "free_flight_factor",
                                          "wait_for_viewer",
                                          "strike_frames",
+                                         "feed_interval",
                                          "view"};
 
 // Event-driven scenes advance by this much simulated time per advanceTo call [s].
@@ -169,10 +170,11 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh) {
   readNumber(pnh, "free_flight_factor", 0.0, 1e3, &p.free_flight_factor);
   read(pnh, "wait_for_viewer", &p.wait_for_viewer);
   read(pnh, "strike_frames", &p.strike_frames);
+  readNumber(pnh, "feed_interval", 1e-4, 1e4, &p.feed_interval_s);
   return p;
 }
 
-Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params) {
+Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params, FeedSpec* feed) {
   // Every private parameter that is not the node's own is a scene key.
   XmlRpc::XmlRpcValue all;
   ros::param::get(pnh.getNamespace(), all);
@@ -187,10 +189,10 @@ Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params) 
       if (have_keys)
         fail(scene_keys.begin()->first,
              "unknown parameter (scene keys and ~scene cannot be combined)");
-      return loadScene(params.scene);
+      return loadScene(params.scene, {}, nullptr, feed);
     }
     if (!have_keys) fail("scene", "not set, and no scene keys among the private parameters");
-    return modelFromYaml(toYaml(scene_keys, ""));
+    return modelFromYaml(toYaml(scene_keys, ""), nullptr, feed);
   } catch (const SceneError& e) {
     const std::string source =
         params.scene.empty() ? "~ (scene keys)" : "~scene (" + params.scene + ")";

@@ -98,6 +98,10 @@ void OutputLoop::publishSnapshot(const Snapshot& s, bool with_static_markers) {
     pubs_.impact.publish(impactEventMsg(
         e, params_.sim_clock ? ros::Time().fromNSec(std::llround(e.t_s * 1e9)) : s.stamp));
   for (const AppliedCommand& c : s.commands) pubs_.applied.publish(drumSpeedCommandMsg(c));
+  for (const AppliedFeedCommand& c : s.feed.commands)
+    pubs_.feed_applied.publish(feedRateCommandMsg(c));
+  for (const FeedIntervalRecord& r : s.feed.intervals)
+    pubs_.feed_throughput.publish(feedThroughputMsg(r));
   if (s.streams & kStateStream) {
     pubs_.kernel.publish(kernelStatesMsg(s));
     pubs_.beam.publish(beamShapeMsg(s, scratch_, params_.beam_points));

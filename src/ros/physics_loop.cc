@@ -155,6 +155,14 @@ PhysicsLoop::PhysicsLoop(const NodeParams& params, const NodeTiming& timing,
   counters_.loop_period_s = pacer_.tickSeconds();
 }
 
+void PhysicsLoop::setFeed(const FeedSpec& spec, double plastic_force_N) {
+  const long interval_steps = std::max(1L, std::lround(params_.feed_interval_s / timing_.dt_s));
+  feed_ = std::make_unique<NodeFeed>(spec, plastic_force_N, interval_steps);
+  if (!feed_->start(&model_, &data_)) fail(feed_->error());
+  if (params_.loop_revolutions > 0)
+    ROS_INFO("~loop_revolutions ignored: a fed drum is not re-seeded (the feed brings kernels)");
+}
+
 void PhysicsLoop::run() {
   waitForSubscribers();
   waitForViewer();
@@ -290,8 +298,13 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   step_meter_.end();
   counters_.advance_started_s = -1;
   flags_.step = k;
-  if (status == StepStatus::kFailed) fail();
+  if (status == StepStatus::kFailed) fail(describe(data_.stats.failure));
   log_.afterStep(&data_, k);
+  // The feed at the boundary: kernels that left retired, kernels due placed, the throughput
+  // interval closed on the step grid.
+  if (feed_ && status != StepStatus::kFailed &&
+      !feed_->update(&model_, &data_, k, t_target_s, final, timing_.stampOf(k)))
+    fail(feed_->error());
 
   // The last step of a bounded run (or the failed one that ends it) and a periodic reset
   // publish everything.
@@ -302,7 +315,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   const bool frame_only = framed && !(streams & kMarkerStream);
   if (framed) streams |= kMarkerStream;
   if (reset_steps_ > 0 && k % reset_steps_ == 0 && !reset_.wanted) requestReset(0);
-  if (demo_.due(data_) && demo_.reseedIfClear(*model_, &data_)) {
+  if (!feed_ && demo_.due(data_) && demo_.reseedIfClear(*model_, &data_)) {
     history_.clear();
     log_.clearStrikes();
     log_.clearPeaks();
@@ -315,8 +328,7 @@ void PhysicsLoop::advanceOneStep(unsigned forced_streams) {
   if (last) flags_.finished = true;
 }
 
-void PhysicsLoop::fail() {
-  const std::string text = describe(data_.stats.failure);
+void PhysicsLoop::fail(const std::string& text) {
   {
     std::lock_guard<std::mutex> lock(inbox_.mutex);
     inbox_.failure_text = text;
@@ -339,7 +351,9 @@ void PhysicsLoop::fail() {
 
 void PhysicsLoop::applyStaged() {
   // Re-simulation: the recorded commands at their recorded boundaries.
-  schedule_.applyDue(flags_.step, [this](double speed_radps) { applyDrumTarget(speed_radps); });
+  schedule_.applyDue(
+      flags_.step, [this](double speed_radps) { applyDrumTarget(speed_radps); },
+      [this](double rate_per_s) { applyFeedRate(rate_per_s); });
   if (!inbox_.dirty) return;
 
   StagedInputs staged;
@@ -352,6 +366,7 @@ void PhysicsLoop::applyStaged() {
     inbox_.dirty = false;
   }
   if (staged.drum_target_radps) applyDrumTarget(*staged.drum_target_radps);
+  if (staged.feed_rate_per_s) applyFeedRate(*staged.feed_rate_per_s);
   if (staged.config) applyConfig(*staged.config);
   if (staged.reset) {
     requestReset(reset_ticket);
@@ -410,6 +425,21 @@ void PhysicsLoop::applyDrumTarget(double speed_radps) {
   log_.noteCommand({timing_.stampOf(flags_.step), speed_radps});
 }
 
+// The callback checked the command against the pool already (checkFeedRate); a re-simulated
+// one is checked here by the same test.
+void PhysicsLoop::applyFeedRate(double rate_per_s) {
+  const std::string why = feed_ ? feed_->setRate(rate_per_s, data_)
+                                : "the scene has no feed section (feed_rate_cmd needs one)";
+  if (!why.empty()) {
+    ++counters_.rejected_commands;
+    const long n = ++counters_.rejected_feed_commands;
+    ROS_WARN("feed_rate_cmd rejected at t = %g s: %s (%ld rejected so far)", data_.t_s, why.c_str(),
+             n);
+    return;
+  }
+  feed_->noteCommand({timing_.stampOf(flags_.step), rate_per_s});
+}
+
 void PhysicsLoop::applyConfig(const ThreshingSimConfig& config) {
   streams_.setRates(config.contact_state_rate, config.state_rate, config.marker_rate);
   counters_.requested_rtf = config.real_time_factor;  // adjustPace hands it to the pacer
@@ -458,6 +488,8 @@ void PhysicsLoop::resetBodies() {
   log_.clearPeaks();
   pending_reset_ = true;
   flags_.failed = false;
+  // A fed drum starts its feed again from now, with the rate in force (counts from zero).
+  if (feed_ && !feed_->start(&model_, &data_)) fail(feed_->error());
 }
 
 void PhysicsLoop::adjustPace() {
@@ -475,6 +507,8 @@ Snapshot PhysicsLoop::runFields() const {
   s.model = model_;
   s.step = flags_.step;
   s.kernel_attached = data_.kernel_attached;
+  s.kernel_active = data_.kernel_active;
+  if (feed_) feed_->fillState(&s);
   s.kernel_peak_force_N = data_.stats.kernel_peak_normal_force_N;
   s.kernel_impacts = data_.stats.kernel_impacts;
   s.omega_target_radps = data_.omega_target_radps;
@@ -518,6 +552,7 @@ void PhysicsLoop::takeSnapshot(unsigned streams, bool frame_only) {
   }
   s.streams = streams;
   log_.fill(*model_, data_, &s);
+  if (feed_) feed_->fill(&s);
   s.reset = std::exchange(pending_reset_, false);
   s.frames = std::exchange(frames_pending_, {});
   // Markers due only for a strike's frames leave out the chart and the status, as the frames

@@ -90,7 +90,12 @@ CommandSchedule::CommandSchedule(const NodeParams& params, double dt_s, std::int
 void CommandSchedule::loadBag(const NodeParams& params, double dt_s, std::int64_t dt_ns) {
   const CommandBagContents bag =
       readCommandBag(params.command_bag, dt_ns, params.max_drum_speed_radps);
-  for (const BagCommand& c : bag.commands) commands_.push_back({c.step, c.speed_radps});
+  for (const BagCommand& c : bag.commands) commands_.push_back({c.step, c.speed_radps, false});
+  for (const BagFeedCommand& c : bag.feed_commands)
+    commands_.push_back({c.step, c.rate_per_s, true});
+  // In boundary order; at one boundary drum and feed commands act on separate state.
+  std::stable_sort(commands_.begin(), commands_.end(),
+                   [](const Command& a, const Command& b) { return a.step < b.step; });
   // Without ~end_time, run up to the last contact_state the recording holds.
   if (end_step_ == 0) {
     end_step_ = bag.last_contact_step;
@@ -98,8 +103,8 @@ void CommandSchedule::loadBag(const NodeParams& params, double dt_s, std::int64_
       throw std::invalid_argument("~command_bag (" + params.command_bag +
                                   "): holds no contact_state to end the run at; set ~end_time");
   }
-  ROS_INFO("re-simulating %zu drum speed commands up to t = %g s", commands_.size(),
-           end_step_ * dt_s);
+  ROS_INFO("re-simulating %zu drum speed and %zu feed rate commands up to t = %g s",
+           bag.commands.size(), bag.feed_commands.size(), end_step_ * dt_s);
 }
 
 void CommandSchedule::loadSchedule(const NodeParams& params, double dt_s) {
@@ -117,7 +122,7 @@ void CommandSchedule::loadSchedule(const NodeParams& params, double dt_s) {
         throw std::invalid_argument(where + "bad command (time " + std::to_string(t_s) +
                                     " s, speed " + std::to_string(speed_radps) + " rad/s)");
       // Applied at the first step boundary at or after its time.
-      commands_.push_back({static_cast<long>(std::ceil(t_s / dt_s - 1e-9)), speed_radps});
+      commands_.push_back({static_cast<long>(std::ceil(t_s / dt_s - 1e-9)), speed_radps, false});
     }
   } catch (const YAML::Exception& e) {
     throw std::invalid_argument(where + e.what());

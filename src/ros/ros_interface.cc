@@ -32,7 +32,8 @@ RosInterface::RosInterface(ros::NodeHandle nh, ros::NodeHandle pnh, const NodePa
       inbox_(*inbox),
       diagnostics_(nh, pnh) {}
 
-DamageThresholds RosInterface::start(const Model& model) {
+DamageThresholds RosInterface::start(const Model& model, const FeedSpec* feed) {
+  feed_ = feed;
   DamageThresholds damage;
   advertise(model, &damage);
   pubs_.static_tf.sendTransform(staticTransforms(model, timing_.stampOf(0)));
@@ -51,9 +52,18 @@ void RosInterface::advertise(const Model& model, DamageThresholds* damage) {
   pubs_.applied = nh.advertise<DrumSpeedCommand>("drum_speed_cmd_applied", 1000, true);
   if (params_.sim_clock) pubs_.clock = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);
   // A re-simulation takes its commands from the bag only.
-  if (params_.command_bag.empty())
+  if (params_.command_bag.empty()) {
     command_sub_ = nh.subscribe("drum_speed_cmd", 100, &RosInterface::onDrumSpeedCommand, this,
                                 ros::TransportHints().tcpNoDelay());
+    // Subscribed without a feed too: a command to a scene without one is refused and counted.
+    feed_sub_ = nh.subscribe("feed_rate_cmd", 100, &RosInterface::onFeedRateCommand, this,
+                             ros::TransportHints().tcpNoDelay());
+  }
+  if (feed_ != nullptr) {
+    // The throughput per ~feed_interval; the commands as applied (latched, as the drum's).
+    pubs_.feed_throughput = nh.advertise<FeedThroughput>("feed_throughput", 100);
+    pubs_.feed_applied = nh.advertise<FeedRateCommand>("feed_rate_cmd_applied", 1000, true);
+  }
   pause_srv_ = pnh_.advertiseService("pause", &RosInterface::onPause, this);
   step_srv_ = pnh_.advertiseService("step", &RosInterface::onStep, this);
   reset_srv_ = pnh_.advertiseService("reset", &RosInterface::onReset, this);
@@ -122,6 +132,33 @@ void RosInterface::onDrumSpeedCommand(const std_msgs::Float64& msg) {
   }
   std::lock_guard<std::mutex> lock(inbox_.mutex);
   inbox_.staged.drum_target_radps = speed_radps;
+  inbox_.dirty = true;
+}
+
+// As drum_speed_cmd: validated here (the core's test: finite, in [0, 1e6] 1/s, no more kernels
+// on the mat than the pool holds), refused with a warning naming the value and counted, else
+// staged for the next step boundary. A scene without a feed refuses every command.
+void RosInterface::onFeedRateCommand(const std_msgs::Float64& msg) {
+  const double rate_per_s = msg.data;
+  char no_feed[128];
+  std::snprintf(no_feed, sizeof(no_feed),
+                "feed rate %.17g 1/s refused: the scene has no feed section", rate_per_s);
+  const std::string why =
+      feed_ != nullptr ? checkFeedRate(rate_per_s, *feed_, feed_->capacity) : no_feed;
+  if (!why.empty()) {
+    ++counters_.rejected_commands;
+    const long n = ++counters_.rejected_feed_commands;
+    // Throttled on the wall clock: simulated time crawls in slow motion.
+    const double now_s = clock_.nowSeconds();
+    if (now_s - last_feed_warn_s_ >= 1.0) {
+      last_feed_warn_s_ = now_s;
+      ROS_WARN("feed_rate_cmd rejected: %s (%ld feed rate commands rejected so far)", why.c_str(),
+               n);
+    }
+    return;
+  }
+  std::lock_guard<std::mutex> lock(inbox_.mutex);
+  inbox_.staged.feed_rate_per_s = rate_per_s;
   inbox_.dirty = true;
 }
 
@@ -248,6 +285,7 @@ void RosInterface::diagnose(diagnostic_updater::DiagnosticStatusWrapper& stat) {
            counters_.longest_step_s.load());
   stat.add("physics steps since the last drum command", counters_.steps_since_command.load());
   stat.add("rejected commands", counters_.rejected_commands.load());
+  stat.add("rejected feed rate commands", counters_.rejected_feed_commands.load());
   stat.add("numerical recoveries", counters_.recoveries.load());
   stat.add("impacts", counters_.impacts.load());
   // All 17 digits: the value is `simulate`'s to the last bit (scenes.test compares them).

@@ -23,7 +23,7 @@ NodeTiming timingOf(const NodeParams& params, const Model& model) {
 
 ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
     : params_(loadNodeParams(pnh)),
-      model_(std::make_shared<const Model>(loadSceneFromParams(pnh, params_))),
+      model_(std::make_shared<const Model>(loadSceneFromParams(pnh, params_, &feed_))),
       timing_(timingOf(params_, *model_)),
       ros_(nh, pnh, params_, timing_, &flags_, &counters_, &inbox_),
       physics_(params_, timing_, model_, &flags_, &counters_, &inbox_, &queue_),
@@ -36,7 +36,10 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
   flags_.paused = params_.start_paused;
   flags_.user_paused = params_.start_paused;
 
-  output_.setView(sceneExtent(*model_), ros_.start(*model_));
+  const FeedSpec* feed = feed_.capacity > 0 ? &feed_ : nullptr;
+  const DamageThresholds damage = ros_.start(*model_, feed);
+  output_.setView(sceneExtent(*model_, feed), damage, feed);
+  if (feed != nullptr) physics_.setFeed(feed_, damage.plastic_force_N);
   Publishers& pubs = ros_.publishers();
   physics_.setHooks({pubs.outputs(), &pubs.markers,
                      [this](const ThreshingSimConfig& c) { ros_.restoreConfig(c); }});
@@ -46,6 +49,11 @@ ThreshingSimNode::ThreshingSimNode(ros::NodeHandle nh, ros::NodeHandle pnh)
       model_->teeth.size(), model_->kernels.size(), model_->obstacles.size(), timing_.dt_s,
       params_.real_time_factor, params_.sim_clock ? "sim" : "wall",
       params_.command_bag.empty() ? "" : ", re-simulating the commands of ~command_bag");
+  if (feed != nullptr)
+    ROS_INFO(
+        "continuous feed: %g kernels/s on a mat at %g m/s, pool of %d kernel slots; "
+        "feed_rate_cmd [1/s], feed_throughput every %g s",
+        feed_.rate_per_s, feed_.mat_speed_mps, feed_.capacity, params_.feed_interval_s);
 
   output_thread_ = std::thread([this] { output_.run(); });
   physics_thread_ = std::thread([this] { physics_.run(); });

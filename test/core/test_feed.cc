@@ -2,11 +2,13 @@
 // a long run, determinism, the fates by geometry, the pool's limits and hostile values.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "sim_test_util.h"
 #include "threshing_sim/core/failure.h"
@@ -282,6 +284,82 @@ TEST(Feed, RateCommandsAtStepBoundaries) {
   if (HasFatalFailure()) return;
   EXPECT_TRUE(sameBits(a.data.z, b.data.z));
   EXPECT_EQ(a.state.counts.fed, r.state.counts.fed);
+}
+
+// The node's path (node_feed.cc): updateFeed's two stages, retireFeedKernels then
+// placeFeedKernels, give updateFeed's run bit for bit; FeedSeries' rows (simulate --feed-series,
+// feed_throughput) add up to the counts and the totals; checkFeedRate is setFeedRate's test.
+TEST(Feed, TwoStagesAndTheSeriesAgreeWithUpdateFeed) {
+  constexpr double kRun_s = 0.25;  // kernels retire from about 0.16 s on
+  FeedRun a(defaultSpec()), b(defaultSpec());
+  runFeed(&a, kRun_s);
+  if (HasFatalFailure()) return;
+  FeedSeries series;
+  series.start(b.data, b.state.counts, b.spec.capacity);
+  std::vector<FeedIntervalRow> rows;
+  ASSERT_TRUE(placeFeedKernels(b.spec, &b.model, &b.data, &b.state));
+  long retired = 0;
+  double peak_sum_N = 0;
+  while (b.data.t_s < kRun_s) {
+    const double t_next_s = std::min(kRun_s, b.data.t_s + b.interval_s);
+    ASSERT_NE(advancePast(b.model, &b.data, t_next_s, kRun_s), StepStatus::kFailed);
+    retireFeedKernels(b.spec, b.model, &b.data, &b.state);
+    const bool due = feedKernelDue(b.spec, b.state, b.data.t_s);
+    const Model before = b.model;
+    ASSERT_TRUE(placeFeedKernels(b.spec, &b.model, &b.data, &b.state));
+    // No kernel due: the model is left alone.
+    if (!due) {
+      EXPECT_EQ(before.kernels.back().mass_kg, b.model.kernels.back().mass_kg);
+    }
+    for (const FeedRecord& r : b.state.retired) {
+      series.add(r, 139.0);
+      ++retired;
+      peak_sum_N += r.peak_normal_N;
+    }
+    b.state.retired.clear();
+    b.data.events.clear();
+    if (std::fmod(b.data.t_s + 1e-12, 0.01) < b.interval_s)
+      rows.push_back(series.close(b.data, b.state.counts));
+  }
+  rows.push_back(series.close(b.data, b.state.counts));
+  EXPECT_TRUE(sameBits(a.data.z, b.data.z));
+  EXPECT_EQ(a.state.counts.fed, b.state.counts.fed);
+  EXPECT_EQ(a.state.counts.separated, b.state.counts.separated);
+  ASSERT_GT(retired, 0);
+  FeedIntervalRow sum;
+  double previous_end_s = 0;
+  for (const FeedIntervalRow& r : rows) {
+    EXPECT_EQ(r.t_start_s, previous_end_s);
+    previous_end_s = r.t_end_s;
+    sum.fed += r.fed;
+    sum.threshed += r.threshed;
+    sum.separated += r.separated;
+    sum.carried_detached += r.carried_detached;
+    sum.carried_unthreshed += r.carried_unthreshed;
+    sum.out_of_bounds += r.out_of_bounds;
+    sum.drive_work_J += r.drive_work_J;
+    EXPECT_LE(r.peak_force_p50_N, r.peak_force_p90_N);
+    EXPECT_LE(r.peak_force_p90_N, r.peak_force_max_N);
+  }
+  const FeedCounts& c = b.state.counts;
+  EXPECT_EQ(sum.fed, c.fed);
+  EXPECT_EQ(sum.separated, c.separated);
+  EXPECT_EQ(sum.carried_detached, c.carried_detached);
+  EXPECT_EQ(sum.carried_unthreshed, c.carried_unthreshed);
+  EXPECT_EQ(sum.out_of_bounds, c.out_of_bounds);
+  EXPECT_EQ(sum.threshed, series.totals().threshed);
+  EXPECT_EQ(rows.back().in_drum, c.in_drum);
+  EXPECT_EQ(series.totals().peak_count, retired);
+  EXPECT_EQ(series.totals().peak_sum_N, peak_sum_N);
+  EXPECT_NEAR(sum.drive_work_J, b.data.stats.drive_work_J, 1e-12);
+  // checkFeedRate refuses what setFeedRate refuses, with the same words.
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (double rate : {-1.0, nan, 1e12, 1e6, 0.0, 300.0}) {
+    FeedSpec spec = b.spec;
+    FeedState state = b.state;
+    EXPECT_EQ(checkFeedRate(rate, b.spec, b.state.capacity),
+              setFeedRate(rate, b.data.t_s, &spec, &state));
+  }
 }
 
 // Hostile values are refused, naming the key and the value.

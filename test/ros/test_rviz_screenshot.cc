@@ -9,6 +9,8 @@
 //    demo runs until the first strike_history and is paused, else it stays paused at t = 0; the
 //    screenshot must show the whole drum rim inside the render area and at least 90 % of the
 //    kernels (connected blobs in a kernel colour), and after a strike the strike chart's curve;
+//    with run_to_retired (rviz_feed.test, the feed scene) the demo runs until feed_throughput
+//    reports that many kernels retired, the overlay then showing the running fractions;
 //  - ScreenshotShowsPausedThenFailed (rviz_status.test, a scene beyond the work budget, started
 //    paused): the overlay and the status markers say PAUSED (sky blue), then, run, FAILED with
 //    the integrator's cause (red), each agreeing with /diagnostics; screenshots of both;
@@ -33,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "threshing_sim/FeedThroughput.h"
 #include "threshing_sim/KernelStateArray.h"
 #include "threshing_sim/StrikeHistory.h"
 
@@ -223,8 +226,16 @@ TEST(Rviz, ScreenshotShowsTheScene) {
   const std::string png =
       std::string(SCREENSHOT_DIR) + "/" + pnh.param<std::string>("png", "x.png");
   const bool run_to_strike = pnh.param("run_to_strike", false);
+  const int run_to_retired = pnh.param("run_to_retired", 0);
 
   std::mutex mutex;
+  std::atomic<long> retired{0};
+  ros::Subscriber ft = nh.subscribe<threshing_sim::FeedThroughput>(
+      "/feed_throughput", 10,
+      boost::function<void(const threshing_sim::FeedThroughput::ConstPtr&)>(
+          [&](const threshing_sim::FeedThroughput::ConstPtr& m) {
+            retired = m->total_fed - m->in_drum;
+          }));
   threshing_sim::KernelStateArray kernels;
   std::vector<double> box;
   std::vector<geometry_msgs::Point> rim_W;
@@ -262,6 +273,13 @@ TEST(Rviz, ScreenshotShowsTheScene) {
     while (!struck && ros::WallTime::now() < end) ros::WallDuration(1e-3).sleep();
     pause(true);
     ASSERT_TRUE(struck) << "no strike_history";
+  }
+  if (run_to_retired > 0) {
+    pause(false);
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(120);
+    while (retired < run_to_retired && ros::WallTime::now() < end) ros::WallDuration(1e-3).sleep();
+    pause(true);
+    ASSERT_GE(retired, run_to_retired) << "too few kernels retired";
   }
   ros::WallDuration(1.5).sleep();  // rviz draws the last markers
 

@@ -22,6 +22,7 @@
 // kernel hanging below its anchor.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -128,6 +129,24 @@ void startFeed(const FeedSpec& spec, const Model& model, Data* data, FeedState* 
 // clear of the others.
 bool updateFeed(const FeedSpec& spec, Model* model, Data* data, FeedState* state);
 
+// updateFeed's two stages, for a caller that must know when the model changes (the node changes
+// a copy of a model its output thread may still read): retireFeedKernels leaves the model alone;
+// placeFeedKernels (returns as updateFeed) writes the placed kernels' values into their slots,
+// and changes nothing when no kernel is due by data->t_s (feedKernelDue).
+void retireFeedKernels(const FeedSpec& spec, const Model& model, Data* data, FeedState* state);
+bool placeFeedKernels(const FeedSpec& spec, Model* model, Data* data, FeedState* state);
+bool feedKernelDue(const FeedSpec& spec, const FeedState& state, double t_s);
+
+// Simulated time between two feed updates [s]: `simulate` and the node update the feed at the
+// first step end at or past the next multiple of it after the last update (nextFeedUpdate), so
+// that both run a fed scene with the same steps.
+constexpr double kFeedUpdateStep_s = 1e-4;
+// The time the next update is due after one at a step end at t_s: the next multiple of
+// kFeedUpdateStep_s [s].
+inline double nextFeedUpdate(double t_s) {
+  return (std::floor(t_s / kFeedUpdateStep_s) + 1) * kFeedUpdateStep_s;
+}
+
 // Arrival time of the next kernel to be fed (+inf at rate 0) [s].
 double nextFeedArrival(const FeedSpec& spec, const FeedState& state);
 
@@ -138,7 +157,76 @@ double nextFeedArrival(const FeedSpec& spec, const FeedState& state);
 // negative, above 1e6 1/s, or more kernels riding the mat than the pool holds.
 std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState* state);
 
+// setFeedRate's test alone, for a caller that refuses a command before staging it (the node's
+// feed_rate_cmd callback): "" when rate_per_s would be accepted for spec's geometry and a pool of
+// `capacity` slots, else why not, naming the value.
+std::string checkFeedRate(double rate_per_s, const FeedSpec& spec, int capacity);
+
 // The fate of a kernel at centre c (attached: its pedicel holds) under spec's geometry.
 KernelFate feedFate(const FeedSpec& spec, const Vec2& c_W, bool attached);
+
+// ---------------------------------------------------------------------------------------------
+// The feed's time series (src/core/feed/series.cc): one source for `simulate --feed-series`
+// and the node's feed_throughput topic.
+
+// One interval of the series: the kernels fed and retired in it, their peak forces, the drum's
+// load. Counts are of the interval, in_drum is at its end.
+struct FeedIntervalRow {
+  double t_start_s = 0;          // start of the interval [s]
+  double t_end_s = 0;            // end (a step end) [s]
+  long fed = 0;                  // kernels placed in the interval [-]
+  long threshed = 0;             // retired off their pedicels [-]
+  long damaged = 0;              // retired with a contact force >= the plastic force [-]
+  long separated = 0;            // retired through the grate [-]
+  long carried_detached = 0;     // retired past the exit, off their pedicels [-]
+  long carried_unthreshed = 0;   // retired past the exit, still on their pedicels [-]
+  long out_of_bounds = 0;        // retired out of bounds [-]
+  long in_drum = 0;              // kernels in the simulation at the end [-]
+  double peak_force_mean_N = 0;  // mean of the retired kernels' peak tooth normal forces [N]
+  double peak_force_p50_N = 0;   // their median (nearest rank) [N]
+  double peak_force_p90_N = 0;   // their 90th percentile (nearest rank) [N]
+  double peak_force_max_N = 0;   // their largest [N]
+  double drive_work_J = 0;       // work of the drum drive over the interval [J]
+  double power_W = 0;            // mean power of the drive: work / length [W]
+  double torque_Nm = 0;          // mean load torque: work / drum angle turned [N m]
+};
+
+// Totals since the series started.
+struct FeedTotals {
+  long threshed = 0;      // retired off their pedicels [-]
+  long damaged = 0;       // retired with a contact force >= the plastic force [-]
+  double peak_sum_N = 0;  // sum of the retired kernels' peak tooth normal forces [N]
+  long peak_count = 0;    // kernels in that sum [-]
+  double peakMean_N() const { return peak_count > 0 ? peak_sum_N / peak_count : 0.0; }
+};
+
+// Accumulates the retired kernels into the current interval and the totals; close() ends the
+// interval and starts the next. Drum load: the drive's work over an interval (RunStats::
+// drive_work_J, integrated by the integrator with the teeth's contact forces in it) over the
+// interval's length is the mean power; over the drum angle turned, the mean load torque.
+class FeedSeries {
+ public:
+  // Starts the first interval at data's time (counts c: the feed's now) and clears the totals.
+  // capacity: retired kernels an interval usually holds (reserved, no allocation per step).
+  void start(const Data& d, const FeedCounts& c, int capacity);
+  // One retired kernel (plastic_force_N: the damage threshold [N]).
+  void add(const FeedRecord& r, double plastic_force_N);
+  // The row of the interval ending at d.t_s (counts c: the feed's now); the next one starts.
+  FeedIntervalRow close(const Data& d, const FeedCounts& c);
+  const FeedTotals& totals() const { return totals_; }
+  double intervalStart_s() const { return t_start_s_; }
+
+ private:
+  double t_start_s_ = 0;             // [s]
+  FeedCounts at_start_;              // the counts at the start
+  long threshed_ = 0, damaged_ = 0;  // in the interval [-]
+  std::vector<double> peaks_N_;      // retired kernels' peak tooth normal forces [N]
+  double drive_work_start_J_ = 0;    // RunStats::drive_work_J at the start [J]
+  double theta_start_rad_ = 0;       // drum angle at the start [rad]
+  FeedTotals totals_;
+};
+
+// Nearest-rank percentile p in [0, 1] of sorted values (0 for none).
+double feedPercentile(const std::vector<double>& sorted, double p);
 
 }  // namespace threshing_sim

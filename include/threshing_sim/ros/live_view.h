@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "threshing_sim/core/data.h"
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/model.h"
 
 namespace threshing_sim {
@@ -95,6 +96,12 @@ class KernelImpulses {
 // tooth-kernel pair is closed. Cheap (no ellipse queries), for pacing the view only.
 double timeToStrike(const Model& model, const Data& data);
 
+// The load torque of the teeth's contact forces about the drum axis (the origin), resisting the
+// rotation when > 0: sum over the closed tooth-kernel contacts of (p x f) . z, p the contact
+// point and f the force on the kernel (normal and tangential), world [N m]. Times the drum
+// speed it is the power the drive gives the kernels through the teeth [W].
+double contactLoadTorque(const std::vector<ContactInfo>& contacts);
+
 // Where the view that follows the contact looks: the point of a closed tooth-kernel contact, else
 // the centre of the kernel a tooth reaches first (by timeToStrike's estimate), world [m].
 Vec2 strikeFocus(const Model& model, const Data& data);
@@ -113,7 +120,8 @@ SceneExtent chartBox(const SceneExtent& scene);
 SceneExtent viewBox(const SceneExtent& scene);
 
 // The drum with its teeth at full reach (whole circle), circle and segment obstacles, the
-// points of planes nearest the drum, and the kernels' initial positions, plus a margin.
-SceneExtent sceneExtent(const Model& model);
+// points of planes nearest the drum, and the kernels' initial positions (not a feed's pool
+// slots, parked far away: the feed's inlet and grate instead), plus a margin.
+SceneExtent sceneExtent(const Model& model, const FeedSpec* feed = nullptr);
 
 }  // namespace threshing_sim

@@ -7,6 +7,7 @@
 #include <geometry_msgs/TransformStamped.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <cstdint>
 #include <map>
 #include <set>
 #include <string>
@@ -16,6 +17,8 @@
 #include "threshing_sim/ContactStateArray.h"
 #include "threshing_sim/DrumSpeedCommand.h"
 #include "threshing_sim/DrumState.h"
+#include "threshing_sim/FeedRateCommand.h"
+#include "threshing_sim/FeedThroughput.h"
 #include "threshing_sim/ImpactEvent.h"
 #include "threshing_sim/KernelContactForces.h"
 #include "threshing_sim/KernelStateArray.h"
@@ -51,6 +54,9 @@ class ContactStateBuilder {
 
 ImpactEvent impactEventMsg(const ContactEvent& e, const ros::Time& stamp);
 DrumSpeedCommand drumSpeedCommandMsg(const AppliedCommand& c);
+FeedRateCommand feedRateCommandMsg(const AppliedFeedCommand& c);
+FeedThroughput feedThroughputMsg(const FeedIntervalRecord& r);
+// Parked pool slots of a feed (kernel_active 0) are left out.
 KernelStateArray kernelStatesMsg(const Snapshot& s);
 DrumState drumStateMsg(const Snapshot& s);
 KernelContactForces kernelContactForcesMsg(const Snapshot& s);
@@ -81,6 +87,11 @@ class MarkerBuilder {
     extent_ = extent;
     damage_ = damage;
   }
+  // A fed scene: its grate and mat are static geometry (feed: the scene's, or nullptr).
+  void setFeed(const FeedSpec* feed) {
+    has_feed_ = feed != nullptr;
+    if (feed != nullptr) feed_ = *feed;
+  }
   // Every finished strike goes through here (whichever stream its snapshot was due on).
   void noteStrikes(const std::vector<StrikeRecord>& strikes) {
     if (strikes.empty()) return;
@@ -97,15 +108,24 @@ class MarkerBuilder {
   void addOverlay(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
   void addStrikeChart(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
   void addStatus(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
+  void addFeedGeometry(const Snapshot& s, visualization_msgs::MarkerArray* out) const;
 
-  SceneExtent extent_;               // the scene's box in world [m]
-  DamageThresholds damage_;          // kernel colours: damaged at or above plastic_force [N]
-  StrikeRecord last_strike_;         // the chart shows this one
-  bool have_strike_ = false;         // a strike has finished since start
-  double scale_mpN_;                 // force arrow length per newton [m/N]
-  int beam_points_;                  // centreline samples per tooth [-]
-  std::set<int> live_force_arrows_;  // ids of the contact_forces arrows now shown
-  RunStatus status_;                 // shown on the overlay and by the status markers
+  SceneExtent extent_;                      // the scene's box in world [m]
+  DamageThresholds damage_;                 // kernel colours: damaged at or above plastic_force [N]
+  StrikeRecord last_strike_;                // the chart shows this one
+  bool have_strike_ = false;                // a strike has finished since start
+  double scale_mpN_;                        // force arrow length per newton [m/N]
+  int beam_points_;                         // centreline samples per tooth [-]
+  std::set<int> live_force_arrows_;         // ids of the contact_forces arrows now shown
+  std::vector<std::uint8_t> kernel_drawn_;  // per kernel: its marker is shown (a feed's parked
+                                            // slots are deleted once, when parked)
+  RunStatus status_;                        // shown on the overlay and by the status markers
+  FeedSpec feed_;                           // the scene's feed (has_feed_): its grate and mat drawn
+  bool has_feed_ = false;
 };
+
+// The overlay's feed line: rate, fed, in the drum and the running fractions of the kernels
+// retired so far (threshed, damaged, separated, carried over, out of bounds).
+std::string feedOverlayLine(const SnapshotFeed& feed);
 
 }  // namespace threshing_sim

@@ -10,6 +10,7 @@
 
 #include <string>
 
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/scene/outcomes.h"
 
@@ -43,6 +44,7 @@ struct NodeParams {
   double free_flight_factor = 0;     // factor away from contacts, 0 = real_time_factor [-]
   bool wait_for_viewer = false;      // hold t = 0 (publishing markers) until rviz listens
   bool strike_frames = true;         // factor 0, sim clock: markers every 1 us through strikes
+  double feed_interval_s = 0.01;     // feed_throughput interval, on the step grid [s]
 };
 
 // A relative path resolved against ~scene_base_dir (the launch's working directory), else
@@ -58,7 +60,8 @@ NodeParams loadNodeParams(const ros::NodeHandle& pnh);
 // The scene: the file named by ~scene, or else the scene keys among the private parameters
 // (every private parameter that is not a node parameter). Validated and compiled by the scene
 // loader; throws std::invalid_argument naming the offending key.
-Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params);
+// A `feed` section is returned in *feed (capacity 0: none).
+Model loadSceneFromParams(const ros::NodeHandle& pnh, const NodeParams& params, FeedSpec* feed);
 
 // The scene as given (the file's text, or the scene keys as YAML) and its damage thresholds.
 std::string sceneTextFromParams(const ros::NodeHandle& pnh, const NodeParams& params,

@@ -46,6 +46,7 @@ struct RunFlags {
 
 struct RunCounters {
   std::atomic<long> rejected_commands{0}, impacts{0}, recoveries{0};
+  std::atomic<long> rejected_feed_commands{0};  // feed_rate_cmd refused (also counted above) [-]
   std::atomic<long> overruns{0}, resyncs{0};
   std::atomic<long> resets_deferred{0}, resets_skipped{0};  // resets that would overlap
   std::atomic<long> refused_reconfigures{0};     // requests with a value NaN, inf or out of range
@@ -66,6 +67,7 @@ struct RunCounters {
 // Inputs staged by the callbacks, applied by the physics thread at a step boundary.
 struct StagedInputs {
   std::optional<double> drum_target_radps;
+  std::optional<double> feed_rate_per_s;  // feed_rate_cmd, checked against the pool [1/s]
   std::optional<ThreshingSimConfig> config;
   bool reset = false;
   long step_periods = 0;  // publish periods requested by ~step while paused

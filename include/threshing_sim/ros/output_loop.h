@@ -25,8 +25,10 @@ class OutputLoop {
              const RunCounters& counters, SnapshotQueue* queue, Publishers* pubs,
              diagnostic_updater::Updater* diagnostics, std::function<RunStatus()> status);
   // Where the overlay and the chart go and the kernels' damage colours.
-  void setView(const SceneExtent& extent, const DamageThresholds& damage) {
+  // feed: the scene's feed (its grate and mat drawn), nullptr without one.
+  void setView(const SceneExtent& extent, const DamageThresholds& damage, const FeedSpec* feed) {
     marker_builder_.setView(extent, damage);
+    marker_builder_.setFeed(feed);
   }
 
   void run();  // the thread's body: returns on stop, or after a bounded run's end

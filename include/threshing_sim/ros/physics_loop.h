@@ -26,6 +26,7 @@
 #include "threshing_sim/core/data.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/ros/demo_loop.h"
+#include "threshing_sim/ros/node_feed.h"
 #include "threshing_sim/ros/node_params.h"
 #include "threshing_sim/ros/node_shared.h"
 #include "threshing_sim/ros/pacer.h"
@@ -107,6 +108,10 @@ class PhysicsLoop {
               std::shared_ptr<const Model> model, RunFlags* flags, RunCounters* counters,
               Inbox* inbox, SnapshotQueue* queue);
   void setHooks(PhysicsHooks hooks) { hooks_ = std::move(hooks); }
+  // A scene with a `feed` section (before run()): the feed starts at t = 0, takes feed rate
+  // commands and replaces the demo loop (a fed drum is not re-seeded); plastic_force_N is the
+  // damage threshold of the throughput counts [N].
+  void setFeed(const FeedSpec& spec, double plastic_force_N);
 
   void run();  // the thread's body: returns on stop or at the end of a bounded run
   double runWallSeconds() const { return run_wall_s_; }  // after run() returned [s]
@@ -117,9 +122,10 @@ class PhysicsLoop {
   bool pausedRepublishDue();
   void servePaused();
   void advanceOneStep(unsigned forced_streams);
-  void fail();
+  void fail(const std::string& text);
   void applyStaged();
   void applyDrumTarget(double speed_radps);
+  void applyFeedRate(double rate_per_s);
   void applyConfig(const ThreshingSimConfig& config);
   void resetBodies();
   void requestReset(long ticket);
@@ -165,6 +171,7 @@ class PhysicsLoop {
   double start_wall_s_ = 0;           // steady time the stepping began [s]
   double run_wall_s_ = 0;             // wall time from then until the thread ended [s]
   double last_paused_publish_s_ = 0;  // steady time of the last paused republish [s]
+  std::unique_ptr<NodeFeed> feed_;    // the continuous feed, if the scene has one
 };
 
 }  // namespace threshing_sim

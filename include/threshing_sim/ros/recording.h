@@ -5,7 +5,8 @@
 //    strike histories, per-kernel impulses, each pair's peak contact, completed impacts and
 //    applied commands until the next snapshot takes them;
 //  - CommandSchedule: drum speed commands at step boundaries, from ~command_bag (a recording
-//    re-simulated) or ~command_schedule (timed commands), and the boundary a bounded run ends at.
+//    re-simulated) or ~command_schedule (timed commands), feed rate commands from ~command_bag,
+//    and the boundary a bounded run ends at.
 #pragma once
 
 #include <functional>
@@ -64,18 +65,25 @@ class CommandSchedule {
   // std::invalid_argument naming the parameter.
   CommandSchedule(const NodeParams& params, double dt_s, std::int64_t dt_ns);
 
-  // Commands due at boundary k not yet handed out, in order (each once).
-  template <typename Apply>
-  void applyDue(long k, Apply apply) {
-    while (next_ < commands_.size() && commands_[next_].step <= k)
-      apply(commands_[next_++].speed_radps);
+  // Commands due at boundary k not yet handed out, in order (each once): drum(speed [rad/s])
+  // for a drum speed command, feed(rate [1/s]) for a feed rate command.
+  template <typename Drum, typename Feed>
+  void applyDue(long k, Drum drum, Feed feed) {
+    while (next_ < commands_.size() && commands_[next_].step <= k) {
+      const Command& c = commands_[next_++];
+      if (c.feed)
+        feed(c.value);
+      else
+        drum(c.value);
+    }
   }
   long endStep() const { return end_step_; }  // stop after this boundary, 0 = never
 
  private:
   struct Command {
     long step;
-    double speed_radps;
+    double value;  // drum speed [rad/s] or feed rate [1/s]
+    bool feed;     // a feed rate command
   };
   void loadBag(const NodeParams& params, double dt_s, std::int64_t dt_ns);
   void loadSchedule(const NodeParams& params, double dt_s);

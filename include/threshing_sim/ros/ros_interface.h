@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "threshing_sim/ThreshingSimConfig.h"
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/ros/node_params.h"
 #include "threshing_sim/ros/node_shared.h"
@@ -34,12 +35,16 @@ namespace threshing_sim {
 struct Publishers {
   ros::Publisher contact, impact, kernel, beam, markers, applied, clock;
   ros::Publisher drum_state, kernel_forces, strike, scene, static_markers, view_box;
+  ros::Publisher feed_throughput, feed_applied;  // a scene with a feed only
   tf2_ros::TransformBroadcaster tf;
   tf2_ros::StaticTransformBroadcaster static_tf;
   // The outputs ~wait_for_subscribers waits for.
   std::vector<const ros::Publisher*> outputs() const {
-    return {&contact, &impact,     &kernel,        &beam,  &markers,
-            &applied, &drum_state, &kernel_forces, &strike};
+    std::vector<const ros::Publisher*> out = {&contact,    &impact,        &kernel,
+                                              &beam,       &markers,       &applied,
+                                              &drum_state, &kernel_forces, &strike};
+    if (feed_throughput) out.push_back(&feed_throughput);
+    return out;
   }
 };
 
@@ -51,8 +56,9 @@ class RosInterface {
   // Advertises every topic and service, publishes the latched scene, view box and static
   // transforms of `model`, and starts dynamic_reconfigure (whose first callback stages the
   // initial configuration).
+  // feed: the scene's feed, nullptr without one (feed_rate_cmd is then refused and counted).
   // Returns the scene's damage thresholds (the kernels' colours).
-  DamageThresholds start(const Model& model);
+  DamageThresholds start(const Model& model, const FeedSpec* feed);
 
   Publishers& publishers() { return pubs_; }
   diagnostic_updater::Updater& diagnostics() { return diagnostics_; }
@@ -65,6 +71,7 @@ class RosInterface {
   void advertise(const Model& model, DamageThresholds* damage);
   void startReconfigure(const Model& model);
   void onDrumSpeedCommand(const std_msgs::Float64& msg);
+  void onFeedRateCommand(const std_msgs::Float64& msg);
   bool onPause(std_srvs::SetBool::Request& req, std_srvs::SetBool::Response& res);
   bool onStep(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
   bool onReset(std_srvs::Trigger::Request& req, std_srvs::Trigger::Response& res);
@@ -81,12 +88,14 @@ class RosInterface {
   Inbox& inbox_;
   MonotonicClock clock_;
   Publishers pubs_;
-  ros::Subscriber command_sub_;
+  ros::Subscriber command_sub_, feed_sub_;
+  const FeedSpec* feed_ = nullptr;  // the scene's feed (constant), nullptr without one
   ros::ServiceServer pause_srv_, step_srv_, reset_srv_, skip_srv_;
   diagnostic_updater::Updater diagnostics_;
   boost::recursive_mutex reconfigure_mutex_;
   std::unique_ptr<dynamic_reconfigure::Server<ThreshingSimConfig>> reconfigure_;
   double last_reject_warn_s_ = -1e9;  // steady time of the last rejected-command warning [s]
+  double last_feed_warn_s_ = -1e9;    // the same for feed_rate_cmd [s]
 };
 
 }  // namespace threshing_sim

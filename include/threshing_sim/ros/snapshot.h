@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "threshing_sim/core/data.h"
+#include "threshing_sim/core/feed.h"
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/ros/live_view.h"
 
@@ -42,6 +43,33 @@ struct AppliedCommand {
   double speed_radps;  // target drum speed [rad/s]
 };
 
+// A feed rate command as applied at a step boundary.
+struct AppliedFeedCommand {
+  ros::Time stamp;        // the boundary (simulation time in sim clock mode)
+  double rate_per_s = 0;  // kernels fed per second [1/s]
+};
+
+// One closed interval of the feed's throughput series (a feed_throughput message).
+struct FeedIntervalRecord {
+  ros::Time stamp;        // the boundary that closed it
+  FeedIntervalRow row;    // the interval's figures (core FeedSeries)
+  FeedCounts counts;      // the feed's counts at its end
+  FeedTotals totals;      // threshed, damaged and peak forces since the start
+  double rate_per_s = 0;  // feed rate in force [1/s]
+  double rate_kgps = 0;   // the same at the feed's mean kernel mass [kg/s]
+};
+
+// The continuous feed at a snapshot (a scene with a `feed` section; else present is false).
+struct SnapshotFeed {
+  bool present = false;
+  double rate_per_s = 0;                      // feed rate in force [1/s]
+  double rate_kgps = 0;                       // the same at the mean kernel mass [kg/s]
+  FeedCounts counts;                          // fed, in drum, retired by fate, now [-]
+  FeedTotals totals;                          // threshed, damaged, peak forces so far
+  std::vector<FeedIntervalRecord> intervals;  // closed since the previous snapshot
+  std::vector<AppliedFeedCommand> commands;   // applied since the previous snapshot
+};
+
 struct Snapshot {
   std::shared_ptr<const Model> model;  // the model in effect (contact values may change live)
   long step = 0;                       // boundary index k: t = k * physics_dt
@@ -60,6 +88,7 @@ struct Snapshot {
   VecX z;                              // generalised positions (see core/data.h)
   VecX u;                              // generalised velocities
   std::vector<std::uint8_t> kernel_attached;
+  std::vector<std::uint8_t> kernel_active;  // 0: a parked pool slot of the feed, not drawn
   std::vector<ContactInfo> contacts;        // pairs examined in the last step
   std::vector<double> kernel_peak_force_N;  // per kernel, so far [N]
   std::vector<long> kernel_impacts;         // per kernel, so far
@@ -68,6 +97,7 @@ struct Snapshot {
   std::vector<PeakContact> peaks;           // latest episode of every pair that touched
   std::vector<KernelForces> kernel_forces;  // per kernel: forces now, impulse sums
   std::vector<StrikeRecord> strikes;        // strikes finished since the previous snapshot
+  SnapshotFeed feed;                        // the continuous feed, if the scene has one
   unsigned streams = 0;                     // Stream bits due
   bool reset = false;                       // bodies were reset: markers start with DELETEALL
   bool frame = false;  // a strike's frame (StrikeFrames): markers of the bodies, contacts and

@@ -43,6 +43,7 @@ class ThreshingSimNode {
 
  private:
   NodeParams params_;
+  FeedSpec feed_;                       // the scene's feed (capacity 0: none)
   std::shared_ptr<const Model> model_;  // as loaded (the physics thread may swap its own copy)
   NodeTiming timing_;
   RunFlags flags_;

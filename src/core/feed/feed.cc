@@ -49,7 +49,7 @@ double nextFeedArrival(const FeedSpec& spec, const FeedState& state) {
   return state.base_t_s + static_cast<double>(state.counts.fed - state.base_n) / spec.rate_per_s;
 }
 
-std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState* state) {
+std::string checkFeedRate(double rate_per_s, const FeedSpec& spec, int capacity) {
   char text[256];
   if (!std::isfinite(rate_per_s) || rate_per_s < 0 || rate_per_s > 1e6) {
     std::snprintf(text, sizeof(text), "feed rate %.17g 1/s refused: must be in [0, 1e6]",
@@ -57,15 +57,21 @@ std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState
     return text;
   }
   const double on_mat = rate_per_s *
-                        (spec->exit_x_m - spec->inlet_x_m + 2 * spec->position_scatter_m) /
-                        spec->mat_speed_mps;
-  if (on_mat > state->capacity) {
+                        (spec.exit_x_m - spec.inlet_x_m + 2 * spec.position_scatter_m) /
+                        spec.mat_speed_mps;
+  if (on_mat > capacity) {
     std::snprintf(text, sizeof(text),
                   "feed rate %.17g 1/s refused: it puts %.6g kernels on the mat, more than the "
                   "pool's %d slots (feed.capacity)",
-                  rate_per_s, on_mat, state->capacity);
+                  rate_per_s, on_mat, capacity);
     return text;
   }
+  return "";
+}
+
+std::string setFeedRate(double rate_per_s, double t_s, FeedSpec* spec, FeedState* state) {
+  std::string why = checkFeedRate(rate_per_s, *spec, state->capacity);
+  if (!why.empty()) return why;
   spec->rate_per_s = rate_per_s;
   state->base_n = state->counts.fed;
   const double after_last_s =
@@ -202,9 +208,21 @@ bool placeNext(const FeedSpec& spec, double arrival_s, int slot, Model* m, Data*
 
 }  // namespace
 
+void retireFeedKernels(const FeedSpec& spec, const Model& model, Data* data, FeedState* state) {
+  retireKernels(spec, model, data, state);
+}
+
+bool feedKernelDue(const FeedSpec& spec, const FeedState& state, double t_s) {
+  return nextFeedArrival(spec, state) <= t_s;
+}
+
 bool updateFeed(const FeedSpec& spec, Model* model, Data* data, FeedState* state) {
+  retireKernels(spec, *model, data, state);
+  return placeFeedKernels(spec, model, data, state);
+}
+
+bool placeFeedKernels(const FeedSpec& spec, Model* model, Data* data, FeedState* state) {
   FeedState& s = *state;
-  retireKernels(spec, *model, data, &s);
   // Every kernel due by now (at most one pool's worth: a full pool stops the loop).
   while (nextFeedArrival(spec, s) <= data->t_s) {
     const double arrival_s = nextFeedArrival(spec, s);
