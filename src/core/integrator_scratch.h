@@ -202,14 +202,16 @@ struct ContactPhaseScratch {
   // The closed contacts in contact space (contact_space.cc): the solves of one kick work on
   // these scalars and the velocity vector is touched once, when the changes are applied.
   struct ContactSpace {
-    std::vector<int> cand;       // per row: its candidate [-]
-    std::vector<int> row_of;     // per candidate: its row, -1 if none [-]
-    MatX W;                      // W(2j + d, 3i + e): the change of row j's normal (d = 0) or
-                                 // slip (d = 1) velocity per unit generalised force of row i
-                                 // along its normal (e = 0), tangent (1) or residual gradient
-                                 // (2): w_d(j)^T M^-1 w_e(i) over the bodies they share
-                                 // [1/kg; 1/(kg N) for e = 2]; grow-only
-    std::vector<double> vn, vt;  // per row: normal and slip velocity now [m/s]
+    std::vector<int> cand;           // per row: its candidate [-]
+    std::vector<int> row_of;         // per candidate: its row, -1 if none [-]
+    MatX W;                          // W(2j + d, 3i + e): the change of row j's normal (d = 0) or
+                                     // slip (d = 1) velocity per unit generalised force of row i
+                                     // along its normal (e = 0), tangent (1) or residual gradient
+                                     // (2): w_d(j)^T M^-1 w_e(i) over the bodies they share
+                                     // [1/kg; 1/(kg N) for e = 2]; grow-only
+    std::vector<int> coupled_start;  // rows coupled to row i (sharing a body with it, itself
+    std::vector<int> coupled;        // included): coupled[coupled_start[i] .. [i + 1]) [-]
+    std::vector<double> vn, vt;      // per row: normal and slip velocity now [m/s]
     std::vector<double> dfn, dft, dfr;  // per row: changes not yet applied to the vectors
                                         // [N, N, N^2 / 2 (the residual factor)]
   } cs;

@@ -18,14 +18,17 @@ const SmallVec& direction(const BodyJac& b, int e) {
   return e == 0 ? b.w_n : e == 1 ? b.w_t : b.w_r;
 }
 
-// The couplings of row j (contact gj) with row i (contact gi) over the bodies they share.
-void couple(const Model& m, const ContactGeom& gj, const ContactGeom& gi, int j, int i, MatX* W) {
+// The couplings of row j (contact gj) with row i (contact gi) over the bodies they share; false
+// if they share none.
+bool couple(const Model& m, const ContactGeom& gj, const ContactGeom& gi, int j, int i, MatX* W) {
+  bool shared = false;
   for (int d = 0; d < 2; ++d)
     for (int e = 0; e < 3; ++e) (*W)(2 * j + d, 3 * i + e) = 0.0;
   for (const BodyJac& sj : gj.side) {
     if (sj.body < 0 || sj.w_n.size() == 0) continue;
     for (const BodyJac& si : gi.side) {
       if (si.body != sj.body || si.w_n.size() == 0) continue;
+      shared = true;
       for (int d = 0; d < 2; ++d)
         for (int e = 0; e < 3; ++e) {
           const SmallVec& wi = direction(si, e);
@@ -34,6 +37,7 @@ void couple(const Model& m, const ContactGeom& gj, const ContactGeom& gi, int j,
         }
     }
   }
+  return shared;
 }
 
 }  // namespace
@@ -61,15 +65,24 @@ void buildContactSpace(const Ctx& c, const VecX& fn, const VecX& u, const VecX& 
     const ContactGeom& gj = ws.geoms[cs.cand[j]];
     cs.vn[j] = normalVelocity(m, gj, u, u_eval);
     cs.vt[j] = slipVelocity(m, gj, u, u_eval);
-    for (int i = 0; i < k; ++i) couple(m, gj, ws.geoms[cs.cand[i]], j, i, &cs.W);
   }
+  // Column i: the rows a change of row i's forces moves.
+  cs.coupled_start.resize(k + 1);
+  cs.coupled.clear();
+  for (int i = 0; i < k; ++i) {
+    cs.coupled_start[i] = static_cast<int>(cs.coupled.size());
+    const ContactGeom& gi = ws.geoms[cs.cand[i]];
+    for (int j = 0; j < k; ++j)
+      if (couple(m, ws.geoms[cs.cand[j]], gi, j, i, &cs.W)) cs.coupled.push_back(j);
+  }
+  cs.coupled_start[k] = static_cast<int>(cs.coupled.size());
 }
 
 void addForceChange(ContactPhaseScratch::ContactSpace* cs, int r, double dfn_N, double dft_N,
                     double dfr, double half_h_s) {
-  const int k = static_cast<int>(cs->cand.size());
   const MatX& W = cs->W;
-  for (int j = 0; j < k; ++j) {
+  for (int c = cs->coupled_start[r]; c < cs->coupled_start[r + 1]; ++c) {
+    const int j = cs->coupled[c];
     cs->vn[j] += half_h_s * (W(2 * j, 3 * r) * dfn_N + W(2 * j, 3 * r + 1) * dft_N +
                              W(2 * j, 3 * r + 2) * dfr);
     cs->vt[j] += half_h_s * (W(2 * j + 1, 3 * r) * dfn_N + W(2 * j + 1, 3 * r + 1) * dft_N +
