@@ -141,8 +141,13 @@ struct Run {
 
 // Advances the run to t_chunk_s in sampling intervals (event-driven: to the first step end at or
 // past it, the duration's chunk exactly; time stepping: the step nearest it), writing events and
-// force samples; stops on a failure.
-void advanceChunk(const Model& model, double t_chunk_s, const RunStreams& out, Run* run) {
+// force samples; stops on a failure. Only the contacts are read between intervals (the samples,
+// the --forces rows), so lone kernels stay on their own clocks (advancePastLazy) until the
+// chunk's end when `observe` (a trace row, the report) reads the whole state there: that
+// interval is advancePast, which brings them to the data's time (the island scheme's catch-up,
+// paid once per observation instead of once per interval).
+void advanceChunk(const Model& model, double t_chunk_s, bool observe, const RunStreams& out,
+                  Run* run) {
   Data& data = run->data;
   for (bool last = false; !last;) {
     const double interval_s = out.forces != nullptr && nearContact(data)
@@ -152,14 +157,28 @@ void advanceChunk(const Model& model, double t_chunk_s, const RunStreams& out, R
     const auto started = std::chrono::steady_clock::now();
     // No step is cut at a sample or chunk end, only at the duration (advancePast): the run's
     // steps do not depend on where it is sampled (--forces, the node's boundaries).
-    const StepStatus step_status = advancePast(model, &data, t_next_s, model.duration_s);
+    const bool sync = observe && t_next_s >= t_chunk_s;
+    StepStatus step_status = sync ? advancePast(model, &data, t_next_s, model.duration_s)
+                                  : advancePastLazy(model, &data, t_next_s, model.duration_s);
     last = run->min_interval_s > 0 ? t_next_s >= t_chunk_s : data.t_s >= t_chunk_s;
+    // A step that passed the chunk's end before its last interval: the catch-up now.
+    bool synced = sync;
+    if (last && observe && !sync && step_status != StepStatus::kFailed) {
+      synced = true;
+      if (syncBodies(model, &data) == StepStatus::kFailed) step_status = StepStatus::kFailed;
+    }
     run->stepping_time += std::chrono::steady_clock::now() - started;
     // Events and contact samples of this interval.
     if (out.events != nullptr) writeEventRows(*out.events, data.events);
     run->tracker.addEvents(data.events);
     data.events.clear();
     if (step_status == StepStatus::kFailed) {
+      if (!synced) {  // the report reads the whole state: the lone kernels caught up, as
+                      // advancePast does after a failure (the window's failure is the run's)
+        const FailureInfo failure = data.stats.failure;
+        syncBodies(model, &data);
+        data.stats.failure = failure;
+      }
       run->status = "failed: " + describe(data.stats.failure);
       run->failed = true;
       return;
@@ -214,7 +233,10 @@ int runModel(const Model& model, const DamageThresholds& damage, const Options& 
   Progress progress(options.quiet);
   double traced_t_s = run.data.t_s;  // time of the last trace row [s]
   for (long chunk = 1; chunk <= n_chunks && !run.failed; ++chunk) {
-    advanceChunk(model, chunk == n_chunks ? model.duration_s : chunk * kChunk_s, streams, &run);
+    // The state is read at the chunk's end for a trace row and, after the last, for the report.
+    const bool traced = streams.trace != nullptr && (chunk % options.trace_every == 0);
+    advanceChunk(model, chunk == n_chunks ? model.duration_s : chunk * kChunk_s,
+                 traced || chunk == n_chunks, streams, &run);
     if (run.failed) break;
     // One row per chunk, at the step end that passed its end (a step longer than a chunk gives
     // one row for the chunks it spans).
