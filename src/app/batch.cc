@@ -212,9 +212,9 @@ Options lineOptions(const BatchLine& line) {
 }
 
 // The scene's text parsed as loadSceneYaml parses a file.
-YAML::Node parseSceneText(const std::string& text, const std::string& name) {
+SceneNode sceneOfText(const std::string& text, const std::string& name) {
   try {
-    return YAML::Load(text);
+    return parseSceneText(text);
   } catch (const YAML::ParserException& e) {
     throw SceneError(name + ":" + std::to_string(e.mark.line + 1) + ":" +
                      std::to_string(e.mark.column + 1) + ": YAML syntax error: " + e.msg);
@@ -225,37 +225,34 @@ YAML::Node parseSceneText(const std::string& text, const std::string& name) {
 // A scene text is kept from its second line on (a copy for the cache costs a tenth of a short
 // run, wasted on a resolved scene that no other line carries), or from its first when the line
 // has --set values: then it is a base scene, which the runner sends for many runs.
-YAML::Node baseTree(const BatchLine& line, const Options& options, SceneCache* cache) {
+SceneNode baseTree(const BatchLine& line, const Options& options, SceneCache* cache) {
   if (cache->trees.size() >= kMaxCachedTrees) cache->trees.clear();
   if (cache->seen.size() >= kMaxSeenScenes) cache->seen.clear();
   if (!line.inline_scene) return sceneWithFiles(options, &cache->trees);
   std::string key = std::string(1, '\1') + line.scene_yaml;
   for (const std::string& path : options.set_files) key += "\t" + path;
   const auto found = cache->trees.find(key);
-  if (found != cache->trees.end()) return YAML::Clone(found->second);
-  YAML::Node root = parseSceneText(line.scene_yaml, line.scene_name);
-  if (root.IsMap()) {
-    for (const std::string& path : options.set_files) {
-      for (const std::string& assignment : overridesFromFile(path))
-        applyOverride(&root, assignment);
-    }
+  if (found != cache->trees.end()) return found->second;
+  SceneNode root = sceneOfText(line.scene_yaml, line.scene_name);
+  if (root.isMap()) {
+    for (const std::string& path : options.set_files) applyOverrideFile(&root, path);
   }
   // A line with --set values names a base scene that other lines share (the runner's lines).
   if (!options.overrides.empty() || !cache->seen.insert(std::hash<std::string>()(key)).second)
-    cache->trees[key] = YAML::Clone(root);
+    cache->trees[key] = root;
   return root;
 }
 
 // The compiled model of the line (as loadScene builds it) and its damage thresholds.
 Model lineModel(const BatchLine& line, const Options& options, SceneCache* cache,
                 DamageThresholds* damage) {
-  YAML::Node root = baseTree(line, options, cache);
-  if (!root.IsMap())
+  SceneNode root = baseTree(line, options, cache);
+  if (!root.isMap())
     throw SceneError(options.scene_path + ": expected a mapping of sections at the top level");
   for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
   try {
-    Model model = modelFromYaml(root, &cache->teeth);
-    *damage = damageFromYaml(root);
+    Model model = modelFromTree(root, &cache->teeth);
+    *damage = damageFromTree(root);
     return model;
   } catch (const SceneError& e) {
     throw SceneError(options.scene_path + ": " + e.what());

@@ -1,0 +1,17 @@
+// The loader's own YAML reader (yaml_reader.cc) and the trees' conversions (tree.cc).
+#pragma once
+
+#include <string>
+
+#include "threshing_sim/scene/scene_tree.h"
+
+namespace threshing_sim {
+namespace loader {
+
+// The text's tree when the reader takes the whole text (the YAML scenes are written in), with
+// the tree yaml-cpp's parser gives; false when yaml-cpp must read it (other YAML, or an
+// error), *out then unspecified.
+bool readYamlSubset(const std::string& text, SceneNode* out);
+
+}  // namespace loader
+}  // namespace threshing_sim
