@@ -22,7 +22,6 @@
 
 namespace threshing_sim {
 
-using loader::childKeys;
 using loader::fail;
 using loader::Section;
 using loader::show;
@@ -48,9 +47,9 @@ namespace {
 template <typename Read>
 void readItems(const Section& scene, const std::string& key, Read read) {
   const std::vector<const SceneNode*> items = scene.list(key);
-  const std::vector<std::string>& known = childKeys(key + ".*");
+  const loader::Children& keys = loader::children(key + ".*");
   for (size_t i = 0; i < items.size(); ++i)
-    read(Section(*items[i], key + "." + std::to_string(i), known));
+    read(Section(*items[i], key + "." + std::to_string(i), keys));
 }
 
 // Drum, teeth, kernels, obstacles and the kernel stream.
@@ -132,7 +131,7 @@ Model modelFromTree(const SceneNode& root, ToothCache* tooth_cache, FeedSpec* fe
     fail("", "expected a mapping of sections at the top level (got " +
                  loader::showOrDescribe(root) + ")");
   }
-  const Section scene(root, "", childKeys(""));
+  const Section scene(root, "", loader::children(""));
   Model model;
   readBodies(scene, &model);
   readSettings(scene, &model);
@@ -142,7 +141,7 @@ Model modelFromTree(const SceneNode& root, ToothCache* tooth_cache, FeedSpec* fe
 
 DamageThresholds damageFromTree(const SceneNode& root) {
   if (!root.isMap()) return DamageThresholds();
-  return loader::readDamage(Section(root, "", childKeys("")));
+  return loader::readDamage(Section(root, "", loader::children("")));
 }
 
 Model modelFromYaml(const YAML::Node& root, ToothCache* tooth_cache, FeedSpec* feed) {
@@ -163,10 +162,10 @@ Model loadScene(const std::string& path, const std::vector<std::string>& overrid
 Model loadSceneWithFiles(const std::string& path, const std::vector<std::string>& override_files,
                          const std::vector<std::string>& overrides, DamageThresholds* damage,
                          FeedSpec* feed) {
-  std::vector<SceneNode> files;
+  std::vector<loader::OverrideFile> files;
   for (const std::string& file : override_files) files.push_back(loader::readOverrideFile(file));
   SceneNode root = sceneRoot(path);
-  for (const SceneNode& file : files) loader::applyOverrideEntries(&root, file);
+  for (loader::OverrideFile& file : files) loader::applyOverrideEntries(&root, std::move(file));
   for (const std::string& assignment : overrides) applyOverride(&root, assignment);
   return modelOfScene(path, root, damage, feed);
 }

@@ -37,7 +37,9 @@ struct SceneNode {
   bool isSequence() const { return kind == Kind::kSequence; }
   bool isMap() const { return kind == Kind::kMap; }
   // A scalar written without quotes (a number can only be such a scalar).
-  bool isPlainScalar() const { return kind == Kind::kScalar && tag != "!"; }
+  bool isPlainScalar() const {
+    return kind == Kind::kScalar && !(tag.size() == 1 && tag[0] == '!');
+  }
   // Items of a sequence, entries of a mapping.
   size_t size() const { return kind == Kind::kMap ? items.size() / 2 : items.size(); }
   // The value of the first entry whose key is a scalar with this text, or nullptr.

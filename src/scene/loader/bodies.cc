@@ -90,19 +90,23 @@ KernelModel readKernel(const Section& s) {
   k.poisson_ratio = s.number("poisson_ratio", k.poisson_ratio);
   const SceneNode& pedicel = s.node("pedicel");
   if (pedicel.defined() && !pedicel.isNull()) {
-    k.pedicel = readPedicel(s.section("pedicel", "kernels.*.pedicel"), k);
+    static const Children& kPedicelKeys = children("kernels.*.pedicel");
+    k.pedicel = readPedicel(s.section("pedicel", kPedicelKeys), k);
   }
   return k;
 }
 
 // The type decides which keys are allowed; geometry keys are required.
 ObstacleModel readObstacle(const SceneNode& node, const std::string& path) {
-  const Section any(node, path, childKeys("obstacles.*"));
+  static const Children kPlane = childrenOf("obstacles.*", kPlaneKeys);
+  static const Children kCircle = childrenOf("obstacles.*", kCircleKeys);
+  static const Children kSegment = childrenOf("obstacles.*", kSegmentKeys);
+  const Section any(node, path, children("obstacles.*"));
   any.require("type");
   const std::string type = any.word("type", "", "obstacle type");
   ObstacleModel o;
   if (type == "plane") {
-    const Section s(node, path, kPlaneKeys, "a plane obstacle");
+    const Section s(node, path, kPlane, "a plane obstacle");
     o.type = ObstacleType::kPlane;
     s.require("point");
     s.require("normal");
@@ -113,7 +117,7 @@ ObstacleModel readObstacle(const SceneNode& node, const std::string& path) {
     }
     o.normal = normal.normalized();
   } else if (type == "circle") {
-    const Section s(node, path, kCircleKeys, "a circle obstacle");
+    const Section s(node, path, kCircle, "a circle obstacle");
     o.type = ObstacleType::kCircle;
     s.require("center");
     o.center_m = s.vec2("center", o.center_m);
@@ -121,7 +125,7 @@ ObstacleModel readObstacle(const SceneNode& node, const std::string& path) {
     if (!(o.radius_m > 0))
       fail(s.path("radius"), "must be > 0 for a circle (got " + show(s.node("radius")) + ")");
   } else {
-    const Section s(node, path, kSegmentKeys, "a segment obstacle");
+    const Section s(node, path, kSegment, "a segment obstacle");
     o.type = ObstacleType::kSegment;
     s.require("point");
     s.require("point_b");

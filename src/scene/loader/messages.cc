@@ -56,10 +56,19 @@ std::string show(const SceneNode& node) {
 }
 
 bool quotableKey(const std::string& key) {
-  return !key.empty() && key.size() <= 40 && std::all_of(key.begin(), key.end(), [](char c) {
-    return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' ||
-           c == '.' || c == '*';
-  });
+  static const struct NameCharacters {
+    bool name[256] = {};
+    NameCharacters() {
+      for (int c = 0; c < 256; ++c) {
+        name[c] = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                  c == '_' || c == '.' || c == '*';
+      }
+    }
+  } kName;
+  if (key.empty() || key.size() > 40) return false;
+  for (const char c : key)
+    if (!kName.name[static_cast<unsigned char>(c)]) return false;
+  return true;
 }
 
 std::string describe(const SceneNode& node) {

@@ -51,7 +51,9 @@ struct Ops<YAML::Node> {
   static void setItem(Cursor c, size_t i, const YAML::Node& v) { c[i] = v; }
   static Cursor child(const Cursor& c, const std::string& key) { return c[key]; }
   static bool absent(const Cursor& child) { return empty(child); }
-  static void set(Cursor c, const std::string& key, const YAML::Node& v) { c[key] = v; }
+  static void set(Cursor c, const std::string& key, const YAML::Node& v, YAML::Node*) {
+    c[key] = v;
+  }
   static Cursor addMap(Cursor c, const std::string& key) {
     c[key] = YAML::Node(YAML::NodeType::Map);
     return c[key];
@@ -75,16 +77,20 @@ struct Ops<SceneNode> {
   static void setItem(Cursor c, size_t i, const SceneNode& v) { c->items[i] = v; }
   static Cursor child(Cursor c, const std::string& key) { return c->find(key); }
   static bool absent(Cursor child) { return child == nullptr || empty(*child); }
-  static void set(Cursor c, const std::string& key, const SceneNode& v) {
-    if (SceneNode* found = c->find(key)) {
-      *found = v;
-      return;
+  static void set(Cursor c, const std::string& key, const SceneNode& v, SceneNode* movable) {
+    SceneNode* found = c->find(key);
+    if (found == nullptr) {
+      c->items.push_back(SceneNode::scalar(key));
+      found = &c->items.emplace_back();
     }
-    c->items.push_back(SceneNode::scalar(key));
-    c->items.push_back(v);
+    if (movable != nullptr) {
+      *found = std::move(*movable);
+    } else {
+      *found = v;
+    }
   }
   static Cursor addMap(Cursor c, const std::string& key) {
-    set(c, key, SceneNode::map());
+    set(c, key, SceneNode::map(), nullptr);
     return c->find(key);
   }
   static Cursor scratchMap(SceneNode* scratch) {
@@ -107,7 +113,8 @@ struct Walk {
   const std::vector<std::string>& parts;
   bool apply;
   const Tree& value;
-  Tree scratch;  // an absent section while checking
+  Tree* movable;  // the value, to be moved when set in one place (SceneNode only)
+  Tree scratch;   // an absent section while checking
 
   void run();
   void everyItem(const Cursor& list, size_t i, const std::string& parent);
@@ -128,7 +135,7 @@ void Walk<Tree>::everyItem(const Cursor& list, size_t i, const std::string& pare
     const Assignment item_a = a.at(rest.empty() ? item : item + "." + rest);
     const std::vector<std::string> item_parts = splitKeyPath(item_a);
     const Tree item_value = !apply || index == 0 ? value : O::copy(value);
-    Walk<Tree>{root, item_a, item_parts, apply, item_value, Tree()}.run();
+    Walk<Tree>{root, item_a, item_parts, apply, item_value, nullptr, Tree()}.run();
   }
 }
 
@@ -193,7 +200,7 @@ void Walk<Tree>::run() {
     if (spec == nullptr) a.refuse(path, unknownKey(part, childKeys(pattern), ""));
     pattern = key_pattern;
     if (i + 1 == parts.size()) {
-      if (apply) O::set(node, part, value);
+      if (apply) O::set(node, part, value, movable);
       continue;
     }
     intoSection(*spec, path, i, &node);
@@ -201,20 +208,21 @@ void Walk<Tree>::run() {
 }
 
 template <typename Tree>
-void checkThenApplyTo(Tree* root, const Assignment& a, const Tree& value) {
+void checkThenApplyTo(Tree* root, const Assignment& a, const Tree& value, Tree* movable) {
   const std::vector<std::string> parts = splitKeyPath(a);
-  Walk<Tree>{root, a, parts, false, value, Tree()}.run();
-  Walk<Tree>{root, a, parts, true, value, Tree()}.run();
+  Walk<Tree>{root, a, parts, false, value, nullptr, Tree()}.run();
+  Walk<Tree>{root, a, parts, true, value, movable, Tree()}.run();
 }
 
 }  // namespace
 
 void checkThenApply(YAML::Node* root, const Assignment& a, const YAML::Node& value) {
-  checkThenApplyTo(root, a, value);
+  checkThenApplyTo(root, a, value, static_cast<YAML::Node*>(nullptr));
 }
 
-void checkThenApply(SceneNode* root, const Assignment& a, const SceneNode& value) {
-  checkThenApplyTo(root, a, value);
+void checkThenApply(SceneNode* root, const Assignment& a, const SceneNode& value,
+                    SceneNode* movable) {
+  checkThenApplyTo(root, a, value, movable);
 }
 
 }  // namespace loader

@@ -11,6 +11,7 @@
 #include "messages.h"
 #include "schema.h"
 #include "threshing_sim/scene/scene_loader.h"
+#include "yaml_reader.h"
 
 namespace threshing_sim {
 namespace loader {
@@ -145,8 +146,10 @@ const SceneNode& asReadBack(const SceneNode& value, SceneNode* copy) {
 
 }  // namespace
 
-SceneNode readOverrideFile(const std::string& path) {
-  SceneNode root = readSceneFile(path);
+OverrideFile readOverrideFile(const std::string& path) {
+  OverrideFile file;
+  file.root = readSceneFile(path, &file.quotes);
+  const SceneNode& root = file.root;
   if (!root.isMap()) {
     throw SceneError(path + ": expected a mapping of key paths to values (got " +
                      showOrDescribe(root) + ")");
@@ -158,14 +161,21 @@ SceneNode readOverrideFile(const std::string& path) {
                        describe(key));
     }
   }
-  return root;
+  return file;
 }
 
-void applyOverrideEntries(SceneNode* root, const SceneNode& file) {
-  for (size_t i = 0; i + 1 < file.items.size(); i += 2) {
-    const SceneNode& value = file.items[i + 1];
+void applyOverrideEntries(SceneNode* root, OverrideFile file) {
+  std::vector<SceneNode>& items = file.root.items;
+  for (size_t i = 0; i + 1 < items.size(); i += 2) {
+    SceneNode& value = items[i + 1];
+    const Assignment a(trim(items[i].text), &value);
+    if (!file.quotes) {
+      checkThenApply(root, a, value, &value);
+      continue;
+    }
     SceneNode copy;
-    checkThenApply(root, Assignment(trim(file.items[i].text), &value), asReadBack(value, &copy));
+    const SceneNode& read_back = asReadBack(value, &copy);
+    checkThenApply(root, a, read_back, &read_back == &copy ? &copy : &value);
   }
 }
 
@@ -180,7 +190,7 @@ void applyOverride(SceneNode* root, const std::string& assignment) {
 }
 
 std::vector<std::string> overridesFromFile(const std::string& path) {
-  const SceneNode file = loader::readOverrideFile(path);
+  const SceneNode file = loader::readOverrideFile(path).root;
   std::vector<std::string> assignments;
   for (size_t i = 0; i + 1 < file.items.size(); i += 2)
     assignments.push_back(file.items[i].text + "=" + loader::show(file.items[i + 1]));

@@ -41,17 +41,27 @@ class Assignment {
 };
 
 // Checks the whole assignment first (every item of a "*" included), then applies it: a
-// refused assignment leaves the tree as it was, and no copy of the tree is made.
+// refused assignment leaves the tree as it was, and no copy of the tree is made. A SceneNode
+// value given as movable is moved into the tree when it goes to one place (not a "*").
 void checkThenApply(YAML::Node* root, const Assignment& a, const YAML::Node& value);
-void checkThenApply(SceneNode* root, const Assignment& a, const SceneNode& value);
+void checkThenApply(SceneNode* root, const Assignment& a, const SceneNode& value,
+                    SceneNode* movable = nullptr);
+
+// An override file read: its mapping, and whether its text holds a quote character (else it
+// has no quoted scalar to read back plain).
+struct OverrideFile {
+  SceneNode root;
+  bool quotes = true;
+};
 
 // An override file's mapping of key paths to values; refuses a file that is no mapping and a
 // key that is not a key path (before any entry is applied).
-SceneNode readOverrideFile(const std::string& path);
+OverrideFile readOverrideFile(const std::string& path);
 
 // The entries of readOverrideFile in file order, each as applyOverride of "key.path=value"
-// with the value written out (overridesFromFile) would apply it.
-void applyOverrideEntries(SceneNode* root, const SceneNode& file);
+// with the value written out (overridesFromFile) would apply it. The values are moved into
+// the tree.
+void applyOverrideEntries(SceneNode* root, OverrideFile file);
 
 }  // namespace loader
 }  // namespace threshing_sim

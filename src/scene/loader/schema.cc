@@ -57,33 +57,21 @@ const KeySpec* findKey(const std::string& pattern) {
   return found != table.end() ? found->second : nullptr;
 }
 
-// The key names directly below a pattern ("" is the top level), in schema order, found by a
-// scan of the schema.
-std::vector<std::string> scanChildKeys(const std::string& pattern) {
-  const std::string prefix = pattern.empty() ? "" : pattern + ".";
-  std::vector<std::string> keys;
-  for (const KeySpec& spec : schema()) {
-    const std::string path = spec.path;
-    if (path.size() <= prefix.size() || path.compare(0, prefix.size(), prefix) != 0) continue;
-    const std::string rest = path.substr(prefix.size());
-    if (rest.find('.') == std::string::npos) keys.push_back(rest);
-  }
-  return keys;
-}
-
-// scanChildKeys of "" and of every schema path and its prefixes, made once: the scan was a
-// sixth of a scene check, as every section of every scene asks for its keys.
+// The key names directly below "" and below every schema path and its prefixes, in schema
+// order, made once in one pass over the schema (every section of every scene asks for its
+// keys).
 const std::map<std::string, std::vector<std::string>>& childKeyTable() {
   static const std::map<std::string, std::vector<std::string>> table = [] {
     std::map<std::string, std::vector<std::string>> t;
-    t[""] = scanChildKeys("");
+    t[""];
     for (const KeySpec& spec : schema()) {
       const std::string path = spec.path;
-      for (size_t dot = 0; dot != std::string::npos;) {
-        dot = path.find('.', dot == 0 ? 0 : dot + 1);
-        const std::string prefix = path.substr(0, dot);
-        if (t.count(prefix) == 0) t[prefix] = scanChildKeys(prefix);
-      }
+      for (size_t dot = path.find('.'); dot != std::string::npos; dot = path.find('.', dot + 1))
+        t[path.substr(0, dot)];
+      t[path];
+      const size_t last = path.rfind('.');
+      t[last == std::string::npos ? "" : path.substr(0, last)].push_back(
+          last == std::string::npos ? path : path.substr(last + 1));
     }
     return t;
   }();
@@ -99,21 +87,21 @@ const std::vector<std::string>& childKeys(const std::string& pattern) {
   return found != table.end() ? found->second : kNone;
 }
 
-std::vector<const KeySpec*> specsOf(const std::string& pattern,
-                                    const std::vector<std::string>& keys) {
-  std::vector<const KeySpec*> specs;
+Children childrenOf(const std::string& pattern, const std::vector<std::string>& keys) {
+  Children c{pattern, keys, {}};
   for (const std::string& key : keys)
-    specs.push_back(findKey(pattern.empty() ? key : pattern + "." + key));
-  return specs;
+    c.specs.push_back(findKey(pattern.empty() ? key : pattern + "." + key));
+  return c;
 }
 
-const std::vector<const KeySpec*>& childSpecs(const std::string& pattern) {
-  static const std::map<std::string, std::vector<const KeySpec*>> table = [] {
-    std::map<std::string, std::vector<const KeySpec*>> t;
-    for (const auto& entry : childKeyTable()) t[entry.first] = specsOf(entry.first, entry.second);
+const Children& children(const std::string& pattern) {
+  static const std::map<std::string, Children> table = [] {
+    std::map<std::string, Children> t;
+    for (const auto& entry : childKeyTable())
+      t[entry.first] = childrenOf(entry.first, entry.second);
     return t;
   }();
-  static const std::vector<const KeySpec*> kNone;
+  static const Children kNone;
   const auto found = table.find(pattern);
   return found != table.end() ? found->second : kNone;
 }

@@ -150,11 +150,20 @@ const KeySpec* findKey(const std::string& pattern);
 // pattern that is no prefix of a schema path.
 const std::vector<std::string>& childKeys(const std::string& pattern);
 
-// The schema entries of the keys below a pattern (nullptr for a key not in the schema), in
-// the order of keys; childSpecs(pattern) is specsOf(pattern, childKeys(pattern)), made once.
-std::vector<const KeySpec*> specsOf(const std::string& pattern,
-                                    const std::vector<std::string>& keys);
-const std::vector<const KeySpec*>& childSpecs(const std::string& pattern);
+// Keys a mapping at a schema pattern may hold, with their schema entries (nullptr for a key
+// not in the schema), in the same order.
+struct Children {
+  std::string pattern;  // e.g. "kernels.*"
+  std::vector<std::string> keys;
+  std::vector<const KeySpec*> specs;
+};
+
+// The schema's keys below a pattern (childKeys with their entries), made once; none for a
+// pattern that is no prefix of a schema path.
+const Children& children(const std::string& pattern);
+
+// Chosen keys below a pattern (an obstacle type's).
+Children childrenOf(const std::string& pattern, const std::vector<std::string>& keys);
 
 // The schema pattern of a written path: list indices become "*" ("teeth.3.length" ->
 // "teeth.*.length").

@@ -27,8 +27,8 @@ double toNumber(const SceneNode& node, const std::string& path);
 // place among the known keys. The tree must outlive the section.
 class Section {
  public:
-  // known must outlive the section (the schema's child keys, an obstacle type's keys).
-  Section(const SceneNode& node, std::string path, const std::vector<std::string>& known,
+  // keys must outlive the section (the schema's children, an obstacle type's keys).
+  Section(const SceneNode& node, std::string path, const Children& keys,
           const std::string& owner = "");
 
   std::string path(const std::string& key) const { return joinPath(path_, key); }
@@ -54,6 +54,7 @@ class Section {
 
   // A nested mapping; absent or null reads as empty (all defaults).
   Section section(const std::string& key, const std::string& pattern) const;
+  Section section(const std::string& key, const Children& keys) const;
 
   // A list of mappings; absent or null reads as empty.
   std::vector<const SceneNode*> list(const std::string& key) const;
@@ -63,18 +64,14 @@ class Section {
   int indexOf(const std::string& key) const;
   // The schema entry of a key of this section ("teeth.3" + "length" -> "teeth.*.length").
   const KeySpec* specOf(const std::string& key) const;
-  const Bound& rangeOf(const std::string& key) const;
-  // The value of a key, or nullptr when absent.
+  static const Bound& rangeOf(const KeySpec* spec);
+  // The value of a key, or nullptr when absent (and its schema entry).
   const SceneNode* find(const std::string& key) const;
+  const SceneNode* find(const std::string& key, const KeySpec** spec) const;
 
   std::string path_;
-  std::string pattern_;                    // path_ in schema form ("teeth.*")
-  const std::vector<std::string>* known_;  // the keys a mapping may hold
-  std::vector<const SceneNode*> values_;   // by place in *known_; nullptr when absent
-  // The schema entries of *known_: the schema's own table for the schema's child keys, else
-  // own_specs_ (an obstacle type's keys).
-  const std::vector<const KeySpec*>* shared_specs_ = nullptr;
-  std::vector<const KeySpec*> own_specs_;
+  const Children* keys_;                  // the keys a mapping may hold, with their schema entries
+  std::vector<const SceneNode*> values_;  // by place in keys_->keys; nullptr when absent
 };
 
 }  // namespace loader

@@ -5,7 +5,7 @@
 
 #include <algorithm>
 #include <fstream>
-#include <iterator>
+#include <sstream>
 #include <utility>
 
 #include "threshing_sim/scene/scene_loader.h"
@@ -47,12 +47,20 @@ SceneNode parseSceneText(const std::string& text) {
 }
 
 SceneNode readSceneFile(const std::string& path) {
+  bool quotes = false;
+  return loader::readSceneFile(path, &quotes);
+}
+
+SceneNode loader::readSceneFile(const std::string& path, bool* quotes) {
   struct stat info;
   if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
     throw SceneError(path + ": is a directory, not a YAML file");
   std::ifstream file(path, std::ios::binary);
   if (!file) throw SceneError(path + ": cannot open scene file");
-  const std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  std::ostringstream content;
+  content << file.rdbuf();
+  const std::string text = content.str();
+  *quotes = text.find('\'') != std::string::npos || text.find('"') != std::string::npos;
   SceneNode root;
   if (loader::readYamlSubset(text, &root)) return root;
   return sceneNodeFromYaml(loadSceneYaml(path));
@@ -113,10 +121,17 @@ YAML::Node yamlFromSceneNode(const SceneNode& node) {
 namespace {
 
 // Letters, digits and "_.+-": a plain scalar of these is written as it is.
-bool safeInFlow(char c) {
-  return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' ||
-         c == '.' || c == '+' || c == '-';
-}
+struct SafeInFlow {
+  bool safe[256] = {};
+  SafeInFlow() {
+    for (int c = 0; c < 256; ++c) {
+      safe[c] = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                c == '_' || c == '.' || c == '+' || c == '-';
+    }
+  }
+  bool operator()(char c) const { return safe[static_cast<unsigned char>(c)]; }
+};
+const SafeInFlow kSafeInFlow;
 
 void writeCollection(const SceneNode& node, std::string* out) {
   const bool map = node.isMap();
@@ -138,8 +153,9 @@ void writeCollection(const SceneNode& node, std::string* out) {
 void writeFlow(const SceneNode& node, std::string* out) {
   if (node.isMap() || node.isSequence()) return writeCollection(node, out);
   const std::string& text = node.text;
-  if (node.isPlainScalar() && !text.empty() && std::all_of(text.begin(), text.end(), safeInFlow)) {
-    *out += text;
+  const auto safe = [](char c) { return kSafeInFlow(c); };
+  if (node.isPlainScalar() && !text.empty() && std::all_of(text.begin(), text.end(), safe)) {
+    out->append(text);
     return;
   }
   YAML::Emitter emitter;

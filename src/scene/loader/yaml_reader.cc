@@ -9,6 +9,7 @@
 // caller parses the text with yaml-cpp, whose tree and messages are then the answer.
 #include "yaml_reader.h"
 
+#include <cstdint>
 #include <cstring>
 #include <utility>
 
@@ -18,6 +19,18 @@ namespace {
 
 // The reader gives up on the text (rare: yaml-cpp reads it instead).
 struct Unsupported {};
+
+// The characters a plain scalar's loop looks at twice: line feed, '#', ':', the flow
+// indicators, '?' and the bytes outside ASCII.
+struct PlainStops {
+  bool stop[256] = {};
+  PlainStops() {
+    for (const char c : std::string("\n#:[]{},?")) stop[static_cast<unsigned char>(c)] = true;
+    for (int c = 0x80; c < 0x100; ++c) stop[c] = true;
+  }
+  bool operator[](unsigned char c) const { return stop[c]; }
+};
+const PlainStops kPlainStop;
 
 bool isNullWord(const char* text, size_t size) {
   if (size == 1) return text[0] == '~';
@@ -44,13 +57,26 @@ class Reader {
   // their own), and no byte order mark.
   void checkCharacters() const {
     if (n_ >= 3 && static_cast<unsigned char>(s_[0]) == 0xef) throw Unsupported();
-    for (size_t i = 0; i < n_; ++i) {
+    constexpr uint64_t kOnes = 0x0101010101010101ULL, kHigh = 0x8080808080808080ULL;
+    size_t i = 0;
+    for (; i + 8 <= n_; i += 8) {  // eight bytes at a time: any below 0x20, or 0x7f?
+      uint64_t word;
+      std::memcpy(&word, s_ + i, 8);
+      const uint64_t del = word ^ (0x7f * kOnes);
+      if ((((word - 0x20 * kOnes) & ~word) | ((del - kOnes) & ~del)) & kHigh) checkBytes(i, i + 8);
+    }
+    checkBytes(i, n_);
+  }
+
+  static bool ascii(char c) { return static_cast<unsigned char>(c) < 0x80; }
+
+  // Bytes [from, to) one by one: line feeds are the only control characters taken.
+  void checkBytes(size_t from, size_t to) const {
+    for (size_t i = from; i < to; ++i) {
       const unsigned char c = static_cast<unsigned char>(s_[i]);
       if (c != '\n' && (c < 0x20 || c == 0x7f)) throw Unsupported();
     }
   }
-
-  static bool ascii(char c) { return static_cast<unsigned char>(c) < 0x80; }
 
   char at(size_t i) const { return i < n_ ? s_[i] : '\n'; }
   char peek() const { return at(pos_); }
@@ -114,7 +140,7 @@ class Reader {
   // A mapping or list starting at pos_, with room for a few items.
   void collection(SceneNode::Kind kind, SceneNode* node) const {
     node->kind = kind;
-    node->tag.assign(1, '?');
+    node->tag.push_back('?');
     node->line = line_;
     node->column = column();
     node->items.reserve(kind == SceneNode::Kind::kMap ? 16 : 2);
@@ -264,22 +290,25 @@ class Reader {
     const bool starts = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') ||
                         (c >= 'A' && c <= 'Z') || c == '.' || c == '_' || c == '+' || c == '/' ||
                         c == '~' || (c == '-' && !endsToken(at(pos_ + 1)) && at(pos_ + 1) != ',');
-    if (!starts || startsWith(pos_, "---") || startsWith(pos_, "...")) throw Unsupported();
+    if (!starts ||
+        ((c == '-' || c == '.') && (startsWith(pos_, "---") || startsWith(pos_, "...")))) {
+      throw Unsupported();
+    }
     const int line = line_, col = column();
     const size_t start = pos_;
     size_t end = pos_;  // past the last non-space character
     for (; pos_ < n_; ++pos_) {
-      const char d = peek();
-      if (d == '\n') break;
-      if (d == '#' && s_[pos_ - 1] == ' ') break;
-      if (d == ':') {
-        if (flow || endsToken(at(pos_ + 1))) break;
+      const char d = s_[pos_];
+      if (kPlainStop[static_cast<unsigned char>(d)]) {
+        if (d == '\n') break;
+        if (d == '#' && s_[pos_ - 1] == ' ') break;
+        if (d == ':' && (flow || endsToken(at(pos_ + 1)))) break;
+        if (d == '[' || d == ']' || d == '{' || d == '}' || d == ',') {
+          if (!flow) throw Unsupported();
+          break;
+        }
+        if (d == '?' || !ascii(d)) throw Unsupported();
       }
-      if (d == '[' || d == ']' || d == '{' || d == '}' || d == ',') {
-        if (!flow) throw Unsupported();
-        break;
-      }
-      if (!ascii(d) || d == '?') throw Unsupported();
       if (d != ' ') end = pos_ + 1;
     }
     if (key ? peek() != ':' : (peek() == ':' && !flow)) throw Unsupported();
@@ -287,7 +316,7 @@ class Reader {
     if (isNullWord(s_ + start, end - start)) return null(line, col, node);
     node->kind = SceneNode::Kind::kScalar;
     node->text.assign(s_ + start, end - start);
-    node->tag.assign(1, '?');
+    node->tag.push_back('?');
     node->line = line;
     node->column = col;
   }
@@ -312,7 +341,7 @@ class Reader {
       text += d;
     }
     node->kind = SceneNode::Kind::kScalar;
-    node->tag.assign(1, '!');
+    node->tag.push_back('!');
     node->line = line;
     node->column = col;
   }

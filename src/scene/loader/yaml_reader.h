@@ -13,5 +13,8 @@ namespace loader {
 // error), *out then unspecified.
 bool readYamlSubset(const std::string& text, SceneNode* out);
 
+// readSceneFile, and whether the file's text holds a quote character (' or ").
+SceneNode readSceneFile(const std::string& path, bool* quotes);
+
 }  // namespace loader
 }  // namespace threshing_sim
