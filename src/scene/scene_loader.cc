@@ -36,7 +36,8 @@ YAML::Node loadSceneYaml(const std::string& path) {
     throw SceneError(path + ": cannot open scene file");
   } catch (const YAML::ParserException& e) {
     throw SceneError(path + ":" + std::to_string(e.mark.line + 1) + ":" +
-                     std::to_string(e.mark.column + 1) + ": YAML syntax error: " + e.msg);
+                     std::to_string(e.mark.column + 1) +
+                     ": YAML syntax error: " + loader::syntaxError(e.msg));
   }
 }
 

@@ -89,6 +89,11 @@ std::string showOrDescribe(const SceneNode& node) {
   return node.isScalar() && quotableKey(node.text) ? show(node) : describe(node);
 }
 
+std::string syntaxError(const std::string& message) {
+  const std::string escape = "unknown escape character";
+  return message.compare(0, escape.size(), escape) == 0 ? escape : message;
+}
+
 std::string notAKeyName(const SceneNode& key) {
   return "expected a key name (letters, digits and _), found " + describe(key);
 }

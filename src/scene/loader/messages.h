@@ -33,6 +33,10 @@ std::string describe(const SceneNode& node);
 // The node as show() writes it when it is a quotable name, else described.
 std::string showOrDescribe(const SceneNode& node);
 
+// yaml-cpp's message of a syntax error without the text it quotes (an unknown escape's
+// character): the position says where.
+std::string syntaxError(const std::string& message);
+
 // The refusal of a key that is not a key name (described, not quoted).
 std::string notAKeyName(const SceneNode& key);
 

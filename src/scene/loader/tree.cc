@@ -40,6 +40,24 @@ SceneNode SceneNode::scalar(std::string text, std::string tag) {
   return node;
 }
 
+// A file whose text holds a control character (a zero byte, say) is no YAML text; it is refused
+// by its name and where, quoting none of it (a binary file named as a scene).
+void loader::refuseBinary(const std::string& path, const std::string& text) {
+  int line = 1;
+  size_t line_start = 0;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if (c == '\n') {
+      ++line;
+      line_start = i + 1;
+    } else if ((c < 0x20 && c != '\t' && c != '\r') || c == 0x7f) {
+      throw SceneError(path + ": not a YAML text file (a control character at line " +
+                       std::to_string(line) + ", column " + std::to_string(i - line_start + 1) +
+                       ")");
+    }
+  }
+}
+
 SceneNode parseSceneText(const std::string& text) {
   SceneNode root;
   if (loader::readYamlSubset(text, &root)) return root;
@@ -63,6 +81,7 @@ SceneNode loader::readSceneFile(const std::string& path, bool* quotes) {
   *quotes = text.find('\'') != std::string::npos || text.find('"') != std::string::npos;
   SceneNode root;
   if (loader::readYamlSubset(text, &root)) return root;
+  loader::refuseBinary(path, text);
   return sceneNodeFromYaml(loadSceneYaml(path));
 }
 

@@ -13,6 +13,10 @@ namespace loader {
 // error), *out then unspecified.
 bool readYamlSubset(const std::string& text, SceneNode* out);
 
+// Refuses a file text holding a control character (no YAML text: a binary file), naming the
+// file and where, quoting none of it. Throws SceneError.
+void refuseBinary(const std::string& path, const std::string& text);
+
 // readSceneFile, and whether the file's text holds a quote character (' or ").
 SceneNode readSceneFile(const std::string& path, bool* quotes);
 
