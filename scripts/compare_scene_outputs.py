@@ -35,7 +35,7 @@ WALL_TEXT = re.compile(rb" in [-+0-9.eE]+ ?[mun]?s of wall time")
 PROGRESS = re.compile(rb"^t=\S+ s  impacts=.*\n", re.M)  # paced by the wall clock
 
 
-def scenes(everything):
+def compared_runs(everything):
     """The runs compared: (name, scene, override files), paths relative to the repository."""
     found = [CONFIG / "default_scene.yaml"] + sorted(SCENE_DIR.glob("*.yaml"))
     if everything:
@@ -70,7 +70,7 @@ def write_outputs(binary, out, everything):
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     run(binary, ["--print-schema"], out, "print_schema")
-    for name, scene, set_files in scenes(everything):
+    for name, scene, set_files in compared_runs(everything):
         files = {"summary": out / (name + ".summary.json"), "outcomes": out / (name + ".outcomes.csv")}
         if is_feed(scene):
             files["feed-series"] = out / (name + ".feed_series.csv")
