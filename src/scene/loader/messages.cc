@@ -27,6 +27,20 @@ size_t editDistance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
+// The known key closest to key, when it is close enough to be a misspelling of it.
+const std::string* closestKey(const std::string& key, const std::vector<std::string>& known) {
+  const std::string* best = nullptr;
+  size_t best_distance = std::numeric_limits<size_t>::max();
+  for (const std::string& candidate : known) {
+    const size_t d = editDistance(key, candidate);
+    if (d < best_distance) {
+      best_distance = d;
+      best = &candidate;
+    }
+  }
+  return best_distance <= std::max<size_t>(2, key.size() / 3) ? best : nullptr;
+}
+
 }  // namespace
 
 // Joins a parent path and a key ("" is the top level).
@@ -94,8 +108,10 @@ std::string syntaxError(const std::string& message) {
   return message.compare(0, escape.size(), escape) == 0 ? escape : message;
 }
 
-std::string notAKeyName(const SceneNode& key) {
-  return "expected a key name (letters, digits and _), found " + describe(key);
+std::string notAKeyName(const SceneNode& key, const std::vector<std::string>& known) {
+  const std::string* best = key.isScalar() ? closestKey(key.text, known) : nullptr;
+  return "expected a key name (letters, digits and _), found " + describe(key) +
+         (best != nullptr ? " (did you mean '" + *best + "'?)" : "");
 }
 
 // A computed number or vector for a message.
@@ -115,19 +131,9 @@ std::string joinWords(const std::vector<std::string>& words) {
 // "unknown key (did you mean 'length'?)", or the list of known keys when nothing is close.
 std::string unknownKey(const std::string& key, const std::vector<std::string>& known,
                        const std::string& owner) {
-  std::string what = "unknown key" + (owner.empty() ? "" : " for " + owner);
-  const std::string* best = nullptr;
-  size_t best_distance = std::numeric_limits<size_t>::max();
-  for (const std::string& candidate : known) {
-    const size_t d = editDistance(key, candidate);
-    if (d < best_distance) {
-      best_distance = d;
-      best = &candidate;
-    }
-  }
-  if (best != nullptr && best_distance <= std::max<size_t>(2, key.size() / 3)) {
-    return what + " (did you mean '" + *best + "'?)";
-  }
+  const std::string what = "unknown key" + (owner.empty() ? "" : " for " + owner);
+  const std::string* best = closestKey(key, known);
+  if (best != nullptr) return what + " (did you mean '" + *best + "'?)";
   return what + " (known keys: " + joinWords(known) + ")";
 }
 

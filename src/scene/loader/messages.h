@@ -37,8 +37,9 @@ std::string showOrDescribe(const SceneNode& node);
 // character): the position says where.
 std::string syntaxError(const std::string& message);
 
-// The refusal of a key that is not a key name (described, not quoted).
-std::string notAKeyName(const SceneNode& key);
+// The refusal of a key that is not a key name (described, not quoted), with the known key it
+// may be a misspelling of.
+std::string notAKeyName(const SceneNode& key, const std::vector<std::string>& known);
 
 // A computed number or vector for a message.
 std::string show(double value);

@@ -11,7 +11,6 @@
 #include "messages.h"
 #include "schema.h"
 #include "threshing_sim/scene/scene_loader.h"
-#include "yaml_reader.h"
 
 namespace threshing_sim {
 namespace loader {
@@ -110,37 +109,77 @@ void applyAssignment(Tree* root, const std::string& assignment) {
   checkThenApply(root, a, parseValue<Tree>(a));
 }
 
-// Whether yaml-cpp's emitter writes the text as a plain scalar in flow style (then reading it
-// back gives tag "?"): letters, digits and "_.+-", not a null word nor a lone "-".
-bool emittedPlain(const std::string& text) {
-  if (text.empty() || text == "-" || text == "null" || text == "Null" || text == "NULL") {
-    return false;
+// Whether yaml-cpp's emitter writes the text quoted (then reading it back gives tag "!"),
+// inside a flow list or mapping (nested) or alone. Letters, digits and "_.+-" are written
+// plain but for the null words and a lone "-"; other texts are asked of the emitter.
+bool emittedQuoted(const std::string& text, bool nested) {
+  static const struct Safe {
+    bool safe[256] = {};
+    Safe() {
+      for (int c = 0; c < 256; ++c) {
+        safe[c] = (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                  c == '_' || c == '.' || c == '+' || c == '-';
+      }
+    }
+  } kSafe;
+  bool safe = !text.empty();
+  for (const char c : text) safe = safe && kSafe.safe[static_cast<unsigned char>(c)];
+  if (safe) {
+    return (text.size() == 1 && text[0] == '-') ||
+           (text.size() == 4 && (text == "null" || text == "Null" || text == "NULL"));
   }
-  return std::all_of(text.begin(), text.end(), [](char c) {
-    return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' ||
-           c == '.' || c == '+' || c == '-';
-  });
+  YAML::Emitter out;
+  if (nested) {
+    out << YAML::Flow << YAML::BeginSeq << text << YAML::EndSeq;
+  } else {
+    out << text;
+  }
+  const char first = out.c_str()[nested ? 1 : 0];
+  return first == '"' || first == '\'';
 }
 
-// Whether a quoted scalar inside the collection would lose its quotes when written out.
-bool hasQuotedPlain(const SceneNode& node) {
-  if (node.isScalar()) return node.tag == "!" && emittedPlain(node.text);
-  return std::any_of(node.items.begin(), node.items.end(), hasQuotedPlain);
+bool isTag(const std::string& tag, char c) { return tag.size() == 1 && tag[0] == c; }
+
+// The tag ('?' plain, '!' quoted) a scalar has after the round trip through text
+// (overridesFromFile's "key=value" read back by applyOverride), or 0 when it keeps its own (an
+// explicit tag): a nested scalar is quoted exactly when the emitter quotes it; a whole value
+// keeps its quotes (show writes them), and gains them when the emitter quotes it.
+char readBackTag(const SceneNode& scalar, bool nested) {
+  const bool quoted = isTag(scalar.tag, '!');
+  if (!quoted && !isTag(scalar.tag, '?')) return 0;
+  if (!nested && quoted) return '!';
+  return emittedQuoted(scalar.text, nested) ? '!' : '?';
 }
 
-// Drops the quotes hasQuotedPlain finds, in place.
-void unquotePlain(SceneNode* node) {
-  if (node->isScalar() && node->tag == "!" && emittedPlain(node->text)) node->tag = "?";
-  for (SceneNode& item : node->items) unquotePlain(&item);
+// Whether the round trip changes a tag in the value (mapping keys aside: only their text
+// counts).
+bool readBackChanges(const SceneNode& node, bool nested) {
+  if (node.isScalar()) {
+    const char tag = readBackTag(node, nested);
+    return tag != 0 && !isTag(node.tag, tag);
+  }
+  const size_t step = node.isMap() ? 2 : 1;
+  for (size_t i = node.isMap() ? 1 : 0; i < node.items.size(); i += step)
+    if (readBackChanges(node.items[i], true)) return true;
+  return false;
+}
+
+void readBack(SceneNode* node, bool nested) {
+  if (node->isScalar()) {
+    const char tag = readBackTag(*node, nested);
+    if (tag != 0) node->tag.assign(1, tag);
+  }
+  const size_t step = node->isMap() ? 2 : 1;
+  for (size_t i = node->isMap() ? 1 : 0; i < node->items.size(); i += step)
+    readBack(&node->items[i], true);
 }
 
 // An override file's value as it was when each entry went through its text (the value
-// written in flow style and read back): a quoted scalar inside a list or mapping is read back
-// plain when the emitter writes it without quotes. Copied only then.
+// written in flow style and read back); a copy only when that changes a tag.
 const SceneNode& asReadBack(const SceneNode& value, SceneNode* copy) {
-  if (value.isScalar() || !hasQuotedPlain(value)) return value;
+  if (!readBackChanges(value, false)) return value;
   *copy = value;
-  unquotePlain(copy);
+  readBack(copy, false);
   return *copy;
 }
 
@@ -148,7 +187,7 @@ const SceneNode& asReadBack(const SceneNode& value, SceneNode* copy) {
 
 OverrideFile readOverrideFile(const std::string& path) {
   OverrideFile file;
-  file.root = readSceneFile(path, &file.quotes);
+  file.root = readSceneFile(path);
   const SceneNode& root = file.root;
   if (!root.isMap()) {
     throw SceneError(path + ": expected a mapping of key paths to values (got " +
@@ -168,14 +207,10 @@ void applyOverrideEntries(SceneNode* root, OverrideFile file) {
   std::vector<SceneNode>& items = file.root.items;
   for (size_t i = 0; i + 1 < items.size(); i += 2) {
     SceneNode& value = items[i + 1];
-    const Assignment a(trim(items[i].text), &value);
-    if (!file.quotes) {
-      checkThenApply(root, a, value, &value);
-      continue;
-    }
     SceneNode copy;
     const SceneNode& read_back = asReadBack(value, &copy);
-    checkThenApply(root, a, read_back, &read_back == &copy ? &copy : &value);
+    checkThenApply(root, Assignment(trim(items[i].text), &value), read_back,
+                   &read_back == &copy ? &copy : &value);
   }
 }
 

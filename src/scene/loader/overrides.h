@@ -47,11 +47,9 @@ void checkThenApply(YAML::Node* root, const Assignment& a, const YAML::Node& val
 void checkThenApply(SceneNode* root, const Assignment& a, const SceneNode& value,
                     SceneNode* movable = nullptr);
 
-// An override file read: its mapping, and whether its text holds a quote character (else it
-// has no quoted scalar to read back plain).
+// An override file read: its mapping of key paths to values.
 struct OverrideFile {
   SceneNode root;
-  bool quotes = true;
 };
 
 // An override file's mapping of key paths to values; refuses a file that is no mapping and a

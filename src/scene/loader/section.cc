@@ -134,13 +134,6 @@ bool decodeInteger(const SceneNode& node, int* value) {
   return fastInt(node.text, value) || YAML::convert<int>::decode(YAML::Node(node.text), *value);
 }
 
-double toNumber(const SceneNode& node, const std::string& path) {
-  double value = 0;
-  if (!decodeNumber(node, &value)) fail(path, "expected a number (got " + show(node) + ")");
-  if (!std::isfinite(value)) fail(path, "must be finite (got " + show(node) + ")");
-  return value;
-}
-
 Section::Section(const SceneNode& node, std::string path, const Children& keys,
                  const std::string& owner)
     : path_(std::move(path)), keys_(&keys) {
@@ -150,7 +143,8 @@ Section::Section(const SceneNode& node, std::string path, const Children& keys,
   for (size_t i = 0; i + 1 < node.items.size(); i += 2) {
     const SceneNode& key = node.items[i];
     const int index = key.isScalar() ? indexOf(key.text) : -1;
-    if (index < 0 && !(key.isScalar() && quotableKey(key.text))) fail(path_, notAKeyName(key));
+    if (index < 0 && !(key.isScalar() && quotableKey(key.text)))
+      fail(path_, notAKeyName(key, keys.keys));
     if (index < 0) fail(joinPath(path_, key.text), unknownKey(key.text, keys.keys, owner));
     if (values_[index] != nullptr) fail(joinPath(path_, key.text), "duplicate key");
     values_[index] = &node.items[i + 1];

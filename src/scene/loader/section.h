@@ -19,9 +19,6 @@ bool decodeNumber(const SceneNode& node, double* value);
 // An unquoted scalar that reads as an int, as yaml-cpp reads it.
 bool decodeInteger(const SceneNode& node, int* value);
 
-// A finite number; quoted strings, lists, .nan and .inf are refused.
-double toNumber(const SceneNode& node, const std::string& path);
-
 // A mapping read key by key; construction refuses unknown, duplicate and non-string keys. An
 // absent or null mapping reads as empty. The values are found once, at construction, by their
 // place among the known keys. The tree must outlive the section.

@@ -65,11 +65,6 @@ SceneNode parseSceneText(const std::string& text) {
 }
 
 SceneNode readSceneFile(const std::string& path) {
-  bool quotes = false;
-  return loader::readSceneFile(path, &quotes);
-}
-
-SceneNode loader::readSceneFile(const std::string& path, bool* quotes) {
   struct stat info;
   if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
     throw SceneError(path + ": is a directory, not a YAML file");
@@ -78,7 +73,6 @@ SceneNode loader::readSceneFile(const std::string& path, bool* quotes) {
   std::ostringstream content;
   content << file.rdbuf();
   const std::string text = content.str();
-  *quotes = text.find('\'') != std::string::npos || text.find('"') != std::string::npos;
   SceneNode root;
   if (loader::readYamlSubset(text, &root)) return root;
   loader::refuseBinary(path, text);

@@ -17,8 +17,5 @@ bool readYamlSubset(const std::string& text, SceneNode* out);
 // file and where, quoting none of it. Throws SceneError.
 void refuseBinary(const std::string& path, const std::string& text);
 
-// readSceneFile, and whether the file's text holds a quote character (' or ").
-SceneNode readSceneFile(const std::string& path, bool* quotes);
-
 }  // namespace loader
 }  // namespace threshing_sim
