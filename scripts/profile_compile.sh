@@ -24,5 +24,5 @@ for scene in "${scenes[@]}"; do
   ann=$(callgrind_annotate --inclusive=yes --threshold=100 "$out" 2>/dev/null)
   count() { echo "$ann" | grep -E "$1" | head -1 | awk '{gsub(",", "", $1); print $1}'; }
   echo "| $scene | $(count 'threshing_sim::compileModel\(') |" \
-    "$(count 'threshing_sim::loadScene\(') | $(count 'YAML::Load\(std::istream') |"
+    "$(count 'threshing_sim::loadScene(WithFiles)?\(') | $(count 'YAML::Load\(std::istream') |"
 done

@@ -1,6 +1,6 @@
-# Sourced by scripts/fuzz.sh and scripts/sanitize.sh: compiles the core, the scene loader,
-# simulate (main renamed simulate_main; its other parts are SAN_APP_OBJS) and the command-bag
-# reader once with clang 14, ASan, UBSan and libFuzzer's coverage instrumentation, into
+# Sourced by scripts/fuzz.sh and scripts/sanitize.sh: compiles the core, the scene loader
+# (src/scene and src/scene/loader), simulate (main renamed simulate_main; its other parts are
+# SAN_APP_OBJS) and the command-bag reader once with clang 14, ASan, UBSan and libFuzzer's coverage instrumentation, into
 # .build/san/obj (two at a time, only what changed). Sets SAN_CXX, SAN_FLAGS, SAN_OBJ
 # (directory), SAN_LIB_OBJS (core + scene) and SAN_APP_OBJS.
 SAN_CXX=clang++-14
@@ -23,7 +23,8 @@ done
 [ -d "$ROOT/.build/ws/devel/include/threshing_sim" ] || bash "$ROOT/scripts/setup.sh"
 san_stale() {  # object source [header]: true if the object must be rebuilt
   [ ! -f "$1" ] || [ -n "$(find "$2" ${3:+"$3"} -newer "$1")" ] ||
-    [ -n "$(find "$ROOT/include" "$ROOT/src/core" -name '*.h' -newer "$1" | head -1)" ]
+    [ -n "$(find "$ROOT/include" "$ROOT/src/core" "$ROOT/src/scene" -name '*.h' -newer "$1" |
+      head -1)" ]
 }
 san_jobs=()
 SAN_LIB_OBJS=()
@@ -36,12 +37,13 @@ if [ "$(cat "$SAN_OBJ/flags" 2>/dev/null)" != "${SAN_FLAGS[*]} | $SAN_CORE_FLAGS
   echo "${SAN_FLAGS[*]} | $SAN_CORE_FLAGS" > "$SAN_OBJ/flags"
 fi
 for src in "$ROOT"/src/core/*.cc "$ROOT"/src/core/*/*.cc "$ROOT"/src/scene/*.cc \
-  "$ROOT/src/ros/command_bag.cc"; do
-  # A file of a folder of src/core (contact/, event_driven/, time_stepping/, async/) is named
-  # with its folder (event_driven/step.cc and time_stepping/step.cc are two objects).
+  "$ROOT"/src/scene/*/*.cc "$ROOT/src/ros/command_bag.cc"; do
+  # A file of a folder of src/core (contact/, event_driven/, time_stepping/, async/) or of
+  # src/scene (loader/) is named with its folder (event_driven/step.cc and
+  # time_stepping/step.cc are two objects).
   rel="${src#"$ROOT"/src/}"
   case "$rel" in
-    core/*/*) obj="$SAN_OBJ/$(basename "$(dirname "$rel")")_$(basename "$src" .cc).o" ;;
+    */*/*) obj="$SAN_OBJ/$(basename "$(dirname "$rel")")_$(basename "$src" .cc).o" ;;
     *) obj="$SAN_OBJ/$(basename "$src" .cc).o" ;;
   esac
   extra=""

@@ -36,6 +36,7 @@ SECTIONS = {
     "sweep-overhead": "docs/sweeps.md",     # scripts/sweep_overhead.py --docs
     "contact-phase-accuracy": "docs/contact_phase.md",  # scripts/contact_phase_table.py --docs
     "contact-phase-cost": "docs/contact_phase.md",      # scripts/contact_phase_table.py --docs
+    "scene-loading": "docs/scene_loading.md",  # scripts/loading_profile.py --docs
 }
 
 

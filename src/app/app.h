@@ -3,8 +3,6 @@
 // many runs in one process (batch.cc, its JSON lines read by json.cc).
 #pragma once
 
-#include <yaml-cpp/yaml.h>
-
 #include <map>
 #include <ostream>
 #include <stdexcept>
@@ -15,6 +13,7 @@
 #include "threshing_sim/core/model.h"
 #include "threshing_sim/core/tooth_cache.h"
 #include "threshing_sim/scene/outcomes.h"
+#include "threshing_sim/scene/scene_tree.h"
 
 namespace threshing_sim {
 namespace app {
@@ -57,9 +56,6 @@ struct Options {
 // The command line (argv[0] is skipped). Throws UsageError.
 Options parseOptions(int argc, char** argv);
 
-// The overrides of a run: those of the override files first, then --set and the sugar options.
-std::vector<std::string> collectOverrides(const Options& options);
-
 // Where a run writes its outputs; a null stream is an output not asked for.
 struct RunStreams {
   std::ostream* summary = nullptr;
@@ -88,11 +84,11 @@ int runFeedToFiles(Model model, const FeedSpec& feed, const DamageThresholds& da
 
 // Scene trees with their override files applied, by scene and file paths: one parse for all
 // the runs that share them.
-using TreeCache = std::map<std::string, YAML::Node>;
+using TreeCache = std::map<std::string, SceneNode>;
 
 // The scene's tree with its override files applied (from the cache when given; a copy).
 // Throws SceneError.
-YAML::Node sceneWithFiles(const Options& options, TreeCache* cache);
+SceneNode sceneWithFiles(const Options& options, TreeCache* cache);
 
 // Base scenes (a scene with its override files applied) as one line of flow-style YAML, by the
 // TreeCache's key.

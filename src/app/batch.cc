@@ -55,6 +55,7 @@
 #include <vector>
 
 #include "app.h"
+#include "batch_line.h"
 #include "json.h"
 #include "threshing_sim/scene/scene_loader.h"
 
@@ -62,44 +63,7 @@ namespace threshing_sim {
 namespace app {
 namespace {
 
-// Scene trees kept at most (the cache is emptied when full: a sweep's runs come in order).
-constexpr size_t kMaxCachedTrees = 64;
-
-// Hashes of the inline scenes seen, kept at most (then forgotten).
-constexpr size_t kMaxSeenScenes = 4096;
-
-// Parsed scene trees (with their override files applied), the inline scenes seen once, and
-// the compiled teeth (the runs of a sweep share few teeth).
-struct SceneCache {
-  TreeCache trees;
-  std::unordered_set<size_t> seen;
-  ToothCache teeth;
-};
-
-// The scene path shown in messages for a line whose scene is "scene_yaml".
-const char kInlineScene[] = "(scene_yaml)";
-
-// The outputs a run can write, with the option that names their file.
-struct OutputKind {
-  const char* name;
-  std::string Options::*path;
-};
-const OutputKind kOutputs[] = {
-    {"summary", &Options::summary_path}, {"outcomes", &Options::outcomes_path},
-    {"events", &Options::events_path},   {"forces", &Options::forces_path},
-    {"trace", &Options::trace_path},
-};
-constexpr size_t kNumOutputs = sizeof(kOutputs) / sizeof(kOutputs[0]);
-
-// A line of the batch, read.
-struct BatchLine {
-  std::string id;
-  std::vector<std::string> args;
-  bool inline_scene = false;
-  std::string scene_yaml;
-  std::string scene_name = kInlineScene;  // the scene_yaml's name in messages
-  bool returned[kNumOutputs] = {true, true, false, false, false};
-};
+using Kind = JsonValue::Kind;
 
 // A run's result line, before it is written.
 struct Result {
@@ -110,157 +74,6 @@ struct Result {
   std::string outputs[kNumOutputs];
   bool returned[kNumOutputs] = {};
 };
-
-// ---------------------------------------------------------------------------------------------
-// The lines in.
-
-using Kind = JsonValue::Kind;
-
-std::vector<std::string> stringList(const JsonValue& value, const char* key) {
-  if (value.kind != Kind::kArray)
-    throw OptionError(std::string(key) + ": expected a list of strings (got " + showJson(value) +
-                      ")");
-  std::vector<std::string> items;
-  for (const JsonValue& item : value.items) {
-    if (item.kind != Kind::kString)
-      throw OptionError(std::string(key) + ": expected a string (got " + showJson(item) + ")");
-    items.push_back(item.text);
-  }
-  return items;
-}
-
-// "return": output names among kOutputs.
-void readReturned(const JsonValue& value, BatchLine* line) {
-  std::fill(std::begin(line->returned), std::end(line->returned), false);
-  for (const std::string& name : stringList(value, "return")) {
-    size_t k = 0;
-    while (k < kNumOutputs && name != kOutputs[k].name) ++k;
-    if (k == kNumOutputs)
-      throw OptionError("return: unknown output '" + name +
-                        "' (expected summary, outcomes, events, forces or trace)");
-    line->returned[k] = true;
-  }
-}
-
-// A line's id: a string or a number.
-void readId(const JsonValue& object, BatchLine* line) {
-  for (const auto& [key, value] : object.members) {
-    if (key != "id") continue;
-    if (value.kind != Kind::kString && value.kind != Kind::kNumber)
-      throw OptionError("id: expected a string or number (got " + showJson(value) + ")");
-    line->id = value.text;
-  }
-}
-
-// An input line as a JSON object; throws OptionError.
-JsonValue parseLine(const std::string& text) {
-  JsonValue object;
-  try {
-    object = parseJson(text);
-  } catch (const JsonError& e) {
-    throw OptionError(std::string("not a JSON line (") + e.what() + ")");
-  }
-  if (object.kind != Kind::kObject)
-    throw OptionError("expected a JSON object (got " + showJson(object) + ")");
-  return object;
-}
-
-// One run line into *line (its id first, for the error line); throws OptionError naming the
-// bad key or value.
-void readLine(const JsonValue& object, BatchLine* line) {
-  readId(object, line);
-  for (const auto& [key, value] : object.members) {
-    if (key == "args") {
-      line->args = stringList(value, "args");
-    } else if (key == "scene_yaml") {
-      if (value.kind != Kind::kString)
-        throw OptionError("scene_yaml: expected the scene's text (got " + showJson(value) + ")");
-      line->inline_scene = true;
-      line->scene_yaml = value.text;
-    } else if (key == "scene_name") {
-      if (value.kind != Kind::kString || value.text.empty())
-        throw OptionError("scene_name: expected a name (got " + showJson(value) + ")");
-      line->scene_name = value.text;
-    } else if (key == "return") {
-      readReturned(value, line);
-    } else if (key != "id") {
-      throw OptionError("unknown key '" + key +
-                        "' (expected id, args, scene_yaml, scene_name, return)");
-    }
-  }
-}
-
-// ---------------------------------------------------------------------------------------------
-// One run.
-
-// The line's options: simulate's command line, with the scene placeholder for "scene_yaml".
-Options lineOptions(const BatchLine& line) {
-  std::vector<std::string> args = {"simulate"};
-  if (line.inline_scene) args.push_back(line.scene_name);
-  args.insert(args.end(), line.args.begin(), line.args.end());
-  std::vector<char*> argv;
-  for (std::string& arg : args) argv.push_back(arg.data());
-  Options options = parseOptions(static_cast<int>(argv.size()), argv.data());
-  if (options.modes || options.check || options.help || options.print_schema ||
-      !options.check_batch_path.empty() || !options.batch_path.empty()) {
-    throw UsageError(
-        "--modes, --check, --check-batch, --batch, --help and --print-schema are not runs "
-        "(not allowed in a --batch line)");
-  }
-  options.quiet = true;  // stdout holds the result lines
-  return options;
-}
-
-// The scene's text parsed as loadSceneYaml parses a file.
-YAML::Node parseSceneText(const std::string& text, const std::string& name) {
-  try {
-    return YAML::Load(text);
-  } catch (const YAML::ParserException& e) {
-    throw SceneError(name + ":" + std::to_string(e.mark.line + 1) + ":" +
-                     std::to_string(e.mark.column + 1) + ": YAML syntax error: " + e.msg);
-  }
-}
-
-// The line's scene tree with its override files applied (parsed once per scene and files).
-// A scene text is kept from its second line on (a copy for the cache costs a tenth of a short
-// run, wasted on a resolved scene that no other line carries), or from its first when the line
-// has --set values: then it is a base scene, which the runner sends for many runs.
-YAML::Node baseTree(const BatchLine& line, const Options& options, SceneCache* cache) {
-  if (cache->trees.size() >= kMaxCachedTrees) cache->trees.clear();
-  if (cache->seen.size() >= kMaxSeenScenes) cache->seen.clear();
-  if (!line.inline_scene) return sceneWithFiles(options, &cache->trees);
-  std::string key = std::string(1, '\1') + line.scene_yaml;
-  for (const std::string& path : options.set_files) key += "\t" + path;
-  const auto found = cache->trees.find(key);
-  if (found != cache->trees.end()) return YAML::Clone(found->second);
-  YAML::Node root = parseSceneText(line.scene_yaml, line.scene_name);
-  if (root.IsMap()) {
-    for (const std::string& path : options.set_files) {
-      for (const std::string& assignment : overridesFromFile(path))
-        applyOverride(&root, assignment);
-    }
-  }
-  // A line with --set values names a base scene that other lines share (the runner's lines).
-  if (!options.overrides.empty() || !cache->seen.insert(std::hash<std::string>()(key)).second)
-    cache->trees[key] = YAML::Clone(root);
-  return root;
-}
-
-// The compiled model of the line (as loadScene builds it) and its damage thresholds.
-Model lineModel(const BatchLine& line, const Options& options, SceneCache* cache,
-                DamageThresholds* damage) {
-  YAML::Node root = baseTree(line, options, cache);
-  if (!root.IsMap())
-    throw SceneError(options.scene_path + ": expected a mapping of sections at the top level");
-  for (const std::string& assignment : options.overrides) applyOverride(&root, assignment);
-  try {
-    Model model = modelFromYaml(root, &cache->teeth);
-    *damage = damageFromYaml(root);
-    return model;
-  } catch (const SceneError& e) {
-    throw SceneError(options.scene_path + ": " + e.what());
-  }
-}
 
 // Writes an output that the line's arguments sent to a file as well.
 void writeFile(const std::string& path, const char* name, const std::string& text) {

@@ -8,20 +8,19 @@
 
 #include "app.h"
 #include "threshing_sim/scene/scene_loader.h"
+#include "threshing_sim/scene/scene_tree.h"
 
 namespace threshing_sim {
 namespace app {
 
 // The cache's key: the scene path and the file paths, tab-separated.
-YAML::Node sceneWithFiles(const Options& options, TreeCache* cache) {
+SceneNode sceneWithFiles(const Options& options, TreeCache* cache) {
   std::string key = options.scene_path;
   for (const std::string& path : options.set_files) key += "\t" + path;
-  if (cache != nullptr && cache->count(key) != 0) return YAML::Clone(cache->at(key));
-  YAML::Node root = loadSceneYaml(options.scene_path);
-  for (const std::string& path : options.set_files) {
-    for (const std::string& assignment : overridesFromFile(path)) applyOverride(&root, assignment);
-  }
-  if (cache != nullptr) (*cache)[key] = YAML::Clone(root);
+  if (cache != nullptr && cache->count(key) != 0) return cache->at(key);
+  SceneNode root = readSceneFile(options.scene_path);
+  for (const std::string& path : options.set_files) applyOverrideFile(&root, path);
+  if (cache != nullptr) (*cache)[key] = root;
   return root;
 }
 
@@ -30,72 +29,29 @@ namespace {
 // Base scene texts kept at most by --check-batch (the map is emptied when full).
 constexpr size_t kMaxBaseTexts = 64;
 
-// The tree as one line of flow-style YAML. Plain scalars made of safe characters are written
-// as they are (yaml-cpp's emitter checks every scalar: a large part of a check's time); any
-// other scalar goes through the emitter.
-void writeFlow(const YAML::Node& node, std::string* out) {
-  if (node.IsMap() || node.IsSequence()) {
-    *out += node.IsMap() ? "{" : "[";
-    bool first = true;
-    for (const auto& item : node) {
-      if (!first) *out += ", ";
-      first = false;
-      if (node.IsMap()) {
-        writeFlow(item.first, out);
-        *out += ": ";
-        writeFlow(item.second, out);
-      } else {
-        writeFlow(item, out);
-      }
-    }
-    *out += node.IsMap() ? "}" : "]";
-    return;
-  }
-  const std::string& text = node.IsScalar() ? node.Scalar() : std::string();
-  const bool plain = node.IsScalar() && node.Tag() != "!" && !text.empty() &&
-                     std::all_of(text.begin(), text.end(), [](char c) {
-                       return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' ||
-                              c == '+' || c == '-';
-                     });
-  if (plain) {
-    *out += text;
-    return;
-  }
-  YAML::Emitter emitter;
-  emitter << YAML::Flow << node;
-  std::string emitted = emitter.c_str();
-  std::replace(emitted.begin(), emitted.end(), '\n', ' ');
-  *out += emitted;
-}
-
 // Sets every contact restitution of the tree that is a number in [0, 1] to 1, for validation.
 // Compiling matches a Hunt-Crossley factor to each restitution (tens of ms, a function of the
 // restitution alone, whose only check is that range); with 1 it costs nothing, and every other
 // check runs on the real values. Others are kept for the loader to refuse. In place: a copy of
 // the tree costs as much as the rest of a check.
-void skipRestitutionFit(YAML::Node* root) {
-  // Looked up through const nodes: a non-const operator[] would add missing keys.
-  const YAML::Node& tree = *root;
-  const YAML::Node contact = tree.IsMap() ? tree["contact"] : YAML::Node();
-  if (!contact.IsMap()) return;
-  std::vector<std::string> laws;
-  for (const auto& pair : contact) {
-    const YAML::Node law = pair.second;
-    const YAML::Node e = law.IsMap() ? law["restitution"] : YAML::Node();
+void skipRestitutionFit(SceneNode* root) {
+  SceneNode* contact = root->find("contact");
+  if (contact == nullptr || !contact->isMap()) return;
+  for (size_t i = 1; i < contact->items.size(); i += 2) {
+    SceneNode* e = contact->items[i].find("restitution");
     double value = 0;
-    if (e.IsScalar() && e.Tag() != "!" && YAML::convert<double>::decode(e, value) && value >= 0.0 &&
-        value <= 1.0) {
-      laws.push_back(pair.first.Scalar());
+    if (e != nullptr && e->isPlainScalar() &&
+        YAML::convert<double>::decode(YAML::Node(e->text), value) && value >= 0.0 && value <= 1.0) {
+      *e = SceneNode::scalar("1");
     }
   }
-  for (const std::string& law : laws) (*root)["contact"][law]["restitution"] = 1.0;
 }
 
 }  // namespace
 
 std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* bases,
                           const std::string** base, ToothCache* teeth, bool compile) {
-  YAML::Node root = sceneWithFiles(options, cache);
+  SceneNode root = sceneWithFiles(options, cache);
   if (bases != nullptr && base != nullptr) {
     std::string key = options.scene_path;
     for (const std::string& path : options.set_files) key += "\t" + path;
@@ -115,8 +71,8 @@ std::string resolvedScene(const Options& options, TreeCache* cache, BaseTexts* b
   skipRestitutionFit(&root);
   try {
     FeedSpec feed;  // a feed is validated like the rest
-    modelFromYaml(root, teeth, &feed);
-    damageFromYaml(root);
+    modelFromTree(root, teeth, &feed);
+    damageFromTree(root);
   } catch (const SceneError& e) {
     throw SceneError(options.scene_path + ": " + e.what());
   }

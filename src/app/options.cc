@@ -150,16 +150,5 @@ Options parseOptions(int argc, char** argv) {
   return options;
 }
 
-// Override files first, so that --set wins over them.
-std::vector<std::string> collectOverrides(const Options& options) {
-  std::vector<std::string> overrides;
-  for (const std::string& path : options.set_files) {
-    const std::vector<std::string> from_file = overridesFromFile(path);
-    overrides.insert(overrides.end(), from_file.begin(), from_file.end());
-  }
-  overrides.insert(overrides.end(), options.overrides.begin(), options.overrides.end());
-  return overrides;
-}
-
 }  // namespace app
 }  // namespace threshing_sim

@@ -84,7 +84,8 @@ int dispatch(const app::Options& options) {
   }
   DamageThresholds damage;
   FeedSpec feed;
-  const Model model = loadScene(options.scene_path, app::collectOverrides(options), &damage, &feed);
+  const Model model =
+      loadSceneWithFiles(options.scene_path, options.set_files, options.overrides, &damage, &feed);
   if (options.modes) {
     printModes(model);
     return 0;

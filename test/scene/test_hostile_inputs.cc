@@ -11,6 +11,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -147,6 +148,56 @@ TEST(HostileCommandLine, DirectoriesAndEmptyScenesExitTwo) {
   EXPECT_NE(err.find("is a directory"), std::string::npos) << err;
   EXPECT_EQ(simulate("/dev/null --set duration=0.001", &err), 2);
   EXPECT_NE(err.find("expected a mapping"), std::string::npos) << err;
+}
+
+// A batch line naming a file that is not a scene (issue 35: /etc/shadow had its lines quoted
+// back into the sweep's logs): as the scene or as an override file, each line is a refusal
+// naming the file and saying why, quoting none of its content.
+TEST(HostileCommandLine, NonSceneFilesAreRefusedQuotingNone) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "hostile_not_scenes";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "shadow") << "root:*:20228:0:99999:7:::\n"
+                                << "secretuser:$6$saltsalt$hashhash:20228:0:99999:7:::\n";
+  std::ofstream(dir / "passwd") << "root:x:0:0:root:/root:/bin/bash\n"
+                                << "secretuser:x:1000:1000:Secret User:/home/secretuser:/bin/sh\n";
+  std::ofstream(dir / "prose.txt") << "secretuser wrote this text\nand not a scene\n";
+  const char binary[] =
+      "\x7f"
+      "ELF\x02\x01\x01\0\0\0secretuser\\q\"\xff\xfe:\x01";
+  std::ofstream(dir / "binary.dat", std::ios::binary).write(binary, sizeof(binary) - 1);
+  const std::vector<std::string> names = {"shadow", "passwd", "prose.txt", "binary.dat"};
+  const std::filesystem::path lines = dir / "lines.jsonl";
+  {
+    std::ofstream out(lines);
+    for (const std::string& name : names) {
+      const std::string path = (dir / name).string();
+      out << "{\"id\": \"" << name << "\", \"args\": [\"" << path << "\"]}\n";
+      out << "{\"id\": \"" << name << "_set\", \"args\": [\"" << kDefaultScene
+          << "\", \"--set-file\", \"" << path << "\"]}\n";
+    }
+  }
+  const std::filesystem::path answers = dir / "answers.jsonl";
+  const int rc = std::system((std::string(THRESHING_SIM_SIMULATE) + " --batch " + lines.string() +
+                              " > " + answers.string() + " 2> /dev/null")
+                                 .c_str());
+  EXPECT_EQ(WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, 2);
+  std::istringstream text(test::readFile(answers));
+  int n_lines = 0;
+  for (std::string line; std::getline(text, line); ++n_lines) {
+    EXPECT_NE(line.find("\"status\": \"error\""), std::string::npos) << line;
+    EXPECT_NE(line.find(dir.string() + "/"), std::string::npos) << "names no file: " << line;
+    for (const char* content : {"root", "20228", "secretuser", "Secret", "bin/", "ELF", "wrote",
+                                "saltsalt", "hashhash", "\\\\q"}) {
+      EXPECT_EQ(line.find(content), std::string::npos) << "quotes '" << content << "': " << line;
+    }
+  }
+  EXPECT_EQ(n_lines, 2 * static_cast<int>(names.size()));
+  // The loader itself: the same refusals from loadScene, naming the file.
+  for (const std::string& name : names) {
+    const std::string message = refusal({}, (dir / name).string());
+    EXPECT_NE(message.find((dir / name).string()), std::string::npos) << message;
+    EXPECT_EQ(message.find("secretuser"), std::string::npos) << message;
+  }
 }
 
 // A time step longer than the run simulates nothing: exit 1 and a status saying so (was 0, ok).

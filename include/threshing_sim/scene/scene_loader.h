@@ -58,6 +58,15 @@ DamageThresholds damageFromYaml(const YAML::Node& root);
 Model loadScene(const std::string& path, const std::vector<std::string>& overrides = {},
                 DamageThresholds* damage = nullptr, FeedSpec* feed = nullptr);
 
+// loadScene with override files: each file is read first (a bad override file is refused
+// before the scene file is read), and their entries apply in order (applyOverrideFile,
+// scene_tree.h) before the overrides: the model of loadScene(path, the files'
+// overridesFromFile followed by overrides), without writing the files' values out as text and
+// parsing them back.
+Model loadSceneWithFiles(const std::string& path, const std::vector<std::string>& override_files,
+                         const std::vector<std::string>& overrides, DamageThresholds* damage,
+                         FeedSpec* feed);
+
 // The schema as a Markdown table: every key path with its type, unit, default, accepted range
 // (each finite) or words, and meaning. `simulate --print-schema` prints it; docs/
 // scene_reference.md's key table is its output (scripts/scene_reference.sh).
