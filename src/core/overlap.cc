@@ -47,6 +47,27 @@ Ellipse kernelEllipseAt(const KernelModel& k, const Vec2& c_m, double psi_rad) {
 
 namespace {
 
+// Distance from p to the segment [a, b] [m].
+double pointSegmentDistance(const Vec2& p, const Vec2& a, const Vec2& b) {
+  const Vec2 ab = b - a;
+  const double len2 = ab.squaredNorm();
+  const double s = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+  return (p - (a + s * ab)).norm();
+}
+
+// A lower bound of obstacleDistance: the ellipse's bounding circle against the obstacle [m].
+double obstacleDistanceBound(const ObstacleModel& ob, const Ellipse& e) {
+  switch (ob.type) {
+    case ObstacleType::kPlane:
+      return ob.normal.dot(e.center - ob.point_m) - e.a_m;
+    case ObstacleType::kCircle:
+      return (e.center - ob.center_m).norm() - ob.radius_m - e.a_m;
+    case ObstacleType::kSegment:
+      return pointSegmentDistance(e.center, ob.point_m, ob.point_b_m) - ob.radius_m - e.a_m;
+  }
+  return -std::numeric_limits<double>::infinity();
+}
+
 double obstacleDistance(const ObstacleModel& ob, const Ellipse& e) {
   switch (ob.type) {
     case ObstacleType::kPlane:
@@ -93,8 +114,13 @@ Overlap firstOverlap(const Model& model, double theta_rad, const std::vector<Ell
 
 double clearanceFromFixedBodies(const Model& model, double theta_rad, const Ellipse& e,
                                 Overlap* nearest) {
+  // The nearest of the teeth, then the obstacles (the first of equals); a body whose bounding-
+  // circle bound says it is apart, by no less than the nearest so far, cannot be nearer and is
+  // not measured (the answer is the one measuring them all gives).
   double best_m = std::numeric_limits<double>::infinity();
-  const auto consider = [&](double d_m, PairKind kind, int index) {
+  const auto consider = [&](double bound_m, const auto& distance, PairKind kind, int index) {
+    if (bound_m > 0.0 && !(bound_m < best_m)) return;
+    const double d_m = distance();
     if (d_m < best_m) {
       best_m = d_m;
       nearest->other_kind = kind;
@@ -108,12 +134,18 @@ double clearanceFromFixedBodies(const Model& model, double theta_rad, const Elli
     const Vec2 axis_W(c * axis_D.x() - s * axis_D.y(), s * axis_D.x() + c * axis_D.y());
     const Vec2 root_W = model.drum.radius_m * axis_W;
     const Vec2 tip_W = root_W + tooth.length_m * axis_W;
-    consider(segmentEllipse(root_W, tip_W, e).distance_m - tooth.diameter_m / 2,
-             PairKind::kToothKernel, static_cast<int>(t));
+    const double r_m = tooth.diameter_m / 2;
+    consider(
+        pointSegmentDistance(e.center, root_W, tip_W) - e.a_m - r_m,
+        [&] { return segmentEllipse(root_W, tip_W, e).distance_m - r_m; }, PairKind::kToothKernel,
+        static_cast<int>(t));
   }
-  for (size_t o = 0; o < model.obstacles.size(); ++o)
-    consider(obstacleDistance(model.obstacles[o], e), PairKind::kKernelObstacle,
-             static_cast<int>(o));
+  for (size_t o = 0; o < model.obstacles.size(); ++o) {
+    const ObstacleModel& ob = model.obstacles[o];
+    consider(
+        obstacleDistanceBound(ob, e), [&] { return obstacleDistance(ob, e); },
+        PairKind::kKernelObstacle, static_cast<int>(o));
+  }
   return best_m;
 }
 
