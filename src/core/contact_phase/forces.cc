@@ -287,7 +287,11 @@ bool endForces(const Ctx& c, StepState* s) {
     const PairMemory& mem = candidateMemory(ws, i);
     cp.fn1[i] = cp.ft1[i] = 0.0;
     const bool active = isActive(mem);
-    if (!active && (g.far || g.gap_m >= 0.0 || g.vn > 0.0)) continue;
+    // A separated pair closes where its gap crosses zero over the step, approaching (as the
+    // adaptive step's gap event fires); one that overlaps at both ends was released by its
+    // damped force and stays open, without force, until its gap has opened (else it would close
+    // again at once: a new impact at every other step, more the smaller the step).
+    if (!active && (g.far || g.gap_m >= 0.0 || g.vn > 0.0 || cp.gap0_m[i] < 0.0)) continue;
     if (!active) {  // closed over the step: the approach speed at the crossing fixes the damping
       cp.opened[i] = 1;
       cp.t_open_s[i] = crossing(s->t0_s, s->h_s, cp.gap0_m[i], g.gap_m);
@@ -298,10 +302,13 @@ bool endForces(const Ctx& c, StepState* s) {
     const double K = active ? mem.hertz_K : g.hertz_K;
     const double v_in = active ? mem.v_in_mps : cp.v_in_mps[i];
     const double f = compliantNormalForceSigned(g, K, v_in, v_floor);
-    if (active && (g.far || g.gap_m > 0.0 || f <= 0.0)) {  // opened over the step
+    // A contact opens where its gap does; while the bodies overlap, a damped force that would
+    // pull is no force (the law's clamp) and the contact stays closed (opened at the clamp at a
+    // step end and closed again as soon as the bodies approach, a resting or pressed contact
+    // would count an impact at every other step, more the smaller the step).
+    if (active && (g.far || g.gap_m > 0.0)) {  // opened over the step
       cp.released[i] = 1;
-      cp.t_open_s[i] = g.gap_m > 0.0 ? crossing(s->t0_s, s->h_s, cp.gap0_m[i], g.gap_m)
-                                     : crossing(s->t0_s, s->h_s, cp.fn0[i], f);
+      cp.t_open_s[i] = crossing(s->t0_s, s->h_s, cp.gap0_m[i], g.gap_m);
       continue;
     }
     cp.fn1[i] = std::max(f, 0.0);
