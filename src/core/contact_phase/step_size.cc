@@ -62,6 +62,21 @@ double contactStep(const Ctx& c, const ContactGeom& g, PairMemory* mem) {
   return h;
 }
 
+// The step a separated compliant pair approaching at its normal velocity allows [s]: to its
+// touch at that speed, plus its impact's Hertz time over the count (inf: not approaching, or
+// not evaluated).
+double approachStep(const Ctx& c, const ContactGeom& g, const PairMemory& mem) {
+  const Model& m = c.m;
+  const double inf = std::numeric_limits<double>::infinity();
+  if (event_driven::isActive(mem) || g.far || !(g.gap_m > 0.0) || !(g.vn < 0.0) ||
+      g.params->law != ContactLaw::kCompliant || !(g.hertz_K > 0.0))
+    return inf;
+  const double m_eff = normalMass(m, g);
+  if (!std::isfinite(m_eff)) return inf;
+  const double v_mps = std::max(-g.vn, m.hc_min_impact_speed_mps);
+  return g.gap_m / -g.vn + hertzContactTime(m_eff, g.hertz_K, v_mps) / m.integrator.contact_steps;
+}
+
 }  // namespace
 
 double stepLength(const Ctx& c, double t_end_s, double v_bound_mps, double margin_m, bool* cut) {
@@ -73,9 +88,21 @@ double stepLength(const Ctx& c, double t_end_s, double v_bound_mps, double margi
     if (!event_driven::isActive(mem)) continue;
     h = std::min(h, contactStep(c, ws.geoms[i], &mem));
   }
+  // A separated pair approaching: the step ends at most one of its own impact's steps past its
+  // touch, so that its first step inside is no longer than its contact's steps (a fast kernel
+  // meeting a tooth during a slow pressed contact's long steps would else start its impact
+  // deep inside: a force spike).
+  bool approach = false;
+  for (size_t i = 0; i < ws.candidates.size(); ++i) {
+    const double h_touch = approachStep(c, ws.geoms[i], event_driven::candidateMemory(ws, i));
+    if (h_touch < h) {
+      h = h_touch;
+      approach = true;
+    }
+  }
   // Land on t_end: the last step, or two equal ones rather than a sliver.
   const double left = t_end_s - c.d.t_s;
-  *cut = left < 2.0 * h;
+  *cut = approach || left < 2.0 * h;
   if (left <= h) return left;
   if (left < 2.0 * h) return 0.5 * left;
   return h;
