@@ -1,12 +1,14 @@
 // Helpers shared by the rostests: a node's process id, whether a process has ended, a shell
-// command's exit status and output, subscriptions whose callbacks run under a test's lock, and
-// a bounded wait for a condition under that lock.
+// command's exit status and output, subscriptions whose callbacks run under a test's lock, a
+// bounded wait for a condition under that lock, and a roslaunch in the background.
 #pragma once
 
 #include <ros/master.h>
 #include <ros/network.h>
 #include <ros/ros.h>
+#include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 #include <xmlrpcpp/XmlRpc.h>
 
 #include <array>
@@ -81,6 +83,58 @@ ros::Subscriber listenUnder(ros::NodeHandle* nh, std::mutex& mutex, const std::s
                                 f(*m);
                               }));
 }
+
+// A roslaunch in the background (its output to log_path), in its own process group; one still
+// running when the test ends (a failed assertion) is interrupted.
+class Launch {
+ public:
+  Launch(const std::string& log_path, const std::string& args) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      setpgid(0, 0);
+      const std::string cmd = "exec roslaunch " + args + " > " + log_path + " 2>&1";
+      execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~Launch() {
+    if (running()) stop();
+  }
+  Launch(const Launch&) = delete;
+  Launch& operator=(const Launch&) = delete;
+  bool running() {
+    if (exited_) return false;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == 0) return true;
+    exited_ = true;
+    exit_status_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    return false;
+  }
+  // Exit status, or -1 if it had to be interrupted after timeout_s.
+  int wait(double timeout_s) {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+    while (running()) {
+      if (ros::WallTime::now() > end) {
+        stop();
+        return -1;
+      }
+      ros::WallDuration(0.05).sleep();
+    }
+    return exit_status_;
+  }
+
+ private:
+  // SIGINT to the whole group (roslaunch and its nodes), as Ctrl-C would.
+  void stop() {
+    kill(-pid_, SIGINT);
+    waitpid(pid_, nullptr, 0);
+    exited_ = true;
+  }
+
+  pid_t pid_ = -1;
+  bool exited_ = false;
+  int exit_status_ = -1;
+};
 
 }  // namespace test
 }  // namespace threshing_sim

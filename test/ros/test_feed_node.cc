@@ -39,6 +39,7 @@
 
 using threshing_sim::FeedRateCommand;
 using threshing_sim::FeedThroughput;
+using threshing_sim::test::Launch;
 using threshing_sim::test::listenUnder;
 using threshing_sim::test::run;
 using threshing_sim::test::waitUnder;
@@ -218,53 +219,7 @@ TEST(FeedNode, FeedCommandWithoutAFeedIsRefused) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// FeedRecord: a roslaunch in the background, in its own process group (SIGINT on timeout).
-
-class Launch {
- public:
-  explicit Launch(const std::string& args) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      setpgid(0, 0);
-      const std::string cmd = "exec roslaunch " + args + " > " + g_dir + "/roslaunch.log 2>&1";
-      execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  ~Launch() {
-    if (running()) stop();
-  }
-  bool running() {
-    if (exited_) return false;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) == 0) return true;
-    exited_ = true;
-    exit_status_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return false;
-  }
-  // Exit status, or -1 if it had to be interrupted after timeout_s.
-  int wait(double timeout_s) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-    while (running()) {
-      if (ros::WallTime::now() > end) {
-        stop();
-        return -1;
-      }
-      ros::WallDuration(0.05).sleep();
-    }
-    return exit_status_;
-  }
-
- private:
-  void stop() {
-    kill(-pid_, SIGINT);
-    waitpid(pid_, nullptr, 0);
-    exited_ = true;
-  }
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  int exit_status_ = -1;
-};
+// FeedRecord: feed and drum commands through a recording and its re-simulation.
 
 template <class M>
 std::vector<M> messages(const std::string& path, const std::string& topic) {
@@ -294,8 +249,9 @@ TEST(FeedRecord, FeedCommandsAreRecordedAndResimulatedBitForBit) {
   cmd.data = 90.0;
   drum.publish(cmd);
 
-  Launch launch("threshing_sim record.launch scene:=" + scene + " bag:=" + g_dir +
-                "/run.bag duration:=" + std::to_string(kRecorded_s));
+  Launch launch(g_dir + "/roslaunch.log", "threshing_sim record.launch scene:=" + scene +
+                                              " bag:=" + g_dir +
+                                              "/run.bag duration:=" + std::to_string(kRecorded_s));
   // Each time a feed command has been applied, the next one, while the run goes on: a stop, a
   // hostile value (refused, not recorded), a new rate.
   size_t sent = 1;
@@ -322,8 +278,8 @@ TEST(FeedRecord, FeedCommandsAreRecordedAndResimulatedBitForBit) {
   ASSERT_FALSE(
       messages<threshing_sim::DrumSpeedCommand>(run_bag, "/drum_speed_cmd_applied").empty());
 
-  Launch resim("threshing_sim resimulate.launch scene:=" + scene + " bag:=" + run_bag +
-               " out:=" + g_dir + "/resim.bag");
+  Launch resim(g_dir + "/roslaunch.log", "threshing_sim resimulate.launch scene:=" + scene +
+                                             " bag:=" + run_bag + " out:=" + g_dir + "/resim.bag");
   ASSERT_EQ(resim.wait(120), 0) << "resimulate.launch did not end by itself";
   const auto resim_commands =
       messages<FeedRateCommand>(g_dir + "/resim.bag", "/feed_rate_cmd_applied");

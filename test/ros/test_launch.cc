@@ -38,61 +38,12 @@
 #include "threshing_sim/ImpactEvent.h"
 #include "threshing_sim/KernelStateArray.h"
 
+using threshing_sim::test::Launch;
 using threshing_sim::test::run;
 
 namespace {
 
 std::string g_dir;  // scratch directory of this test run
-
-// A roslaunch in the background, in its own process group (SIGINT on timeout).
-class Launch {
- public:
-  explicit Launch(const std::string& args) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      setpgid(0, 0);
-      const std::string cmd = "exec roslaunch " + args + " > " + g_dir + "/roslaunch.log 2>&1";
-      execl("/bin/sh", "sh", "-c", cmd.c_str(), static_cast<char*>(nullptr));
-      _exit(127);
-    }
-  }
-  // A launch still running when the test ends (a failed assertion) is interrupted.
-  ~Launch() {
-    if (running()) stop();
-  }
-  bool running() {
-    if (exited_) return false;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) == 0) return true;
-    exited_ = true;
-    exit_status_ = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    return false;
-  }
-  // Exit status, or -1 if it had to be interrupted after timeout_s.
-  int wait(double timeout_s) {
-    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
-    while (running()) {
-      if (ros::WallTime::now() > end) {
-        stop();
-        return -1;
-      }
-      ros::WallDuration(0.05).sleep();
-    }
-    return exit_status_;
-  }
-
- private:
-  // SIGINT to the whole group (roslaunch and its nodes), as Ctrl-C would.
-  void stop() {
-    kill(-pid_, SIGINT);
-    waitpid(pid_, nullptr, 0);
-    exited_ = true;
-  }
-
-  pid_t pid_ = -1;
-  bool exited_ = false;
-  int exit_status_ = -1;
-};
 
 // Issue 24: a normal end of a launch is quiet. roslaunch printed a red "REQUIRED process
 // [...] has died!" at every normal end of record, replay and resimulate.
@@ -196,8 +147,9 @@ TEST(Launch, RecordsABoundedRun) {
   cmd.data = 60.0;
   pub.publish(cmd);
 
-  Launch launch("threshing_sim record.launch bag:=" + g_dir +
-                "/run.bag duration:=" + std::to_string(kRecordedRun_s));
+  Launch launch(g_dir + "/roslaunch.log",
+                "threshing_sim record.launch bag:=" + g_dir +
+                    "/run.bag duration:=" + std::to_string(kRecordedRun_s));
   // Each time a command has been applied, the next one, while the run goes on.
   long sent = 1;
   for (double speed : {100.0, 70.0}) {
@@ -279,8 +231,9 @@ TEST(Launch, ReplaysWithTheSameCounts) {
             last_clock = m->clock;
           })));
 
-  Launch launch("threshing_sim replay.launch rviz:=false wait_for_subscribers:=true bag:=" + g_dir +
-                "/run.bag");
+  Launch launch(g_dir + "/roslaunch.log",
+                "threshing_sim replay.launch rviz:=false wait_for_subscribers:=true bag:=" + g_dir +
+                    "/run.bag");
   ASSERT_EQ(launch.wait(60), 0) << "replay.launch did not end by itself";
   expectQuietEnd("replay.launch");
   ros::WallDuration(1.0).sleep();  // the last messages in flight
@@ -292,8 +245,8 @@ TEST(Launch, ReplaysWithTheSameCounts) {
 // resimulate.launch re-applies the recorded commands at their step boundaries: contact_state
 // and impact_events come out bit for bit the same.
 TEST(Launch, ResimulatesBitForBit) {
-  Launch launch("threshing_sim resimulate.launch bag:=" + g_dir + "/run.bag out:=" + g_dir +
-                "/resim.bag");
+  Launch launch(g_dir + "/roslaunch.log", "threshing_sim resimulate.launch bag:=" + g_dir +
+                                              "/run.bag out:=" + g_dir + "/resim.bag");
   ASSERT_EQ(launch.wait(60), 0) << "resimulate.launch did not end by itself";
   expectQuietEnd("resimulate.launch");
   const auto run_counts = countsByTopic(g_dir + "/run.bag");
